@@ -1,0 +1,55 @@
+"""The conventions every stamlane module shares, written once.
+
+Clips and frames
+    A clip is a tensor ``(B, T, C, H, W)`` (or one sample ``(T, C, H, W)``) with the KEY frame LAST,
+    index ``-1``; history frames come before it, oldest first. Image tensors are float32 in ``[0, 1]``;
+    the encoder standardises them itself. numpy images are ``(H, W, 3)`` uint8 BGR (OpenCV order).
+
+Points and lanes
+    A point is ``(x, y)`` float in ORIGINAL-image pixels (x right, y down, pixel centres at integers).
+    A lane is a ``(N, 2)`` float array of such points ordered by ``y`` descending or ascending as read;
+    an image's lanes are a ``list`` of lanes. Normalised coordinates never cross a module boundary.
+
+Transforms
+    A 3x3 matrix is named by the frames it maps between, target first: ``key_from_hist`` maps
+    history-frame pixels to key-frame pixels; ``net_from_orig`` maps original-image pixels to
+    network-input pixels (crop + scale); ``orig_from_net`` is its inverse.
+
+Samples (what a dataset returns, what the LightningModule consumes)
+    ``frames``        float32 ``(T, 3, H, W)`` in [0, 1], key frame last, history pre-aligned if asked.
+    ``binary``        int64 ``(H, W)``: 1 on lane pixels, 0 elsewhere, at the network resolution.
+    ``instance``      int64 ``(H, W)``: 0 background, lanes 1..n in left-to-right order.
+    ``key_from_hist`` float32 ``(T, 3, 3)``: the alignment applied to each frame (identity for the key).
+    ``lanes``         list of ``(N, 2)`` float arrays: the key frame's lanes in original pixels.
+    ``meta``          dict: ``raw_file`` (str, the benchmark's name of the key frame), ``orig_size``
+                      ``(W, H)``, ``net_from_orig`` (3x3 list), ``h_samples`` (list[int] or None),
+                      ``frame_paths`` (list[str]), ``format`` ("tusimple" | "culane" | "apollo" | "vil100").
+    A batch (see ``stamlane.data.collate_clips``) stacks the tensors and keeps ``lanes`` and ``meta``
+    as per-sample lists.
+"""
+
+from __future__ import annotations
+
+from typing import TypedDict
+
+import numpy as np
+
+__all__ = ["KEY_FRAME", "Lane", "Lanes", "SampleMeta"]
+
+KEY_FRAME = -1
+"""Index of the key frame along the time axis of every clip."""
+
+Lane = np.ndarray
+"""One lane: ``(N, 2)`` float array of ``(x, y)`` points in original-image pixels."""
+
+Lanes = list[Lane]
+"""All lanes of one image."""
+
+
+class SampleMeta(TypedDict, total=False):
+    raw_file: str
+    orig_size: tuple[int, int]
+    net_from_orig: list[list[float]]
+    h_samples: list[int] | None
+    frame_paths: list[str]
+    format: str
