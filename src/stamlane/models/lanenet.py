@@ -1,0 +1,105 @@
+"""The whole network: shared encoder on every frame -> fusion of the deepest stage -> two-branch decoder."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import torch
+from torch import Tensor, nn
+
+__all__ = ["LaneNet"]
+
+
+class LaneNet(nn.Module):
+    """Lane detector on a clip of pre-aligned frames, key frame last (paper Figure 1).
+
+    The encoder runs once on all ``B * T`` frames (frames folded into the batch); the fusion module fuses the
+    deepest stage over time; the decoder upsamples the fused features with skips from the KEY frame's
+    shallower stages.
+
+    Args:
+        encoder: per-frame encoder, ``(N, 3, H, W) -> list of stage features`` with an ``out_channels``
+            attribute (e.g. `stamlane.models.VGGEncoder`).
+        fusion: a factory called as ``fusion(encoder.out_channels[-1])`` — e.g. the class `STAM` or a
+            ``functools.partial`` / jsonargparse ``class_path`` without ``channels`` — or a built module.
+            Either way the result maps (B, T, C, h, w) -> (B, C, h, w).
+        decoder: a factory called as ``decoder(encoder.out_channels)`` (e.g. `LaneDecoder`) or a built module;
+            ``decoder(fused, key_skips) -> (logits, embedding)``.
+
+    For speed on CPUs with AMX: ``model.to(memory_format=torch.channels_last)`` (frames are converted to match
+    inside `encode`) and ``torch.autocast("cpu", dtype=torch.bfloat16)`` around the forward pass.
+    """
+
+    def __init__(
+        self,
+        encoder: nn.Module,
+        fusion: nn.Module | Callable[[int], nn.Module],
+        decoder: nn.Module | Callable[[Sequence[int]], nn.Module],
+    ) -> None:
+        super().__init__()
+        if not hasattr(encoder, "out_channels"):
+            raise TypeError(f"encoder must have an out_channels attribute, got {type(encoder).__name__}")
+        self.encoder = encoder
+        channels = list(encoder.out_channels)
+        self.fusion = fusion if isinstance(fusion, nn.Module) else fusion(channels[-1])
+        self.decoder = decoder if isinstance(decoder, nn.Module) else decoder(channels)
+
+    def _memory_format(self) -> torch.memory_format:
+        """channels_last when the encoder's first conv weight is (and is not also plain contiguous)."""
+        weight = next((m.weight for m in self.encoder.modules() if isinstance(m, nn.Conv2d)), None)
+        if (
+            weight is not None
+            and weight.is_contiguous(memory_format=torch.channels_last)
+            and not weight.is_contiguous()
+        ):
+            return torch.channels_last
+        return torch.contiguous_format
+
+    def encode(self, frames: Tensor) -> list[Tensor]:
+        """Run the shared encoder on independent frames.
+
+        Args:
+            frames: images, (N, 3, H, W) float in [0, 1] (N = B * T for a folded clip).
+
+        Returns:
+            per-stage features, shallow first, each (N, C_i, H / s_i, W / s_i).
+        """
+        if frames.ndim != 4:
+            raise ValueError(f"expected frames of shape (N, 3, H, W), got {tuple(frames.shape)}")
+        memory_format = self._memory_format()
+        if memory_format is torch.channels_last:
+            frames = frames.contiguous(memory_format=memory_format)
+        return self.encoder(frames)
+
+    def fuse_and_decode(self, last_stage_feats: Tensor, key_skips: Sequence[Tensor]) -> tuple[Tensor, Tensor]:
+        """Fuse the deepest stage over time and decode (the streaming half of `forward`).
+
+        Args:
+            last_stage_feats: deepest-stage features of every frame, (B, T, C, h, w); key frame last,
+                history aligned to it.
+            key_skips: the key frame's features of the shallower stages, shallow first, (B, C_i, h_i, w_i)
+                (the list `encode` returns for the key frame is accepted as is; its deepest entry is ignored).
+
+        Returns:
+            ``(logits (B, 2, H, W), embedding (B, E, H, W))`` at input resolution.
+        """
+        fused = self.fusion(last_stage_feats)
+        return self.decoder(fused, key_skips)
+
+    def forward(self, clip: Tensor) -> tuple[Tensor, Tensor]:
+        """Detect lanes in the key frame of each clip.
+
+        Args:
+            clip: frames, (B, T, 3, H, W) float in [0, 1], key frame last, history pre-aligned.
+
+        Returns:
+            ``(logits, embedding)``: lane / background logits (B, 2, H, W) (channel 1 = lane) and pixel
+            embeddings (B, E, H, W).
+        """
+        if clip.ndim != 5:
+            raise ValueError(f"expected a clip of shape (B, T, 3, H, W), got {tuple(clip.shape)}")
+        batch, num_frames = clip.shape[:2]
+        feats = self.encode(clip.flatten(0, 1))
+        last = feats[-1].unflatten(0, (batch, num_frames))
+        key_skips = [f.unflatten(0, (batch, num_frames))[:, -1] for f in feats[:-1]]
+        return self.fuse_and_decode(last, key_skips)
