@@ -1,0 +1,46 @@
+"""Clip datasets, targets, clip-consistent augmentation and the synthetic road-clip generator.
+
+Lightning is imported only by ``stamlane.data.datamodule`` (import ``ClipDataModule`` from there, or
+from here: it is loaded on first access), so the tools ``stamlane synth`` and ``stamlane show`` start fast.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from stamlane.data.alignment import ALIGN_MODES, ClipAligner
+from stamlane.data.clips import ApolloClips, ClipDataset, ClipEntry, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.collate import collate_clips
+from stamlane.data.labels import DataError
+from stamlane.data.synthetic import SynthConfig, generate_clip, generate_dataset
+from stamlane.data.targets import draw_lane_targets, left_to_right
+from stamlane.data.transforms import ClipParams, ClipTransform
+
+__all__ = [
+    "ALIGN_MODES",
+    "ApolloClips",
+    "CULaneClips",
+    "ClipAligner",
+    "ClipDataModule",
+    "ClipDataset",
+    "ClipEntry",
+    "ClipParams",
+    "ClipTransform",
+    "DataError",
+    "SynthConfig",
+    "TuSimpleClips",
+    "VIL100Clips",
+    "collate_clips",
+    "draw_lane_targets",
+    "generate_clip",
+    "generate_dataset",
+    "left_to_right",
+]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "ClipDataModule":
+        from stamlane.data.datamodule import ClipDataModule
+
+        return ClipDataModule
+    raise AttributeError(f"module 'stamlane.data' has no attribute {name!r}")

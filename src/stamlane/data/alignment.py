@@ -1,0 +1,142 @@
+"""Where a dataset gets each history frame's ``key_from_hist`` (original pixels) from.
+
+Modes:
+    ``"none"``  identity for every frame (fusion without alignment).
+    ``"fly"``   estimated now by ``stamlane.align.align_clip`` (the paper's pre-alignment) with
+                ``strategy`` ``"chain"`` (default: consecutive frames matched and multiplied) or
+                ``"direct"`` (each history frame against the key frame). On the synthetic clips (10 fps,
+                12-28 m/s) direct matching two or three frames back often returned a wrong homography
+                marked ok, the chain mostly within 1 px (see the README). Memoised per clip inside the
+                dataset object (alignment happens before augmentation, so it does not change per epoch).
+    ``"cache"`` read from ``stamlane align``'s cache (``stamlane.align.cache.load_alignment``); a frame
+                pair missing from the cache is estimated on the fly (with one warning per dataset).
+    ``"true"``  the synthetic generator's exact homographies (``<root>/homographies/<clip>.json``): an
+                oracle for experiments, only for synthetic sets.
+A failed estimate is the identity (``ok`` False), as ``stamlane.align`` returns it; the dataset never
+crashes on it.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from stamlane.data.labels import DataError
+
+__all__ = ["ALIGN_MODES", "ClipAligner"]
+
+ALIGN_MODES = ("none", "fly", "cache", "true")
+
+
+class ClipAligner:
+    """Compute ``key_from_hist`` (T, 3, 3) for a clip in one of ``ALIGN_MODES``.
+
+    Args:
+        mode: one of ``ALIGN_MODES``.
+        root: data root.
+        cache_dir: the alignment cache (mode ``"cache"``).
+        horizon_row: first ground row for on-the-fly estimation (None: ``stamlane.align``'s default).
+        strategy: ``"chain"`` or ``"direct"``, for on-the-fly estimation.
+    """
+
+    def __init__(
+        self,
+        mode: str,
+        root: Path,
+        cache_dir: str | Path | None = None,
+        horizon_row: int | None = None,
+        strategy: str = "chain",
+    ) -> None:
+        if mode not in ALIGN_MODES:
+            raise ValueError(f"align must be one of {ALIGN_MODES}, got {mode!r}")
+        if mode == "cache" and cache_dir is None:
+            raise ValueError("align='cache' needs cache_dir (the folder written by `stamlane align`)")
+        if strategy not in ("chain", "direct"):
+            raise ValueError(f"align strategy must be 'chain' or 'direct', got {strategy!r}")
+        self.mode = mode
+        self.strategy = strategy
+        self.root = Path(root)
+        self.cache_dir = Path(cache_dir) if cache_dir is not None else None
+        self.horizon_row = horizon_row
+        self._memo: dict[tuple[str, ...], tuple[np.ndarray, list[bool]]] = {}
+        self._true: dict[str, dict] = {}
+        self._warned_cache_miss = False
+        self.failures = 0
+
+    def __call__(self, frame_paths: list[str], frames: list[np.ndarray]) -> tuple[np.ndarray, list[bool]]:
+        """Alignment of every frame to the last one.
+
+        Args:
+            frame_paths: the frames' paths relative to the root, oldest first, key last.
+            frames: the BGR uint8 images (H, W, 3) in original size, same order.
+
+        Returns:
+            ``key_from_hist`` float64 (T, 3, 3) in original pixels (identity for the key frame) and
+            ``ok`` per frame (True for the key frame and for ``"none"``).
+        """
+        t = len(frames)
+        eye = np.repeat(np.eye(3)[None], t, axis=0)
+        if self.mode == "none" or t == 1:
+            return eye, [True] * t
+        key = tuple(frame_paths)
+        if key in self._memo:
+            return self._memo[key]
+        if self.mode == "true":
+            result = self._true_alignment(frame_paths)
+        else:
+            mats, oks = eye.copy(), [True] * t
+            cached = [self._cached(frame_paths[-1], p) for p in frame_paths[:-1]] if self.mode == "cache" else []
+            if self.mode == "fly" or any(al is None for al in cached):
+                estimated = self._estimate(frames)
+                cached = [c if c is not None else e for c, e in zip(cached, estimated)] if cached else estimated
+            for i, al in enumerate(cached):
+                mats[i], oks[i] = np.asarray(al.key_from_hist, dtype=np.float64), bool(al.ok)
+                self.failures += int(not al.ok)
+            result = (mats, oks)
+        self._memo[key] = result
+        return result
+
+    def _estimate(self, frames: list[np.ndarray]) -> list:  # -> list[stamlane.align.Alignment], T - 1
+        from stamlane.align import align_clip  # imported only when used
+
+        _, alignments = align_clip(frames, horizon_row=self.horizon_row, strategy=self.strategy)
+        return alignments[:-1]
+
+    def _cached(self, key_path: str, hist_path: str):  # -> Alignment | None
+        from stamlane.align.cache import load_alignment  # imported only when used
+
+        al = load_alignment(self.cache_dir, self.root, key_path, hist_path)
+        if al is None and not self._warned_cache_miss:
+            self._warned_cache_miss = True
+            warnings.warn(
+                f"alignment cache {self.cache_dir} has no entry for {hist_path} -> {key_path}; "
+                "estimating missing pairs on the fly (warned once)",
+                stacklevel=3,
+            )
+        return al
+
+    def _true_alignment(self, frame_paths: list[str]) -> tuple[np.ndarray, list[bool]]:
+        folder = PurePosixPath(frame_paths[-1]).parent
+        parts = folder.parts[1:] if folder.parts and folder.parts[0] == "clips" else folder.parts
+        path = self.root / "homographies" / (str(PurePosixPath(*parts)) + ".json")
+        if str(path) not in self._true:
+            try:
+                self._true[str(path)] = json.loads(path.read_text())
+            except (OSError, json.JSONDecodeError) as err:
+                raise DataError(
+                    f"align='true' needs the synthetic generator's homographies; cannot read {path}: {err}"
+                ) from err
+        geo = self._true[str(path)]
+        names = geo["frames"]
+        hom = [np.asarray(h, dtype=np.float64) for h in geo["image_from_ground"]]
+        try:
+            idx = [names.index(PurePosixPath(p).name) for p in frame_paths]
+        except ValueError as err:
+            raise DataError(f"{path}: frame of {frame_paths} not listed ({err})") from err
+        key = hom[idx[-1]]
+        mats = np.stack([key @ np.linalg.inv(hom[i]) for i in idx])
+        mats /= mats[:, 2:3, 2:3]
+        return mats, [True] * len(idx)

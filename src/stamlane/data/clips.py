@@ -1,0 +1,404 @@
+"""Clip datasets for the TuSimple, ApolloScape, CULane and VIL-100 layouts (METHOD.md section 6).
+
+Every dataset indexes its label/list files once, finds each key frame's history frames (by frame
+number, or by order within the folder), and returns samples as ``stamlane.types`` describes:
+``frames`` (T, 3, H, W) float32 RGB in [0, 1] key last (history pre-aligned when asked),
+``binary``/``instance`` (H, W) int64 at the network size, ``key_from_hist`` (T, 3, 3) float32 in
+ORIGINAL pixels, ``lanes`` (key frame, original pixels, sorted left to right) and ``meta``.
+
+Bad data (missing or unreadable frame, a path outside the root, malformed labels, mismatched lane
+lengths) raises ``DataError`` naming the file with ``on_error="raise"``; with ``on_error="skip"`` the
+entry is dropped at indexing time (or replaced by the next good sample when an image turns out
+unreadable at load time) with a warning. A sample is never silently wrong.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from stamlane.data.alignment import ClipAligner
+from stamlane.data.labels import (
+    DataError,
+    history_name,
+    read_culane_lines,
+    read_tusimple_labels,
+    read_vil100_json,
+    resolve_inside,
+    tusimple_lanes,
+)
+from stamlane.data.targets import draw_lane_targets, left_to_right
+from stamlane.data.transforms import ClipTransform
+
+__all__ = ["ApolloClips", "CULaneClips", "ClipDataset", "ClipEntry", "TuSimpleClips", "VIL100Clips"]
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+@dataclass
+class ClipEntry:
+    """One indexed sample: key frame name, frame paths (relative to the root, oldest first), labels."""
+
+    raw_file: str
+    frame_paths: list[str]
+    lanes: list[np.ndarray]
+    h_samples: list[int] | None
+    label_file: str
+
+
+class ClipDataset(Dataset):
+    """Shared machinery of the clip datasets; subclasses implement ``_index``.
+
+    Args:
+        root: data root; every path in label and list files is relative to it.
+        num_frames: frames per clip T (>= 1), key frame last.
+        stride: distance between consecutive clip frames, in frame numbers (``history="number"``) or
+            in positions within the folder (``history="sorted"``).
+        image_size: network input ``(H, W)``.
+        align: ``"none" | "fly" | "cache" | "true"`` (see ``stamlane.data.alignment``).
+        cache_dir: alignment cache folder for ``align="cache"``.
+        transform: resize/augmentation; default: plain resize to ``image_size``.
+        thickness: lane line width of the targets, network pixels.
+        on_error: ``"raise"`` or ``"skip"`` (warn and drop) on bad data.
+        history: ``"number"`` (previous frame numbers in the same folder) or ``"sorted"`` (previous
+            images in the folder's sorted listing).
+        repeat_missing_history: when a history frame does not exist, use the nearest later frame
+            instead of treating the clip as bad (for sets like CULane where earlier frames may lack).
+        require_labels: when False, a missing label file gives an unlabelled sample (prediction).
+        horizon_row: first ground row for on-the-fly alignment (None: ``stamlane.align`` default).
+        align_strategy: ``"chain"`` or ``"direct"`` for ``align="fly"`` (see ``stamlane.data.alignment``).
+    """
+
+    format = ""
+
+    def __init__(
+        self,
+        root: str | Path,
+        *,
+        num_frames: int = 4,
+        stride: int = 1,
+        image_size: tuple[int, int] = (128, 256),
+        align: str = "none",
+        cache_dir: str | Path | None = None,
+        transform: ClipTransform | None = None,
+        thickness: int = 3,
+        on_error: str = "raise",
+        history: str = "number",
+        repeat_missing_history: bool = False,
+        require_labels: bool = True,
+        horizon_row: int | None = None,
+        align_strategy: str = "chain",
+    ) -> None:
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise DataError(f"data root {self.root} is not a folder")
+        if num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {num_frames}")
+        if stride < 1:
+            raise ValueError(f"stride must be >= 1, got {stride}")
+        if on_error not in ("raise", "skip"):
+            raise ValueError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
+        if history not in ("number", "sorted"):
+            raise ValueError(f"history must be 'number' or 'sorted', got {history!r}")
+        if thickness < 1:
+            raise ValueError(f"thickness must be >= 1, got {thickness}")
+        self.num_frames, self.stride = int(num_frames), int(stride)
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+        self.transform = transform or ClipTransform(self.image_size)
+        if self.transform.image_size != self.image_size:
+            raise ValueError(f"transform.image_size {self.transform.image_size} != image_size {self.image_size}")
+        self.thickness = thickness
+        self.on_error = on_error
+        self.history = history
+        self.repeat_missing_history = repeat_missing_history
+        self.require_labels = require_labels
+        self.aligner = ClipAligner(align, self.root, cache_dir, horizon_row, align_strategy)
+        self._listing: dict[Path, list[str]] = {}
+        self.skipped: list[str] = []
+        self.entries: list[ClipEntry] = []
+        for item in self._index():
+            if isinstance(item, DataError):
+                self._bad(item)
+                continue
+            try:
+                self._check_frames(item)
+            except DataError as err:
+                self._bad(err)
+                continue
+            self.entries.append(item)
+
+    # --- subclass interface ---------------------------------------------------------------------------
+    def _index(self) -> list[ClipEntry | DataError]:
+        """Every sample of the label/list files, or a ``DataError`` for a bad one."""
+        raise NotImplementedError
+
+    # --- indexing helpers --------------------------------------------------------------------------------
+    def _bad(self, err: DataError) -> None:
+        if self.on_error == "raise":
+            raise err
+        self.skipped.append(str(err))
+        warnings.warn(f"skipped: {err}", stacklevel=3)
+
+    def _clip_paths(self, key_rel: str, source: str) -> list[str]:
+        """Frame paths of the clip ending at ``key_rel`` (relative to root), oldest first."""
+        key_path = resolve_inside(self.root, key_rel, source)
+        rel = key_path.relative_to(self.root.resolve()).as_posix()
+        paths = []
+        for k in range(self.num_frames - 1, 0, -1):
+            back = k * self.stride
+            if self.history == "number":
+                name = history_name(rel, back)
+            else:
+                listing = self._sorted_listing(key_path.parent)
+                pos = listing.index(key_path.name) if key_path.name in listing else -1
+                name = str(PurePosixPath(rel).with_name(listing[pos - back])) if pos - back >= 0 else None
+            paths.append(name)
+        paths.append(rel)
+        if self.repeat_missing_history:
+            for i in range(len(paths) - 2, -1, -1):
+                if paths[i] is None or not (self.root / paths[i]).is_file():
+                    paths[i] = paths[i + 1]
+        missing = [p for p in paths if p is None]
+        if missing:
+            raise DataError(f"{source}: {rel} has no history frame {self.stride * (self.num_frames - 1)} frames back")
+        return paths
+
+    def _sorted_listing(self, folder: Path) -> list[str]:
+        if folder not in self._listing:
+            self._listing[folder] = (
+                sorted(p.name for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+                if folder.is_dir()
+                else []
+            )
+        return self._listing[folder]
+
+    def _check_frames(self, entry: ClipEntry) -> None:
+        for p in entry.frame_paths:
+            if not (self.root / p).is_file():
+                raise DataError(f"{entry.label_file}: frame {self.root / p} is missing")
+
+    # --- samples --------------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def __getitem__(self, index: int) -> dict[str, Any]:
+        if not 0 <= index < len(self.entries):
+            raise IndexError(f"index {index} out of range for {len(self.entries)} samples")
+        for attempt in range(len(self.entries)):
+            entry = self.entries[(index + attempt) % len(self.entries)]
+            try:
+                return self.load(entry)
+            except DataError as err:
+                if self.on_error == "raise":
+                    raise
+                self.skipped.append(str(err))
+                warnings.warn(f"skipped: {err}; using the next sample", stacklevel=2)
+        raise DataError(f"no loadable sample in {self.root} (all {len(self.entries)} failed)")
+
+    def read_frames(self, entry: ClipEntry) -> list[np.ndarray]:
+        """The clip's BGR uint8 frames in original size; raises ``DataError`` on a missing/unreadable one."""
+        frames = []
+        for p in entry.frame_paths:
+            path = self.root / p
+            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if img is None:
+                raise DataError(f"{entry.label_file}: cannot read image {path} (missing or not an image)")
+            if frames and img.shape != frames[0].shape:
+                raise DataError(
+                    f"{entry.label_file}: {path} is {img.shape[1]}x{img.shape[0]}, other frames "
+                    f"{frames[0].shape[1]}x{frames[0].shape[0]}"
+                )
+            frames.append(img)
+        return frames
+
+    def load(self, entry: ClipEntry, rng: np.random.Generator | None = None) -> dict[str, Any]:
+        """Build the sample of one entry (see the module docstring); ``rng`` drives the augmentation."""
+        frames = self.read_frames(entry)
+        h0, w0 = frames[0].shape[:2]
+        key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
+        if rng is None:
+            rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
+        params = self.transform.draw((w0, h0), rng)
+        clip = self.transform.apply_frames(frames, key_from_hist, params)
+        lanes_net = ClipTransform.map_lanes(entry.lanes, params.net_from_orig)
+        binary, instance = draw_lane_targets(lanes_net, self.image_size, self.thickness, source=entry.label_file)
+        usable = [lane for lane in entry.lanes if len(lane) >= 2]
+        lanes = [usable[i].astype(np.float64) for i in left_to_right(usable)]
+        return {
+            "frames": torch.from_numpy(clip),
+            "binary": torch.from_numpy(binary),
+            "instance": torch.from_numpy(instance),
+            "key_from_hist": torch.from_numpy(key_from_hist.astype(np.float32)),
+            "lanes": lanes,
+            "meta": {
+                "raw_file": entry.raw_file,
+                "orig_size": (w0, h0),
+                "net_from_orig": params.net_from_orig.tolist(),
+                "h_samples": entry.h_samples,
+                "frame_paths": list(entry.frame_paths),
+                "format": self.format,
+            },
+        }
+
+
+def _image_token(line: str) -> str:
+    """The image path of a list-file line: tokens up to the first one with an image suffix (paths such as
+    ApolloScape's ``Camera 5/...`` contain spaces), else the first token."""
+    tokens = line.split()
+    for i, tok in enumerate(tokens):
+        if tok.lower().endswith(IMAGE_SUFFIXES):
+            return " ".join(tokens[: i + 1])
+    return tokens[0]
+
+
+class TuSimpleClips(ClipDataset):
+    """TuSimple: label json-lines (``raw_file`` = ``clips/<date>/<id>/20.jpg``, ``lanes``, ``h_samples``);
+    history frames by number in the same folder (T = 4, stride 1 gives frames 17..20).
+
+    Args:
+        root: data root.
+        labels: label files relative to the root (e.g. ``["label_data_0313.json"]``).
+        **kwargs: see ``ClipDataset``.
+    """
+
+    format = "tusimple"
+
+    def __init__(self, root: str | Path, labels: list[str] | str, **kwargs: Any) -> None:
+        self.labels = [labels] if isinstance(labels, str) else list(labels)
+        if not self.labels:
+            raise ValueError("labels must name at least one label file")
+        super().__init__(root, **kwargs)
+
+    def _index(self) -> list[ClipEntry | DataError]:
+        out: list[ClipEntry | DataError] = []
+        for name in self.labels:
+            path = resolve_inside(self.root, name, "labels")
+            for number, rec in read_tusimple_labels(path):
+                if isinstance(rec, DataError):
+                    out.append(rec)
+                    continue
+                source = f"{path}:{number}"
+                try:
+                    frames = self._clip_paths(rec["raw_file"], source)
+                except DataError as err:
+                    out.append(err)
+                    continue
+                out.append(ClipEntry(rec["raw_file"], frames, tusimple_lanes(rec), list(rec["h_samples"]), source))
+        return out
+
+
+class _ListClips(ClipDataset):
+    """Datasets indexed by list files of image paths (first token per line, relative to the root)."""
+
+    def __init__(self, root: str | Path, lists: list[str] | str, **kwargs: Any) -> None:
+        self.lists = [lists] if isinstance(lists, str) else list(lists)
+        if not self.lists:
+            raise ValueError("lists must name at least one list file")
+        super().__init__(root, **kwargs)
+
+    def _label_path(self, image_rel: str) -> Path:
+        raise NotImplementedError
+
+    def _read_lanes(self, path: Path) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    def _index(self) -> list[ClipEntry | DataError]:
+        out: list[ClipEntry | DataError] = []
+        for name in self.lists:
+            path = resolve_inside(self.root, name, "lists")
+            try:
+                lines = path.read_text().splitlines()
+            except OSError as err:
+                raise DataError(f"cannot read list file {path}: {err}") from err
+            for number, line in enumerate(lines, start=1):
+                if not line.strip():
+                    continue
+                source = f"{path}:{number}"
+                image_rel = _image_token(line)
+                try:
+                    frames = self._clip_paths(image_rel, source)
+                    label = self._label_path(frames[-1])
+                    if label.is_file() or self.require_labels:
+                        lanes = self._read_lanes(label)
+                    else:
+                        lanes = []
+                except DataError as err:
+                    out.append(DataError(f"{source}: {err}") if source not in str(err) else err)
+                    continue
+                out.append(ClipEntry(frames[-1], frames, lanes, None, str(label)))
+        return out
+
+
+class CULaneClips(_ListClips):
+    """CULane: list files of image paths (``/driver_xx/<video>.MP4/00030.jpg ...``), one ``.lines.txt``
+    beside each image (``00030.lines.txt``: one lane a line, ``x1 y1 x2 y2 ...``).
+
+    CULane keeps every 30th frame of its videos, so history frames come by name with ``stride=30`` where
+    they exist; use ``num_frames=1`` for the single-frame protocol, or ``repeat_missing_history=True``.
+    """
+
+    format = "culane"
+
+    def _label_path(self, image_rel: str) -> Path:
+        return (self.root / image_rel).with_suffix(".lines.txt")
+
+    def _read_lanes(self, path: Path) -> list[np.ndarray]:
+        return read_culane_lines(path)
+
+
+class ApolloClips(_ListClips):
+    """ApolloScape lane sequences with per-frame lane points in the CULane text form.
+
+    The paper's ApolloScape point labels were never published, so this loader reads the ApolloScape
+    image sequences (e.g. ``ColorImage_road02/ColorImage/Record001/Camera 5/<stamp>_Camera_5.jpg``)
+    with ``<frame>.lines.txt`` either beside each image or, with ``label_dir``, mirrored under
+    ``<root>/<label_dir>/<same relative path>``. History frames are the previous images in the
+    folder's sorted listing (``history="sorted"``; the frame names are timestamps).
+
+    Args:
+        root: data root.
+        lists: list files of key-frame image paths.
+        label_dir: folder (relative to root) that mirrors the image tree with ``.lines.txt`` files.
+        **kwargs: see ``ClipDataset``.
+    """
+
+    format = "apollo"
+
+    def __init__(self, root: str | Path, lists: list[str] | str, label_dir: str | None = None, **kwargs: Any) -> None:
+        self.label_dir = label_dir
+        kwargs.setdefault("history", "sorted")
+        super().__init__(root, lists, **kwargs)
+
+    def _label_path(self, image_rel: str) -> Path:
+        rel = PurePosixPath(image_rel).with_suffix(".lines.txt")
+        if self.label_dir:
+            return resolve_inside(self.root, str(PurePosixPath(self.label_dir) / rel), "label_dir")
+        return self.root / rel
+
+    def _read_lanes(self, path: Path) -> list[np.ndarray]:
+        return read_culane_lines(path)
+
+
+class VIL100Clips(_ListClips):
+    """VIL-100: ``JPEGImages/<video>/<frame>.jpg`` with ``Json/<video>/<frame>.jpg.json`` per frame (every
+    frame labelled, so a clip can end on any frame). List files name key frames (e.g. VIL-100's
+    ``data/train.txt``: ``/JPEGImages/<video>/00000.jpg ...``); history frames by number.
+    """
+
+    format = "vil100"
+
+    def _label_path(self, image_rel: str) -> Path:
+        parts = PurePosixPath(image_rel).parts
+        if not parts or parts[0] != "JPEGImages":
+            raise DataError(f"VIL-100 image path {image_rel!r} does not start with JPEGImages/")
+        return self.root / "Json" / PurePosixPath(*parts[1:]).with_name(parts[-1] + ".json")
+
+    def _read_lanes(self, path: Path) -> list[np.ndarray]:
+        return read_vil100_json(path)

@@ -1,0 +1,223 @@
+"""``ClipDataModule``: the clip datasets behind Lightning's fit/validate/test/predict."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from lightning import LightningDataModule
+from torch.utils.data import DataLoader
+
+from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.collate import collate_clips
+from stamlane.data.synthetic import FORMAT_VERSION, SynthConfig, generate_dataset
+from stamlane.data.transforms import ClipTransform
+
+__all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule"]
+
+DEFAULT_SYNTHETIC_ROOT = "data/synthetic"
+"""Where ``root=None`` points (relative to the working directory); generated there when missing."""
+
+FORMATS = ("tusimple", "culane", "apollo", "vil100")
+
+_DEFAULT_LABELS = {"train": ["train.json"], "val": ["val.json"], "test": ["test.json"], "predict": ["test.json"]}
+
+
+class ClipDataModule(LightningDataModule):
+    """Clips of T frames (key frame last) with key-frame targets, for every stage.
+
+    Args:
+        root: data root. ``None``: the synthetic set at ``data/synthetic``, generated when missing (with
+            a progress bar) from the ``synth_*`` options; the default label files are then
+            ``train.json``/``val.json``/``test.json`` (``predict`` uses ``test.json``).
+        format: ``"tusimple"`` (also the synthetic sets and custom data), ``"culane"``, ``"apollo"``,
+            ``"vil100"``.
+        num_frames: frames per clip T (the paper: 4 on TuSimple, 2 on ApolloScape).
+        stride: distance between clip frames (frame numbers; 30 for CULane's stored frames).
+        image_size: network input ``(H, W)``.
+        align: ``"fly"`` (default: the paper's ORB pre-alignment, estimated per clip and memoised),
+            ``"cache"`` (``stamlane align`` output in ``cache_dir``), ``"none"`` (no alignment), or
+            ``"true"`` (the synthetic generator's exact homographies, an oracle for experiments).
+        cache_dir: alignment cache folder for ``align="cache"``.
+        batch_size: clips per batch.
+        num_workers: DataLoader worker processes.
+        train_labels, val_labels, test_labels, predict_labels: label files (TuSimple json-lines) or list
+            files (CULane, ApolloScape, VIL-100) per split, relative to ``root``.
+        thickness: lane width of the targets in network pixels.
+        on_error: ``"raise"`` or ``"skip"`` (warn and drop) on bad data.
+        crop_scale, flip_prob, brightness, contrast, saturation, hue: training augmentation, one draw per
+            clip (see ``ClipTransform``); validation/test/predict only resize.
+        label_dir: ApolloScape only: folder mirroring the images with ``.lines.txt`` labels.
+        repeat_missing_history: reuse the nearest later frame when a history frame does not exist.
+        horizon_row: first ground row for ``align="fly"`` (None: ``stamlane.align``'s default).
+        align_strategy: ``"chain"`` (default) or ``"direct"`` matching for ``align="fly"``.
+        synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
+        synth_seed: seed of a generated set.
+        synth_size: ``(W, H)`` frame size of a generated set.
+    """
+
+    def __init__(
+        self,
+        root: str | None = None,
+        format: str = "tusimple",
+        num_frames: int = 4,
+        stride: int = 1,
+        image_size: tuple[int, int] = (128, 256),
+        align: str = "fly",
+        cache_dir: str | None = None,
+        batch_size: int = 4,
+        num_workers: int = 0,
+        train_labels: list[str] | None = None,
+        val_labels: list[str] | None = None,
+        test_labels: list[str] | None = None,
+        predict_labels: list[str] | None = None,
+        thickness: int = 3,
+        on_error: str = "raise",
+        crop_scale: tuple[float, float] = (0.85, 1.0),
+        flip_prob: float = 0.5,
+        brightness: float = 0.2,
+        contrast: float = 0.2,
+        saturation: float = 0.2,
+        hue: float = 0.0,
+        label_dir: str | None = None,
+        repeat_missing_history: bool = False,
+        horizon_row: int | None = None,
+        align_strategy: str = "chain",
+        synth_train: int = 120,
+        synth_val: int = 20,
+        synth_test: int = 30,
+        synth_challenging: int = 30,
+        synth_seed: int = 0,
+        synth_size: tuple[int, int] = (640, 360),
+    ) -> None:
+        super().__init__()
+        if format not in FORMATS:
+            raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if num_workers < 0:
+            raise ValueError(f"num_workers must be >= 0, got {num_workers}")
+        if align_strategy not in ("chain", "direct"):
+            raise ValueError(f"align_strategy must be 'chain' or 'direct', got {align_strategy!r}")
+        self.save_hyperparameters()
+        self.synthetic = root is None
+        self.root = Path(root if root is not None else DEFAULT_SYNTHETIC_ROOT)
+        self.format = format
+        self.labels = {"train": train_labels, "val": val_labels, "test": test_labels, "predict": predict_labels}
+        self.datasets: dict[str, ClipDataset] = {}
+        # checked now, so a bad option fails at construction, not in the first epoch
+        self.train_transform = ClipTransform(
+            image_size,
+            crop_scale=crop_scale,
+            flip_prob=flip_prob,
+            brightness=brightness,
+            contrast=contrast,
+            saturation=saturation,
+            hue=hue,
+        )
+        self.eval_transform = ClipTransform(image_size)
+
+    def prepare_data(self) -> None:
+        """Generate the default synthetic set when ``root`` is None and it is missing.
+
+        An existing set is never overwritten; when it was made by another generator version or other
+        settings, a warning says so (delete the folder to regenerate).
+        """
+        if not self.synthetic:
+            return
+        hp = self.hparams
+        w, h = hp.synth_size
+        info_path = self.root / "dataset.json"
+        if info_path.is_file():
+            info = json.loads(info_path.read_text())
+            wanted = asdict(SynthConfig(width=int(w), height=int(h)))
+            if info.get("format_version") != FORMAT_VERSION or info.get("config") != json.loads(json.dumps(wanted)):
+                warnings.warn(
+                    f"the synthetic set in {self.root} was generated with other settings or another generator "
+                    f"version; using it as it is (delete the folder to regenerate)",
+                    stacklevel=2,
+                )
+            return
+        generate_dataset(
+            self.root,
+            train=hp.synth_train,
+            val=hp.synth_val,
+            test=hp.synth_test,
+            challenging=hp.synth_challenging,
+            seed=hp.synth_seed,
+            config=SynthConfig(width=int(w), height=int(h)),
+        )
+
+    def split_labels(self, split: str) -> list[str]:
+        """Label/list files of a split (the defaults apply to TuSimple-layout sets)."""
+        files = self.labels[split]
+        if files is None:
+            if self.format != "tusimple":
+                raise ValueError(f"{split}_labels must be given for format {self.format!r}")
+            files = _DEFAULT_LABELS[split]
+        return [files] if isinstance(files, str) else list(files)
+
+    def make_dataset(self, split: str) -> ClipDataset:
+        """Build the dataset of one split (``train`` augments; the others only resize)."""
+        hp = self.hparams
+        common: dict[str, Any] = {
+            "num_frames": hp.num_frames,
+            "stride": hp.stride,
+            "image_size": tuple(hp.image_size),
+            "align": hp.align,
+            "cache_dir": hp.cache_dir,
+            "transform": self.train_transform if split == "train" else self.eval_transform,
+            "thickness": hp.thickness,
+            "on_error": hp.on_error,
+            "repeat_missing_history": hp.repeat_missing_history,
+            "require_labels": split != "predict",
+            "horizon_row": hp.horizon_row,
+            "align_strategy": hp.align_strategy,
+        }
+        files = self.split_labels(split)
+        if self.format == "tusimple":
+            return TuSimpleClips(self.root, files, **common)
+        if self.format == "culane":
+            return CULaneClips(self.root, files, **common)
+        if self.format == "apollo":
+            return ApolloClips(self.root, files, label_dir=hp.label_dir, **common)
+        return VIL100Clips(self.root, files, **common)
+
+    def setup(self, stage: str | None = None) -> None:
+        wanted = {
+            "fit": ("train", "val"),
+            "validate": ("val",),
+            "test": ("test",),
+            "predict": ("predict",),
+            None: ("train", "val", "test"),
+        }.get(stage, ())
+        for split in wanted:
+            if split not in self.datasets:
+                self.datasets[split] = self.make_dataset(split)
+
+    def _loader(self, split: str) -> DataLoader:
+        if split not in self.datasets:
+            self.datasets[split] = self.make_dataset(split)
+        return DataLoader(
+            self.datasets[split],
+            batch_size=self.hparams.batch_size,
+            shuffle=split == "train",
+            num_workers=self.hparams.num_workers,
+            collate_fn=collate_clips,
+            persistent_workers=self.hparams.num_workers > 0,
+        )
+
+    def train_dataloader(self) -> DataLoader:
+        return self._loader("train")
+
+    def val_dataloader(self) -> DataLoader:
+        return self._loader("val")
+
+    def test_dataloader(self) -> DataLoader:
+        return self._loader("test")
+
+    def predict_dataloader(self) -> DataLoader:
+        return self._loader("predict")

@@ -1,0 +1,117 @@
+"""``stamlane show``: a picture grid of clips with their targets and lanes, for checking a conversion.
+
+Each row is one sample at the network size: its T frames (key last, as the network sees them, aligned
+when ``--align`` asks), then the key frame with the instance target tinted per lane and the labelled
+lanes (mapped from original pixels with ``net_from_orig``) drawn as dots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stamlane.data.alignment import ALIGN_MODES
+from stamlane.data.cli_parser import OneLineParser, parse_or_status
+from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.labels import DataError
+from stamlane.data.transforms import ClipTransform
+
+__all__ = ["main", "render_grid"]
+
+PALETTE = [(0, 0, 255), (0, 255, 0), (255, 0, 0), (0, 255, 255), (255, 0, 255), (255, 255, 0), (0, 128, 255)]
+
+
+def render_grid(dataset: ClipDataset, indices: list[int]) -> np.ndarray:
+    """BGR uint8 grid: one row per sample, T frames then the key frame with targets and lanes."""
+    rows = []
+    for i in indices:
+        s = dataset[i]
+        frames = (s["frames"].numpy().transpose(0, 2, 3, 1) * 255).round().astype(np.uint8)
+        tiles = [cv2.cvtColor(f, cv2.COLOR_RGB2BGR) for f in frames]
+        key = tiles[-1].copy()
+        inst = s["instance"].numpy()
+        for k in range(1, int(inst.max()) + 1):
+            key[inst == k] = PALETTE[(k - 1) % len(PALETTE)]
+        m = np.asarray(s["meta"]["net_from_orig"])
+        for lane in ClipTransform.map_lanes(s["lanes"], m):
+            for x, y in lane:
+                cv2.circle(key, (round(float(x)), round(float(y))), 2, (255, 255, 255), -1, lineType=cv2.LINE_AA)
+        tiles.append(key)
+        row = np.concatenate([np.pad(t, ((2, 2), (2, 2), (0, 0)), constant_values=40) for t in tiles], axis=1)
+        cv2.putText(
+            row, s["meta"]["raw_file"][-60:], (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA
+        )
+        rows.append(row)
+    return np.concatenate(rows, axis=0)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = OneLineParser(prog="stamlane show", description=__doc__.splitlines()[0])
+    p.add_argument("--root", required=True, help="data root")
+    p.add_argument("--labels", required=True, nargs="+", help="label (TuSimple) or list files, relative to root")
+    p.add_argument("--out", required=True, help="output image (.png or .jpg)")
+    p.add_argument("--n", type=int, default=8, help="samples to show (spread over the set)")
+    p.add_argument("--format", default="tusimple", choices=("tusimple", "culane", "apollo", "vil100"))
+    p.add_argument("--num-frames", type=int, default=4)
+    p.add_argument("--stride", type=int, default=1)
+    p.add_argument("--size", default="128x256", help="network size HxW (default 128x256)")
+    p.add_argument("--align", default="none", choices=ALIGN_MODES)
+    p.add_argument("--cache-dir", default=None)
+    p.add_argument("--label-dir", default=None, help="ApolloScape: folder mirroring the images with .lines.txt")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_or_status(_parser(), argv)
+    if isinstance(args, int):
+        return args
+    try:
+        h, w = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        print(f"stamlane show: --size must look like 128x256 (HxW), got {args.size!r}", file=sys.stderr)
+        return 2
+    if args.n < 1:
+        print(f"stamlane show: --n must be >= 1, got {args.n}", file=sys.stderr)
+        return 2
+    common = {
+        "num_frames": args.num_frames,
+        "stride": args.stride,
+        "image_size": (h, w),
+        "align": args.align,
+        "cache_dir": args.cache_dir,
+    }
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if args.format == "tusimple":
+                ds: ClipDataset = TuSimpleClips(args.root, args.labels, **common)
+            elif args.format == "culane":
+                ds = CULaneClips(args.root, args.labels, **common)
+            elif args.format == "apollo":
+                ds = ApolloClips(args.root, args.labels, label_dir=args.label_dir, **common)
+            else:
+                ds = VIL100Clips(args.root, args.labels, **common)
+        if len(ds) == 0:
+            print(f"stamlane show: no samples in {args.labels} under {args.root}", file=sys.stderr)
+            return 2
+        indices = sorted({int(i) for i in np.linspace(0, len(ds) - 1, min(args.n, len(ds)))})
+        grid = render_grid(ds, indices)
+    except (DataError, ValueError) as err:
+        print(f"stamlane show: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), grid):
+        print(f"stamlane show: cannot write {out} (unknown image extension?)", file=sys.stderr)
+        return 2
+    print(f"wrote {out} ({len(indices)} clips of {args.num_frames} frames)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

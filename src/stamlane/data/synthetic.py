@@ -1,0 +1,474 @@
+"""Synthetic road clips in the TuSimple layout, with the true inter-frame homographies.
+
+A flat road (``synth_road``) is seen by a pinhole camera (``synth_camera``) that drives along it with
+speed, lateral drift or a lane change, the matching yaw, curvature and pitch jitter; box vehicles
+(``synth_vehicles``) drive on the road at their own speeds, change lanes, occlude lane marks and cast
+moving shadows. The ground texture is rendered once per clip and each frame is one perspective warp of
+it, so the ground-plane homography of every frame is known exactly.
+
+What each effect tests (see the README):
+    * moving vehicles and their shadows hide paint in the key frame that an ALIGNED history frame shows
+      (the vehicle moved relative to the road) -> what pre-aligned fusion can recover;
+    * lateral drift, lane changes, yaw and curvature move the paint between UNALIGNED frames -> what
+      pre-alignment repairs (fusion without alignment sees lanes at the wrong place);
+    * dashes, worn paint and static shadows are static on the road -> aligned history frames do NOT fill
+      them (the paint is just as missing there); they test the single-frame detector.
+
+Layout written by ``generate_dataset`` (``<id>`` like ``train-0007``)::
+
+    <root>/clips/<id>/1.jpg .. <T>.jpg          frames, oldest first; the key frame is <T>.jpg
+    <root>/{train,val,test,challenging}.json    TuSimple label json-lines of each clip's last frame
+    <root>/frame_labels/<id>.json               TuSimple-style labels of EVERY frame (+ "occluded" flags)
+    <root>/homographies/<id>.json               true geometry: image_from_ground per frame, and
+                                                last_from_frame / next_from_frame (= key_from_hist)
+    <root>/dataset.json                         generator settings and statistics (written last)
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from stamlane.data.synth_camera import Camera, Pose
+from stamlane.data.synth_road import Road, render_texture, sample_road
+from stamlane.data.synth_vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
+
+__all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_dataset", "write_clip"]
+
+SPLITS = ("train", "val", "test", "challenging")
+FORMAT_VERSION = 1
+FAR_M = 120.0
+"""Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
+HAZE_PX = 0.04
+"""Height of the haze band under the horizon, as a fraction of the image height."""
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Settings of the generator; every field is a plain value so the config is saved with the data.
+
+    Distances in metres, angles in degrees, speeds in m/s.
+    """
+
+    width: int = 640
+    height: int = 360
+    num_frames: int = 20
+    fps: float = 10.0
+    hfov_deg: float = 60.0
+    horizon: float = 0.42
+    cam_height: float = 1.8
+    speed: tuple[float, float] = (12.0, 28.0)
+    lane_change_prob: float = 0.5
+    drift_amplitude: float = 0.4
+    yaw_jitter_deg: float = 0.5
+    pitch_jitter_deg: float = 0.25
+    curved_prob: float = 0.5
+    max_kappa: float = 1 / 350
+    occluder_prob: float = 0.85
+    vehicles: tuple[int, int] = (2, 5)
+    oncoming_prob: float = 0.6
+    truck_prob: float = 0.2
+    vehicle_lane_change_prob: float = 0.35
+    static_shadows: tuple[int, int] = (0, 5)
+    shadow_depth: float = 0.5
+    moving_shadow_depth: float = 0.6
+    worn_prob: float = 0.4
+    label_range: float = 80.0
+    h_step: int = 10
+    jpeg_quality: int = 92
+    ppm: float = 0.0
+    """Texture pixels per metre; 0 = ``16 * width / 640``."""
+
+    @classmethod
+    def challenging(cls, **overrides: object) -> SynthConfig:
+        """Heavy occlusion and shadow (the paper's Table 6 subset): more vehicles and trucks, darker shadows."""
+        base = cls(
+            occluder_prob=1.0,
+            vehicles=(4, 8),
+            truck_prob=0.35,
+            oncoming_prob=0.9,
+            vehicle_lane_change_prob=0.5,
+            static_shadows=(4, 10),
+            shadow_depth=0.7,
+            moving_shadow_depth=0.8,
+        )
+        return replace(base, **overrides)
+
+    def __post_init__(self) -> None:
+        if self.width < 64 or self.height < 48:
+            raise ValueError(f"frame size must be at least 64x48, got {self.width}x{self.height}")
+        if self.num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
+
+    @property
+    def texture_ppm(self) -> float:
+        return self.ppm if self.ppm > 0 else 16.0 * self.width / 640.0
+
+    def camera(self) -> Camera:
+        return Camera.for_size(self.width, self.height, self.hfov_deg, self.horizon)
+
+    def h_samples(self) -> list[int]:
+        """Label rows (TuSimple ``h_samples``): every ``h_step`` px from just below the labelled range's end."""
+        cam = self.camera()
+        top = cam.cy + cam.focal * self.cam_height / self.label_range
+        start = int(np.ceil(top / self.h_step) * self.h_step)
+        return list(range(start, self.height, self.h_step))
+
+
+@dataclass
+class SynthClip:
+    """One rendered clip, in memory.
+
+    Attributes:
+        frames: T BGR uint8 images (H, W, 3), oldest first.
+        labels: per frame, TuSimple ``lanes`` (list of x lists, -2 = absent) at ``h_samples``.
+        occluded: per frame, per lane, per h_sample: True where a vehicle hides the labelled point.
+        h_samples: label rows.
+        image_from_ground: per frame, (3, 3) homography ground (X, Z, 1) metres -> pixels (w = depth).
+        vehicle_masks: per frame, uint8 (H, W), 255 on vehicle pixels.
+    """
+
+    frames: list[np.ndarray]
+    labels: list[list[list[int]]]
+    occluded: list[list[list[bool]]]
+    h_samples: list[int]
+    image_from_ground: list[np.ndarray]
+    vehicle_masks: list[np.ndarray]
+
+    def key_from_hist(self, key: int, hist: int) -> np.ndarray:
+        """Exact ground-plane homography from frame ``hist`` pixels to frame ``key`` pixels (0-based), (3, 3)."""
+        h = self.image_from_ground[key] @ np.linalg.inv(self.image_from_ground[hist])
+        return h / h[2, 2]
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def _ego_poses(cfg: SynthConfig, rng: np.random.Generator, road: Road, ego_lane: int) -> tuple[list[Pose], np.ndarray]:
+    """Camera poses of the T frames and their ``(t, x, z)`` track."""
+    n = cfg.num_frames
+    t = np.arange(n) / cfg.fps
+    duration = t[-1] if n > 1 else 0.0
+    v0 = float(rng.uniform(*cfg.speed))
+    acc = float(rng.uniform(-1.0, 1.0))
+    z = v0 * t + acc * t**2 / 2
+    # lateral offset from the ego lane's centre: a lane change (or a weave on a one-lane road) + drift
+    lat = np.zeros(n)
+    lat_v = np.zeros(n)
+    if rng.random() < cfg.lane_change_prob:
+        n_lanes = len(road.marks) - 1
+        options = [d for d in (-1, 1) if 0 <= ego_lane + d < n_lanes]
+        shift = road.lane_width * float(rng.choice(options)) if options else float(rng.choice([-1.0, 1.0]))
+        dur = float(rng.uniform(1.2, 3.0))
+        t0 = float(rng.uniform(-0.6 * dur, max(duration - 0.3 * dur, -0.5 * dur)))
+        s = (t - t0) / dur
+        lat += shift * _smoothstep(s)
+        inside = (s > 0) & (s < 1)
+        lat_v += np.where(inside, shift * 6 * s * (1 - s) / dur, 0.0)
+    amp = float(rng.uniform(0.0, cfg.drift_amplitude))
+    period = float(rng.uniform(1.5, 4.0))
+    phase = float(rng.uniform(0, 2 * np.pi))
+    lat += amp * np.sin(2 * np.pi * t / period + phase)
+    lat_v += amp * 2 * np.pi / period * np.cos(2 * np.pi * t / period + phase)
+    speed = v0 + acc * t
+    yaw_j = np.radians(cfg.yaw_jitter_deg) * np.sin(
+        2 * np.pi * t / float(rng.uniform(0.8, 2.0)) + float(rng.uniform(0, 6.3))
+    )
+    yaw = np.arctan(road.slope(z)) + np.arctan2(lat_v, speed) + yaw_j
+    pitch0 = np.radians(float(rng.uniform(-0.5, 0.5)))
+    pitch = pitch0 + np.radians(cfg.pitch_jitter_deg) * rng.standard_normal(n)
+    x = road.centre(z) + lat
+    poses = [Pose(float(x[i]), float(z[i]), cfg.cam_height, float(yaw[i]), float(pitch[i])) for i in range(n)]
+    return poses, np.stack([t, x, z], axis=1)
+
+
+def _lane_labels(
+    cfg: SynthConfig, camera: Camera, road: Road, pose: Pose, image_from_ground: np.ndarray, h_samples: list[int]
+) -> list[list[int]]:
+    """TuSimple lanes (x per h_sample, -2 = absent) of every mark visible in a frame, left to right."""
+    rows = np.asarray(h_samples, dtype=np.float64)
+    z = pose.z + np.arange(1.0, cfg.label_range, 0.25)
+    lanes = []
+    for mark in road.marks:
+        g = road.mark_points(mark, z)
+        hom = np.c_[g, np.ones(len(g))] @ image_from_ground.T
+        front = hom[:, 2] > 1e-6
+        if front.sum() < 2:
+            continue
+        uv = hom[front, :2] / hom[front, 2:3]
+        order = np.argsort(uv[:, 1])
+        v_sorted, u_sorted = uv[order, 1], uv[order, 0]
+        xs = np.interp(rows, v_sorted, u_sorted)
+        ok = (rows >= v_sorted[0]) & (rows <= v_sorted[-1]) & (xs >= 0) & (xs <= cfg.width - 1)
+        lane = [round(float(x)) if k else -2 for x, k in zip(xs, ok)]
+        if sum(ok) >= 2:
+            lanes.append(lane)
+    return lanes
+
+
+def _sky(cfg: SynthConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    top = np.array([200, 150, 110], np.float32) * float(rng.uniform(0.8, 1.1))
+    bottom = np.array([225, 215, 205], np.float32) * float(rng.uniform(0.85, 1.05))
+    a = np.linspace(0, 1, cfg.height, dtype=np.float32)[:, None, None]
+    sky = np.broadcast_to(top * (1 - a) + bottom * a, (cfg.height, cfg.width, 3)).copy()
+    # a tree line near the horizon
+    ridge = cv2.resize(rng.random((1, max(cfg.width // 16, 2))).astype(np.float32), (cfg.width, 1))[0]
+    return np.clip(sky, 0, 255).astype(np.uint8), ridge
+
+
+def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
+    """Render one clip.
+
+    Args:
+        cfg: generator settings.
+        rng: random generator; the clip is a deterministic function of its state.
+
+    Returns:
+        the clip with labels of every frame and the true ``image_from_ground`` of every frame.
+    """
+    camera = cfg.camera()
+    duration = (cfg.num_frames - 1) / cfg.fps
+    z_far = cfg.speed[1] * 1.1 * duration + FAR_M
+    road, ego_lane = sample_road(
+        rng,
+        (-2.0, z_far),
+        cfg.texture_ppm,
+        curved_prob=cfg.curved_prob,
+        max_kappa=cfg.max_kappa,
+        worn_prob=cfg.worn_prob,
+    )
+    poses, track = _ego_poses(cfg, rng, road, ego_lane)
+    n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
+    texture = render_texture(road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth)
+    vehicles: list[Vehicle] = []
+    if rng.random() < cfg.occluder_prob:
+        count = int(rng.integers(cfg.vehicles[0], cfg.vehicles[1] + 1))
+        ego_speed = float((track[-1, 2] - track[0, 2]) / max(duration, 1e-6)) if cfg.num_frames > 1 else cfg.speed[0]
+        vehicles = sample_vehicles(
+            rng,
+            road,
+            ego_speed,
+            duration,
+            count=count,
+            ego_track=track,
+            lane_change_prob=cfg.vehicle_lane_change_prob,
+            truck_prob=cfg.truck_prob,
+            oncoming_prob=cfg.oncoming_prob,
+        )
+    sky, ridge = _sky(cfg, rng)
+    haze = tuple(float(c) for c in sky[-1, 0])
+    tex_from_ground = road.texture_from_ground()
+    ground_from_tex = np.linalg.inv(tex_from_ground)
+    h_samples = cfg.h_samples()
+    gains = 1.0 + 0.03 * rng.standard_normal(cfg.num_frames)
+
+    frames, labels, occluded, homs, masks = [], [], [], [], []
+    for i, pose in enumerate(poses):
+        t = float(track[i, 0])
+        img_from_ground = camera.image_from_ground(pose)
+        frame = cv2.warpPerspective(
+            texture,
+            img_from_ground @ ground_from_tex,
+            (cfg.width, cfg.height),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=haze,
+        )
+        horizon = camera.horizon_row(pose)
+        sky_rows = int(np.clip(np.ceil(horizon + 1), 0, cfg.height))
+        frame[:sky_rows] = sky[:sky_rows]
+        _haze(frame, sky_rows, haze)
+        _draw_ridge(frame, ridge, horizon, pose, camera)
+        if vehicles:
+            shade = np.zeros((cfg.height, cfg.width), np.uint8)
+            for v in vehicles:
+                for poly in shadow_polygons(v, road, t):
+                    pix = camera.project_polygon(pose, poly)
+                    if pix is not None:
+                        cv2.fillPoly(shade, [np.round(pix * 16).astype(np.int32)], 255, lineType=cv2.LINE_AA, shift=4)
+            shade = cv2.blur(shade, (5, 5))
+            factor = 1.0 - cfg.moving_shadow_depth * shade.astype(np.float32) / 255.0
+            frame = (frame * factor[..., None]).astype(np.uint8)
+        mask = np.zeros((cfg.height, cfg.width), np.uint8)
+        draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
+        frame = cv2.convertScaleAbs(frame, alpha=float(gains[i]))
+        lanes = _lane_labels(cfg, camera, road, pose, img_from_ground, h_samples)
+        occ = [[bool(x >= 0 and mask[y, x] > 0) for x, y in zip(lane, h_samples)] for lane in lanes]
+        frames.append(frame)
+        labels.append(lanes)
+        occluded.append(occ)
+        homs.append(img_from_ground)
+        masks.append(mask)
+    return SynthClip(frames, labels, occluded, h_samples, homs, masks)
+
+
+def _haze(frame: np.ndarray, first_row: int, colour: tuple[float, ...]) -> None:
+    """Fade the ground into ``colour`` over a band under the horizon (hides where the texture ends)."""
+    band = max(2, int(HAZE_PX * frame.shape[0]))
+    rows = frame[first_row : first_row + band].astype(np.float32)
+    a = np.linspace(1.0, 0.0, band, dtype=np.float32)[: len(rows), None, None]
+    frame[first_row : first_row + band] = (rows * (1 - a) + np.asarray(colour, np.float32) * a).astype(np.uint8)
+
+
+def _draw_ridge(frame: np.ndarray, ridge: np.ndarray, horizon: float, pose: Pose, camera: Camera) -> None:
+    """A dark tree line just above the horizon, shifting with yaw (not part of the ground plane)."""
+    height = frame.shape[0]
+    shift = round(camera.focal * float(pose.yaw)) % len(ridge)
+    tops = horizon - (2 + 0.04 * height * np.roll(ridge, -shift))
+    first = int(np.clip(np.floor(tops.min()), 0, height))
+    last = int(np.clip(np.floor(horizon) + 1, first, height))
+    if last <= first:
+        return
+    rows = np.arange(first, last, dtype=np.float64)[:, None]
+    sel = (rows >= tops[None, :]) & (rows <= horizon)
+    band = frame[first:last]
+    band[sel] = (band[sel] * 0.35).astype(np.uint8)
+
+
+def write_clip(clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92) -> dict:
+    """Write a clip's frames, per-frame labels and homographies under ``root``.
+
+    Returns:
+        the TuSimple label record of the key (last) frame: ``raw_file``, ``lanes``, ``h_samples``.
+    """
+    folder = root / "clips" / clip_id
+    folder.mkdir(parents=True, exist_ok=True)
+    names = [f"{i + 1}.jpg" for i in range(len(clip.frames))]
+    for name, frame in zip(names, clip.frames):
+        ok, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        if not ok:
+            raise OSError(f"could not encode {folder / name}")
+        (folder / name).write_bytes(buf.tobytes())
+    raw = [f"clips/{clip_id}/{name}" for name in names]
+    per_frame = [
+        {"raw_file": r, "lanes": lanes, "h_samples": clip.h_samples, "occluded": occ}
+        for r, lanes, occ in zip(raw, clip.labels, clip.occluded)
+    ]
+    (root / "frame_labels").mkdir(exist_ok=True)
+    (root / "frame_labels" / f"{clip_id}.json").write_text(json.dumps(per_frame))
+    last = len(clip.frames) - 1
+    geometry = {
+        "frames": names,
+        "image_from_ground": [h.tolist() for h in clip.image_from_ground],
+        "last_from_frame": [clip.key_from_hist(last, j).tolist() for j in range(len(names))],
+        "next_from_frame": [clip.key_from_hist(j + 1, j).tolist() for j in range(len(names) - 1)],
+    }
+    (root / "homographies").mkdir(exist_ok=True)
+    (root / "homographies" / f"{clip_id}.json").write_text(json.dumps(geometry))
+    return {"raw_file": raw[-1], "lanes": clip.labels[-1], "h_samples": clip.h_samples}
+
+
+def clip_statistics(clip: SynthClip, num_frames: int = 4, stride: int = 1) -> dict[str, float]:
+    """What a clip offers the fusion of its last ``num_frames`` frames.
+
+    Returns:
+        ``key_points``: labelled key-frame points; ``hidden``: of those hidden by a vehicle;
+        ``revealed``: hidden ones visible in at least one ground-aligned history frame;
+        ``unaligned_shift``: mean |x| difference (px) of a lane point between the oldest history frame
+        and the key frame without alignment (what pre-alignment repairs).
+    """
+    key = len(clip.frames) - 1
+    hist = [key - stride * k for k in range(1, num_frames) if key - stride * k >= 0]
+    h, w = clip.vehicle_masks[key].shape
+    hidden = revealed = points = 0
+    for lane, occ in zip(clip.labels[key], clip.occluded[key]):
+        for x, y, o in zip(lane, clip.h_samples, occ):
+            if x < 0:
+                continue
+            points += 1
+            if not o:
+                continue
+            hidden += 1
+            for j in hist:
+                p = np.linalg.inv(clip.key_from_hist(key, j)) @ np.array([x, y, 1.0])
+                u, v = p[:2] / p[2]
+                if 0 <= u < w and 0 <= v < h and clip.vehicle_masks[j][int(v), int(u)] == 0:
+                    revealed += 1
+                    break
+    shift, count = 0.0, 0
+    if hist:
+        old = hist[-1]
+        for lk in clip.labels[key]:
+            best = None
+            for lo in clip.labels[old]:
+                both = [(a, b) for a, b in zip(lk, lo) if a >= 0 and b >= 0]
+                if both:
+                    d = float(np.mean([abs(a - b) for a, b in both]))
+                    best = d if best is None else min(best, d)
+            if best is not None:
+                shift += best
+                count += 1
+    return {"key_points": points, "hidden": hidden, "revealed": revealed, "unaligned_shift": shift / max(count, 1)}
+
+
+def generate_dataset(
+    root: str | Path,
+    *,
+    train: int = 80,
+    val: int = 10,
+    test: int = 10,
+    challenging: int = 10,
+    seed: int = 0,
+    config: SynthConfig | None = None,
+    progress: bool = True,
+) -> dict:
+    """Write a synthetic clip set (layout in the module docstring).
+
+    Args:
+        root: output folder (created; existing clips of the same ids are overwritten).
+        train, val, test: clips per split with the normal settings.
+        challenging: clips of the challenging split (``SynthConfig.challenging`` with the same size).
+        seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
+        config: settings of the normal splits (default ``SynthConfig()``).
+        progress: show a tqdm progress bar.
+
+    Returns:
+        the content of ``dataset.json``: settings, counts and statistics per split.
+    """
+    root = Path(root)
+    cfg = config or SynthConfig()
+    hard = SynthConfig.challenging(width=cfg.width, height=cfg.height, num_frames=cfg.num_frames, fps=cfg.fps)
+    counts = {"train": train, "val": val, "test": test, "challenging": challenging}
+    for name, n in counts.items():
+        if n < 0:
+            raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
+    root.mkdir(parents=True, exist_ok=True)
+    stats: dict[str, dict[str, float]] = {}
+    bar = tqdm(total=sum(counts.values()), desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
+    for code, split in enumerate(SPLITS):
+        split_cfg = hard if split == "challenging" else cfg
+        records, totals = [], {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
+        for i in range(counts[split]):
+            rng = np.random.default_rng([seed, code, i])
+            clip = generate_clip(split_cfg, rng)
+            records.append(write_clip(clip, root, f"{split}-{i:04d}", split_cfg.jpeg_quality))
+            for k, v in clip_statistics(clip).items():
+                totals[k] += v
+            bar.update(1)
+        (root / f"{split}.json").write_text("".join(json.dumps(r) + "\n" for r in records))
+        n = max(counts[split], 1)
+        stats[split] = {
+            "clips": counts[split],
+            "hidden_fraction": totals["hidden"] / max(totals["key_points"], 1),
+            "revealed_fraction_of_hidden": totals["revealed"] / max(totals["hidden"], 1),
+            "unaligned_shift_px": totals["unaligned_shift"] / n,
+        }
+    bar.close()
+    info = {
+        "generator": "stamlane.data.synthetic",
+        "format_version": FORMAT_VERSION,
+        "seed": seed,
+        "config": asdict(cfg),
+        "challenging_config": asdict(hard),
+        "splits": counts,
+        "statistics": stats,
+    }
+    (root / "dataset.json").write_text(json.dumps(info, indent=2))
+    return info

@@ -1,0 +1,171 @@
+"""Clip-consistent augmentation and resizing to the network size.
+
+One random draw per clip (crop/scale, horizontal flip, colour jitter) is applied to every frame and to
+the key frame's lanes alike. Geometry is one 3x3 matrix ``net_from_orig`` (original pixels -> network
+pixels, pixel centres at integers): crop and scale ``x_net = (x - x0 + 0.5) * W_net / w_crop - 0.5``,
+then the flip ``x_net -> W_net - 1 - x_net``. Each frame is warped ONCE with
+``net_from_orig @ key_from_hist[t]``: the pre-alignment (in original pixels) and the resize are composed,
+so a history frame is interpolated a single time. Lanes map with the same matrix, and back with its
+inverse, so network-pixel predictions return to original pixels without drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = ["ClipParams", "ClipTransform"]
+
+
+@dataclass(frozen=True)
+class ClipParams:
+    """The random draw of one clip: the geometry and the colour jitter."""
+
+    net_from_orig: np.ndarray
+    flip: bool
+    brightness: float = 1.0
+    contrast: float = 1.0
+    saturation: float = 1.0
+    hue: float = 0.0
+
+
+class ClipTransform:
+    """Resize (and optionally augment) a clip to the network size.
+
+    Args:
+        image_size: network input ``(H, W)``.
+        crop_scale: range of the crop side as a fraction of the original side (same for both axes, so the
+            aspect ratio is kept); ``(1, 1)`` = no crop.
+        flip_prob: probability of a horizontal flip.
+        brightness: brightness factor drawn from ``[1 - b, 1 + b]``.
+        contrast: contrast factor drawn from ``[1 - c, 1 + c]``.
+        saturation: saturation factor drawn from ``[1 - s, 1 + s]``.
+        hue: hue shift drawn from ``[-hue, hue]`` in fractions of a full turn (<= 0.5).
+    """
+
+    def __init__(
+        self,
+        image_size: tuple[int, int],
+        *,
+        crop_scale: tuple[float, float] = (1.0, 1.0),
+        flip_prob: float = 0.0,
+        brightness: float = 0.0,
+        contrast: float = 0.0,
+        saturation: float = 0.0,
+        hue: float = 0.0,
+    ) -> None:
+        if len(image_size) != 2 or min(image_size) < 8:
+            raise ValueError(f"image_size must be (H, W) with sides >= 8, got {image_size}")
+        lo, hi = crop_scale
+        if not 0 < lo <= hi <= 1:
+            raise ValueError(f"crop_scale must satisfy 0 < lo <= hi <= 1, got {crop_scale}")
+        if not 0 <= flip_prob <= 1:
+            raise ValueError(f"flip_prob must be in [0, 1], got {flip_prob}")
+        for name, v in (("brightness", brightness), ("contrast", contrast), ("saturation", saturation)):
+            if not 0 <= v < 1:
+                raise ValueError(f"{name} must be in [0, 1), got {v}")
+        if not 0 <= hue <= 0.5:
+            raise ValueError(f"hue must be in [0, 0.5], got {hue}")
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+        self.crop_scale = (float(lo), float(hi))
+        self.flip_prob = float(flip_prob)
+        self.brightness, self.contrast, self.saturation, self.hue = brightness, contrast, saturation, hue
+
+    @property
+    def augments(self) -> bool:
+        """Whether any random change is configured (else ``draw`` is deterministic)."""
+        return (
+            self.crop_scale != (1.0, 1.0)
+            or self.flip_prob > 0
+            or any(v > 0 for v in (self.brightness, self.contrast, self.saturation, self.hue))
+        )
+
+    def draw(self, orig_size: tuple[int, int], rng: np.random.Generator | None = None) -> ClipParams:
+        """Draw the parameters of one clip.
+
+        Args:
+            orig_size: original image ``(W, H)``.
+            rng: random generator (needed only when ``augments``).
+        """
+        w0, h0 = orig_size
+        net_h, net_w = self.image_size
+        rng = rng if rng is not None else np.random.default_rng(0)
+        frac = float(rng.uniform(*self.crop_scale)) if self.crop_scale != (1.0, 1.0) else 1.0
+        cw, ch = w0 * frac, h0 * frac
+        x0 = float(rng.uniform(0, w0 - cw)) if frac < 1 else 0.0
+        y0 = float(rng.uniform(0, h0 - ch)) if frac < 1 else 0.0
+        sx, sy = net_w / cw, net_h / ch
+        m = np.array([[sx, 0, (0.5 - x0) * sx - 0.5], [0, sy, (0.5 - y0) * sy - 0.5], [0, 0, 1.0]])
+        flip = bool(rng.random() < self.flip_prob) if self.flip_prob > 0 else False
+        if flip:
+            m = np.array([[-1.0, 0, net_w - 1], [0, 1, 0], [0, 0, 1]]) @ m
+
+        def factor(v: float) -> float:
+            return float(rng.uniform(1 - v, 1 + v)) if v > 0 else 1.0
+
+        hue = float(rng.uniform(-self.hue, self.hue)) if self.hue > 0 else 0.0
+        return ClipParams(m, flip, factor(self.brightness), factor(self.contrast), factor(self.saturation), hue)
+
+    def apply_frames(self, frames: list[np.ndarray], key_from_hist: np.ndarray, params: ClipParams) -> np.ndarray:
+        """Align, crop, flip, resize and jitter the frames of one clip.
+
+        Args:
+            frames: T BGR uint8 images (H0, W0, 3), oldest first, key last, original size.
+            key_from_hist: (T, 3, 3) alignment of each frame to the key frame in ORIGINAL pixels.
+            params: the clip's draw.
+
+        Returns:
+            float32 (T, 3, H, W) RGB in [0, 1]; pixels a warped history frame does not cover are 0.
+        """
+        net_h, net_w = self.image_size
+        out = np.empty((len(frames), 3, net_h, net_w), np.float32)
+        scale = float(np.sqrt(abs(np.linalg.det(params.net_from_orig[:2, :2]))))
+        for t, frame in enumerate(frames):
+            m = params.net_from_orig @ key_from_hist[t]
+            if scale < 0.6:  # shrink by area first: a bilinear warp alone would alias the road texture
+                frame, pre = _area_shrink(frame, min(1.0, 2.0 * scale))
+                m = m @ np.linalg.inv(pre)
+            warped = cv2.warpPerspective(
+                frame, m, (net_w, net_h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0)
+            )
+            rgb = cv2.cvtColor(self._jitter(warped, params), cv2.COLOR_BGR2RGB)
+            out[t] = rgb.transpose(2, 0, 1).astype(np.float32) / 255.0
+        return out
+
+    @staticmethod
+    def _jitter(img: np.ndarray, p: ClipParams) -> np.ndarray:
+        if p.hue != 0.0 or p.saturation != 1.0:
+            hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV).astype(np.float32)
+            hsv[..., 0] = np.mod(hsv[..., 0] + p.hue * 180.0, 180.0)
+            hsv[..., 1] = np.clip(hsv[..., 1] * p.saturation, 0, 255)
+            img = cv2.cvtColor(hsv.astype(np.uint8), cv2.COLOR_HSV2BGR)
+        if p.brightness != 1.0 or p.contrast != 1.0:
+            mean = float(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).mean())
+            # out = (img - mean) * contrast + mean, then * brightness
+            alpha = p.contrast * p.brightness
+            beta = mean * (1.0 - p.contrast) * p.brightness
+            img = cv2.convertScaleAbs(img, alpha=alpha, beta=beta)
+        return img
+
+    @staticmethod
+    def map_lanes(lanes: list[np.ndarray], matrix: np.ndarray) -> list[np.ndarray]:
+        """Map lanes ``(N, 2)`` through a 3x3 matrix (e.g. ``net_from_orig`` or its inverse)."""
+        out = []
+        for lane in lanes:
+            if len(lane) == 0:
+                out.append(np.zeros((0, 2)))
+                continue
+            hom = np.c_[lane, np.ones(len(lane))] @ np.asarray(matrix, dtype=np.float64).T
+            out.append(hom[:, :2] / hom[:, 2:3])
+        return out
+
+
+def _area_shrink(frame: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Resize by ``factor`` with area averaging; returns the image and ``small_from_orig`` (3, 3)."""
+    h0, w0 = frame.shape[:2]
+    w1, h1 = max(1, round(w0 * factor)), max(1, round(h0 * factor))
+    fx, fy = w1 / w0, h1 / h0
+    small = cv2.resize(frame, (w1, h1), interpolation=cv2.INTER_AREA)
+    return small, np.array([[fx, 0, 0.5 * fx - 0.5], [0, fy, 0.5 * fy - 0.5], [0, 0, 1.0]])

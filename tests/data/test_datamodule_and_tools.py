@@ -1,0 +1,215 @@
+"""The DataModule on a tiny generated synthetic set, and the ``synth`` / ``show`` tools."""
+
+from __future__ import annotations
+
+import importlib.util
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from stamlane.data import collate_clips
+from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.labels import history_name
+from stamlane.data.show_cli import main as show_main
+from stamlane.data.synth_cli import main as synth_main
+from stamlane.data.synth_cli import split_counts
+from stamlane.data.synthetic import SynthConfig, generate_dataset
+
+TINY_SYNTH = {"synth_train": 2, "synth_val": 1, "synth_test": 1, "synth_challenging": 0, "synth_size": (96, 64)}
+
+
+def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.chdir(tmp_path)
+    dm = ClipDataModule(image_size=(32, 64), batch_size=2, align="true", **TINY_SYNTH)
+    dm.prepare_data()
+    assert (tmp_path / "data/synthetic/dataset.json").is_file()
+    assert (tmp_path / "data/synthetic/train.json").is_file()
+    dm.setup("fit")
+    batch = next(iter(dm.train_dataloader()))
+    assert batch["frames"].shape == (2, 4, 3, 32, 64)
+    assert batch["binary"].shape == (2, 32, 64) and batch["instance"].shape == (2, 32, 64)
+    assert batch["key_from_hist"].shape == (2, 4, 3, 3)
+    assert len(batch["lanes"]) == 2 and len(batch["meta"]) == 2
+    assert batch["binary"].sum() > 0
+    val = next(iter(dm.val_dataloader()))
+    assert val["frames"].shape[0] == 1
+    # the eval transform only resizes: net_from_orig is a pure scale of 64/96 x 32/64
+    m = np.asarray(val["meta"][0]["net_from_orig"])
+    assert abs(float(m[0, 0]) - 64 / 96) < 1e-9 and abs(float(m[1, 1]) - 32 / 64) < 1e-9
+    assert next(iter(dm.predict_dataloader()))["frames"].shape[1] == 4
+    # a second module finds the set and does not regenerate it
+    before = (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # same settings: found silently
+        ClipDataModule(**TINY_SYNTH).prepare_data()
+    assert (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns == before
+    with pytest.warns(UserWarning, match="other settings"):  # another size: kept, with a warning
+        ClipDataModule(**dict(TINY_SYNTH, synth_size=(128, 64))).prepare_data()
+    assert (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns == before
+
+
+def test_datamodule_on_a_given_root(synthetic_root: Path):
+    dm = ClipDataModule(
+        root=str(synthetic_root),
+        num_frames=2,
+        stride=3,
+        image_size=(32, 48),
+        align="none",
+        batch_size=3,
+        test_labels=["test.json", "challenging.json"],
+    )
+    dm.setup("test")
+    batch = next(iter(dm.test_dataloader()))
+    assert batch["frames"].shape == (2, 2, 3, 32, 48)
+    assert batch["meta"][1]["raw_file"] == "clips/challenging-0000/8.jpg"
+    assert batch["meta"][0]["frame_paths"] == ["clips/test-0000/5.jpg", "clips/test-0000/8.jpg"]
+
+
+@pytest.mark.skipif(importlib.util.find_spec("stamlane.align.homography") is None, reason="stamlane.align absent")
+def test_on_the_fly_alignment_is_close_to_the_true_one(tmp_path: Path):
+    cfg = SynthConfig(width=640, height=360, num_frames=2, occluder_prob=0.0)
+    generate_dataset(tmp_path, train=0, val=0, test=1, challenging=0, seed=11, config=cfg, progress=False)
+    kwargs = {"root": str(tmp_path), "num_frames": 2, "stride": 1, "image_size": (48, 80), "batch_size": 1}
+    fly, true = ClipDataModule(align="fly", **kwargs), ClipDataModule(align="true", **kwargs)
+    fly.setup("test")
+    true.setup("test")
+    a = fly.datasets["test"][0]["key_from_hist"][0].double().numpy()
+    b = true.datasets["test"][0]["key_from_hist"][0].double().numpy()
+    # key-frame road points mapped back into the history frame by both estimates
+    road = np.array([[160, 250, 1], [480, 250, 1], [600, 350, 1], [40, 350, 1], [320, 200, 1]], dtype=np.float64).T
+    pa, pb = np.linalg.inv(a) @ road, np.linalg.inv(b) @ road
+    err = np.abs(pa[:2] / pa[2] - pb[:2] / pb[2]).max()
+    assert err < 3.0, (err, fly.datasets["test"].aligner.failures)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("stamlane.align.cache") is None, reason="stamlane.align absent")
+def test_cached_alignment_is_read_and_missing_pairs_are_estimated(synthetic_root: Path, tmp_path: Path):
+    from stamlane.align import Alignment
+    from stamlane.align.cache import alignment_to_json, cache_file, write_cache
+
+    m = np.array([[1.0, 0, 3], [0, 1, 0], [0, 0, 1]])
+    path = cache_file(tmp_path, synthetic_root, synthetic_root / "clips/test-0000")
+    write_cache(path, {"8.jpg": {"7.jpg": alignment_to_json(Alignment(m, 30, 20, True, ""))}})
+    from stamlane.data import TuSimpleClips
+
+    ds = TuSimpleClips(
+        synthetic_root, "test.json", num_frames=2, image_size=(32, 48), align="cache", cache_dir=tmp_path
+    )
+    np.testing.assert_allclose(ds[0]["key_from_hist"][0].numpy(), m, atol=1e-6)
+    ds3 = TuSimpleClips(
+        synthetic_root, "test.json", num_frames=3, image_size=(32, 48), align="cache", cache_dir=tmp_path
+    )
+    with pytest.warns(UserWarning, match="no entry"):
+        k = ds3[0]["key_from_hist"].numpy()
+    np.testing.assert_allclose(k[1], m, atol=1e-6)  # cached pair used, the missing one estimated
+    assert k.shape == (3, 3, 3)
+
+
+def test_datamodule_rejects_bad_options():
+    with pytest.raises(ValueError, match="format"):
+        ClipDataModule(format="kitti")
+    with pytest.raises(ValueError, match="batch_size"):
+        ClipDataModule(batch_size=0)
+    with pytest.raises(ValueError, match="flip_prob"):
+        ClipDataModule(flip_prob=3.0)
+    with pytest.raises(ValueError, match="train_labels must be given"):
+        ClipDataModule(root=".", format="culane").make_dataset("train")
+
+
+def test_collate_rejects_mixed_shapes():
+    a = {
+        "frames": torch.zeros(2, 3, 8, 8),
+        "binary": torch.zeros(8, 8),
+        "instance": torch.zeros(8, 8),
+        "key_from_hist": torch.zeros(2, 3, 3),
+        "lanes": [],
+        "meta": {},
+    }
+    b = dict(a, frames=torch.zeros(3, 3, 8, 8))
+    assert collate_clips([a, a])["frames"].shape == (2, 2, 3, 8, 8)
+    with pytest.raises(ValueError, match="share the clip shape"):
+        collate_clips([a, b])
+    with pytest.raises(ValueError, match="empty"):
+        collate_clips([])
+
+
+def test_history_names():
+    assert history_name("clips/a/b/20.jpg", 3) == "clips/a/b/17.jpg"
+    assert history_name("clips/a/b/10.jpg", 1) == "clips/a/b/9.jpg"
+    assert history_name("d/v.MP4/00030.jpg", 30) == "d/v.MP4/00000.jpg"
+    assert history_name("d/v.MP4/00030.jpg", 60) is None
+    assert history_name("x/frame.jpg", 1) is None
+
+
+def test_synth_tool_writes_a_set(tmp_path: Path, capsys: pytest.CaptureFixture):
+    assert split_counts(10) == (8, 1, 1) and split_counts(2) == (2, 0, 0)
+    out = tmp_path / "s"
+    assert (
+        synth_main(
+            [
+                "--out",
+                str(out),
+                "--clips",
+                "3",
+                "--challenging-clips",
+                "1",
+                "--size",
+                "96x64",
+                "--frames",
+                "5",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    assert "frames/s" in capsys.readouterr().out
+    assert (out / "clips/train-0000/5.jpg").is_file() and (out / "challenging.json").is_file()
+    assert cv2.imread(str(out / "clips/val-0000/1.jpg")).shape == (64, 96, 3)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--out", "x", "--clips", "0"],
+        ["--out", "x", "--size", "big"],
+        ["--clips", "3"],
+        ["--out", "x", "--size", "8x8"],
+    ],
+)
+def test_synth_tool_bad_input_is_one_line_and_status_2(argv: list[str], capsys: pytest.CaptureFixture):
+    assert synth_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_show_tool_writes_a_grid(synthetic_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture):
+    out = tmp_path / "grid.png"
+    assert (
+        show_main(
+            [
+                "--root",
+                str(synthetic_root),
+                "--labels",
+                "train.json",
+                "--out",
+                str(out),
+                "--n",
+                "2",
+                "--size",
+                "48x80",
+                "--align",
+                "true",
+            ]
+        )
+        == 0
+    )
+    img = cv2.imread(str(out))
+    assert img.shape[0] == 2 * (48 + 4) and img.shape[1] == 5 * (80 + 4)  # 2 rows of 4 frames + the target tile
+    assert show_main(["--root", str(tmp_path / "nope"), "--labels", "x.json", "--out", str(out)]) == 2
+    assert show_main(["--root", str(synthetic_root), "--labels", "train.json", "--out", str(out), "--size", "x"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 2 and "Traceback" not in err
