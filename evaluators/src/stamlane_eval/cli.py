@@ -1,0 +1,318 @@
+"""``stamlane-eval``: the command line of the evaluators.
+
+    stamlane-eval tusimple PRED GT [--json] [--per-image FILE]
+    stamlane-eval culane PRED_DIR GT_DIR [--list LIST] [--iou 0.3 0.5] [--width 30] [--size 1640x590]
+                         [--variant official|lanedet] [--json] [--per-image FILE]
+    stamlane-eval apollo PRED_DIR GT_DIR ...     (the culane command with ApolloScape's 3384x2710)
+    stamlane-eval video PRED_DIR GT_DIR [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
+                        [--json] [--per-sequence FILE]
+
+Bad input: one line on stderr naming the file and the problem, exit status 2, no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from stamlane_eval import __version__, culane, tusimple, video
+from stamlane_eval.io import (
+    LaneFileError,
+    culane_entries,
+    culane_lines_path,
+    read_culane_lines,
+    read_tusimple,
+    read_vil100_json,
+    video_frames,
+)
+
+__all__ = ["main"]
+
+EXIT_BAD_INPUT = 2
+
+
+class _UsageError(Exception):
+    """A usage problem: reported as one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line instead of usage + message
+        raise _UsageError(f"{self.prog}: {message} (see --help)")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH such as 1640x590, got {text!r}") from None
+    if w <= 0 or h <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive WxH, got {text!r}")
+    return w, h
+
+
+def _iou(text: str) -> float:
+    try:
+        t = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an IoU threshold in [0, 1), got {text!r}") from None
+    if not 0.0 <= t < 1.0:
+        raise argparse.ArgumentTypeError(f"expected an IoU threshold in [0, 1), got {text!r}")
+    return t
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def _build_parser() -> _Parser:
+    parser = _Parser(prog="stamlane-eval", description="Lane metrics equal to the official tools, number for number.")
+    parser.add_argument("--version", action="version", version=f"stamlane-eval {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    ts = sub.add_parser("tusimple", help="TuSimple accuracy / FP / FN (official lane.py) and the paper's F1")
+    ts.add_argument("pred", type=Path, help="predictions, json-lines: raw_file, lanes, run_time")
+    ts.add_argument("gt", type=Path, help="ground truth, json-lines: raw_file, lanes, h_samples")
+    ts.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    ts.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
+
+    for name, size in (("culane", culane.CULANE_SIZE), ("apollo", culane.APOLLO_SIZE)):
+        cu = sub.add_parser(
+            name, help=f"{name} area metric (official C++ tool or lanedet), default {size[0]}x{size[1]}"
+        )
+        cu.add_argument("pred", type=Path, help="folder of predicted .lines.txt (or a TuSimple json-lines file)")
+        cu.add_argument("gt", type=Path, help="folder of annotated .lines.txt (or a TuSimple json-lines file)")
+        cu.add_argument("--list", type=Path, help="image list (CULane style); default: every .lines.txt in GT")
+        cu.add_argument("--iou", type=_iou, nargs="+", default=list(culane.IOU_THRESHOLDS), help="IoU thresholds")
+        cu.add_argument("--width", type=_positive_int, default=culane.LANE_WIDTH, help="lane line width in pixels")
+        cu.add_argument("--size", type=_size, default=None, help=f"image WxH (default {size[0]}x{size[1]})")
+        cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
+        cu.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+        cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
+        cu.set_defaults(default_size=size)
+
+    vd = sub.add_parser("video", help="video metrics: mIoU, F@0.5/0.8, identity switches, flicker")
+    vd.add_argument("pred", type=Path, help="folder of predictions, <sequence>/<frame>.lines.txt")
+    vd.add_argument(
+        "gt", type=Path, help="VIL-100 root (Json/<video>/<frame>.jpg.json) or <sequence>/<frame>.lines.txt"
+    )
+    vd.add_argument("--iou", type=_iou, nargs="+", default=list(video.VIDEO_IOU_THRESHOLDS), help="F thresholds")
+    vd.add_argument("--match-iou", type=_iou, default=video.MATCH_IOU, help="IoU of a match for switches/flicker")
+    vd.add_argument("--width", type=_positive_int, default=culane.LANE_WIDTH, help="lane line width in pixels")
+    vd.add_argument("--size", type=_size, default=None, help="image WxH (default: VIL-100 json info)")
+    vd.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
+
+    return parser
+
+
+def _table(rows: Sequence[Sequence[object]]) -> str:
+    cells = [[f"{v:.4f}" if isinstance(v, float) else str(v) for v in row] for row in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(cells[0]))]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _write_jsonl(path: Path, records: Sequence[dict]) -> None:
+    try:
+        with open(path, "w", encoding="utf-8") as f:
+            for rec in records:
+                f.write(json.dumps(rec) + "\n")
+    except OSError as e:
+        raise LaneFileError(f"{path}: cannot write: {e}") from None
+
+
+def _run_tusimple(args: argparse.Namespace) -> int:
+    preds = read_tusimple(args.pred)
+    gts = read_tusimple(args.gt)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = tusimple.evaluate(preds, gts)
+    except tusimple.TuSimpleInputError as e:
+        where = {"pred": args.pred, "gt": args.gt}.get(e.source or "", f"{args.pred} / {args.gt}")
+        line = f": line {e.line}" if e.line is not None else ""
+        raise LaneFileError(f"{where}{line}: {e.message}") from None
+    for w in caught:
+        print(f"stamlane-eval: warning: {args.gt}: {w.message}", file=sys.stderr)
+    if args.per_image:
+        _write_jsonl(
+            args.per_image,
+            [
+                {
+                    "raw_file": p["raw_file"],
+                    "acc": r.acc,
+                    "fp": r.fp,
+                    "fn": r.fn,
+                    "matched": r.matched,
+                    "n_pred": r.n_pred,
+                    "n_gt": r.n_gt,
+                }
+                for p, r in zip(preds, res.per_image, strict=True)
+            ],
+        )
+    if args.json:
+        print(json.dumps(res.as_dict()))
+    else:
+        print(
+            _table(
+                [
+                    ["images", "accuracy", "FP", "FN", "F1 (paper)"],
+                    [res.images, res.accuracy, res.fp, res.fn, res.f1],
+                ]
+            )
+        )
+        print(
+            f"lane counts (not the paper's F1): TP {res.lane_tp}  FP {res.lane_fp}  FN {res.lane_fn}  "
+            f"precision {res.lane_precision:.4f}  recall {res.lane_recall:.4f}  F1 {res.lane_f1:.4f}"
+        )
+    return 0
+
+
+def _xs_to_points(recs: list[dict], rows: dict[str, list], path: Path) -> dict[str, list[np.ndarray]]:
+    """TuSimple records as raw_file -> lanes of (x, y) points (rows with x < 0 dropped), rows from the gt."""
+    out: dict[str, list[np.ndarray]] = {}
+    for i, rec in enumerate(recs, 1):
+        if "raw_file" not in rec or "lanes" not in rec:
+            raise LaneFileError(f"{path}: line {i}: needs keys raw_file and lanes, has {sorted(rec)}")
+        h = rows.get(rec["raw_file"])
+        if h is None:
+            raise LaneFileError(f"{path}: line {i}: raw_file {rec['raw_file']!r} is not in the ground truth")
+        lanes = []
+        for lane in rec["lanes"]:
+            xs = np.asarray(lane) if isinstance(lane, list) else np.zeros(0, dtype=object)
+            if xs.shape != (len(h),) or xs.dtype.kind not in "iuf" or not np.isfinite(xs).all():
+                raise LaneFileError(f"{path}: line {i}: a lane is not {len(h)} finite numbers (one per h_sample)")
+            keep = xs >= 0
+            lanes.append(np.stack([xs[keep], np.asarray(h, dtype=np.float64)[keep]], axis=1).astype(np.float64))
+        out[rec["raw_file"]] = lanes
+    return out
+
+
+def _run_culane(args: argparse.Namespace) -> int:
+    size = args.size or args.default_size
+    if args.pred.suffix == ".json" or args.gt.suffix == ".json":
+        if args.size is None:
+            raise LaneFileError(f"{args.gt}: TuSimple-format files need --size WxH (TuSimple images are 1280x720)")
+        gt_recs = read_tusimple(args.gt)
+        rows = {}
+        for i, rec in enumerate(gt_recs, 1):
+            if not isinstance(rec.get("h_samples"), list):
+                raise LaneFileError(f"{args.gt}: line {i}: no h_samples list")
+            rows[rec.get("raw_file")] = rec["h_samples"]
+        gt_map = _xs_to_points(gt_recs, rows, args.gt)
+        pred_map = _xs_to_points(read_tusimple(args.pred), rows, args.pred)
+        entries = list(gt_map)
+        preds = [pred_map.get(e, []) for e in entries]
+        gts = [gt_map[e] for e in entries]
+    else:
+        if not args.pred.is_dir():
+            raise LaneFileError(f"{args.pred}: not a directory")
+        entries = culane_entries(args.gt, args.list)
+        gts = []
+        for e in entries:
+            gts.append(read_culane_lines(culane_lines_path(args.gt, e), missing_ok=False))
+        preds = [read_culane_lines(culane_lines_path(args.pred, e), missing_ok=True) for e in entries]
+    thresholds = sorted(set(args.iou))
+    try:
+        res = culane.evaluate(
+            preds,
+            gts,
+            thresholds,
+            args.width,
+            size,
+            args.variant,
+            progress=sys.stderr.isatty() and len(gts) > 200,
+            names=entries,
+        )
+    except ValueError as e:
+        raise LaneFileError(f"{args.pred}: {e}") from None
+    if args.per_image:
+        recs = []
+        for e, r in zip(entries, res.per_image, strict=True):
+            rec: dict[str, object] = {"entry": e, "n_pred": r.n_pred, "n_gt": r.n_gt}
+            rec.update({str(t): list(r.counts[t]) for t in thresholds})
+            rec["matched_iou"] = [float(v) for v in r.matched_iou]
+            recs.append(rec)
+        _write_jsonl(args.per_image, recs)
+    if args.json:
+        print(json.dumps(res.as_dict()))
+    else:
+        rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision", "recall", "F1"]]
+        for t, c in res.totals.items():
+            rows.append([f"{t:g}", c.tp, c.fp, c.fn, c.precision, c.recall, c.f1])
+        print(f"{args.command} ({args.variant}), {res.images} images, {size[0]}x{size[1]}, width {args.width}")
+        print(_table(rows))
+    return 0
+
+
+def _run_video(args: argparse.Namespace) -> int:
+    if not args.pred.is_dir():
+        raise LaneFileError(f"{args.pred}: not a directory")
+    kind, layout = video_frames(args.gt)
+    sequences: dict[str, list[video.Frame]] = {}
+    for seq, frames in layout.items():
+        out = []
+        for stem, path in frames:
+            if kind == "vil100":
+                lanes, ids, size = read_vil100_json(path)
+            else:
+                lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
+            size = args.size or size
+            if size is None:
+                raise LaneFileError(f"{path}: no image size: give --size WxH")
+            preds = read_culane_lines(args.pred / seq / f"{stem}.lines.txt", missing_ok=True)
+            out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
+        sequences[seq] = out
+    thresholds = sorted(set(args.iou))
+    try:
+        res = video.evaluate(sequences, thresholds, args.match_iou, args.width)
+    except ValueError as e:
+        raise LaneFileError(f"{args.gt}: {e}") from None
+    if args.per_sequence:
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+    if args.json:
+        print(json.dumps(res.as_dict()))
+    else:
+        print(f"video, {res.sequences} sequences, {res.frames} frames, width {args.width}")
+        rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision", "recall", "F"]]
+        for t, c in res.totals.items():
+            rows.append([f"{t:g}", c.tp, c.fp, c.fn, c.precision, c.recall, c.f1])
+        print(_table(rows))
+        print(
+            f"mIoU {res.miou:.4f}  identity switches {res.id_switches} (rate {res.switch_rate:.4f})  "
+            f"flicker {res.flickers} (rate {res.flicker_rate:.4f})"
+        )
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the exit status (0 ok, 2 bad input)."""
+    try:
+        args = _build_parser().parse_args(argv)
+        if args.command == "tusimple":
+            return _run_tusimple(args)
+        if args.command in ("culane", "apollo"):
+            return _run_culane(args)
+        if args.command == "video":
+            return _run_video(args)
+        raise _UsageError(f"unknown command {args.command!r}")
+    except (_UsageError, LaneFileError) as e:
+        print(f"stamlane-eval: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

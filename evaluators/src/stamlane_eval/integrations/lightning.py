@@ -1,0 +1,176 @@
+"""A Lightning callback that scores the lanes a LightningModule predicts, with the official metrics."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import lightning.pytorch as pl
+import numpy as np
+import torch
+
+from stamlane_eval import culane as _culane
+from stamlane_eval.integrations.torchmetrics import CULaneMetric, TuSimpleMetric
+from stamlane_eval.tusimple import lanes_to_xs
+
+__all__ = ["LaneEvalCallback"]
+
+_KEYS = ("pred_lanes", "gt_lanes", "h_samples", "orig_size")
+
+
+def _lanes(lanes: Sequence[object]) -> list[np.ndarray]:
+    out = []
+    for lane in lanes:
+        arr = lane.detach().cpu().double().numpy() if isinstance(lane, torch.Tensor) else np.asarray(lane, float)
+        out.append(arr.reshape(-1, 2))
+    return out
+
+
+class LaneEvalCallback(pl.Callback):
+    """Score validation (and test) predictions with the TuSimple and CULane metrics and log them.
+
+    Contract with the LightningModule: ``validation_step`` (and ``test_step``) returns a dict with, per image
+    of the batch (lists of equal length):
+
+    - ``pred_lanes``: list of ``(N, 2)`` float arrays/tensors, ``(x, y)`` in original-image pixels;
+    - ``gt_lanes``: the same for the ground truth;
+    - ``h_samples``: ``list[int]`` (TuSimple rows) or ``None``;
+    - ``orig_size``: ``(W, H)`` of the original image;
+    - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed).
+
+    TuSimple metrics use images with ``h_samples`` only (lanes are converted with
+    :func:`stamlane_eval.tusimple.lanes_to_xs`, gt included: gaps inside a gt lane become interpolated rows).
+    The CULane metric draws each image at ``culane_size`` if given, else at the image's ``orig_size``.
+
+    At epoch end it logs ``{prefix}/tusimple_accuracy``, ``{prefix}/tusimple_fp``, ``{prefix}/tusimple_fn``,
+    ``{prefix}/tusimple_f1`` (the paper's F1), ``{prefix}/culane_f1@0.5``, ``{prefix}/culane_precision@0.5``,
+    ``{prefix}/culane_recall@0.5`` (and the same @0.3, ... for every threshold) through ``pl_module.log``;
+    the sums are synchronised across processes by the torchmetrics states. ``prefix`` is ``"val"`` for
+    validation; the test stage logs under ``test_prefix`` (``"test"``). Metrics with no image are not logged.
+
+    Args:
+        tusimple: compute the TuSimple metrics.
+        culane: compute the CULane area metric.
+        culane_size: ``(W, H)`` to draw every image at, or None for each image's ``orig_size``.
+        iou_thresholds: CULane IoU thresholds.
+        width: CULane line width in pixels.
+        prefix: log-name prefix of the validation stage.
+        test_prefix: log-name prefix of the test stage.
+        variant: CULane variant, ``"official"`` or ``"lanedet"``.
+    """
+
+    def __init__(
+        self,
+        tusimple: bool = True,
+        culane: bool = True,
+        culane_size: tuple[int, int] | None = None,
+        iou_thresholds: Sequence[float] = (0.3, 0.5),
+        width: int = 30,
+        prefix: str = "val",
+        test_prefix: str = "test",
+        variant: str = "official",
+    ) -> None:
+        super().__init__()
+        if culane_size is not None and (len(culane_size) != 2 or min(culane_size) <= 0):
+            raise ValueError(f"culane_size must be (W, H) or None, got {culane_size!r}")
+        self.use_tusimple = tusimple
+        self.use_culane = culane
+        self.culane_size = None if culane_size is None else (int(culane_size[0]), int(culane_size[1]))
+        self.prefix = prefix
+        self.test_prefix = test_prefix
+        self.tusimple_metric = TuSimpleMetric()
+        self.culane_metric = CULaneMetric(
+            iou_thresholds, width, self.culane_size or _culane.CULANE_SIZE, variant=variant
+        )
+
+    # ---------------------------------------------------------------------------------------- hooks
+    def on_validation_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        self._reset(pl_module)
+
+    def on_test_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        self._reset(pl_module)
+
+    def on_validation_batch_end(
+        self,
+        trainer: pl.Trainer,
+        pl_module: pl.LightningModule,
+        outputs: object,
+        batch: object,
+        batch_idx: int,
+        dataloader_idx: int = 0,
+    ) -> None:
+        self._update(outputs)
+
+    def on_test_batch_end(
+        self,
+        trainer: pl.Trainer,
+        pl_module: pl.LightningModule,
+        outputs: object,
+        batch: object,
+        batch_idx: int,
+        dataloader_idx: int = 0,
+    ) -> None:
+        self._update(outputs)
+
+    def on_validation_epoch_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        if trainer.sanity_checking:
+            self._reset(pl_module)
+            return
+        self._log(pl_module, self.prefix)
+
+    def on_test_epoch_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        self._log(pl_module, self.test_prefix)
+
+    # -------------------------------------------------------------------------------------- helpers
+    def _reset(self, pl_module: pl.LightningModule) -> None:
+        for m in (self.tusimple_metric, self.culane_metric):
+            m.to(pl_module.device)  # states must live where the process group reduces (NCCL: the GPU)
+            m.reset()
+
+    def _update(self, outputs: object) -> None:
+        if not isinstance(outputs, Mapping) or any(k not in outputs for k in _KEYS):
+            have = sorted(outputs) if isinstance(outputs, Mapping) else type(outputs).__name__
+            raise ValueError(f"LaneEvalCallback needs the step to return a dict with keys {list(_KEYS)}, got {have}")
+        preds = [_lanes(p) for p in outputs["pred_lanes"]]
+        gts = [_lanes(g) for g in outputs["gt_lanes"]]
+        n = len(preds)
+        h_samples, sizes = outputs["h_samples"], outputs["orig_size"]
+        run_times = outputs.get("run_time")
+        if len(gts) != n or len(h_samples) != n or len(sizes) != n or (run_times is not None and len(run_times) != n):
+            raise ValueError(
+                f"LaneEvalCallback: per-image lists differ in length: pred_lanes {n}, gt_lanes {len(gts)}, "
+                f"h_samples {len(h_samples)}, orig_size {len(sizes)}"
+            )
+        if self.use_tusimple:
+            idx = [i for i in range(n) if h_samples[i] is not None]
+            if idx:
+                hs = [[float(v) for v in h_samples[i]] for i in idx]
+                self.tusimple_metric.update(
+                    [lanes_to_xs(preds[i], h) for i, h in zip(idx, hs, strict=True)],
+                    [lanes_to_xs(gts[i], h) for i, h in zip(idx, hs, strict=True)],
+                    hs,
+                    None if run_times is None else [float(run_times[i]) for i in idx],
+                )
+        if self.use_culane:
+            per_image = None if self.culane_size is not None else [(int(s[0]), int(s[1])) for s in sizes]
+            self.culane_metric.update(preds, gts, per_image)
+
+    def _log(self, pl_module: pl.LightningModule, prefix: str) -> None:
+        if self.use_tusimple and self._any_images(self.tusimple_metric):
+            vals = self.tusimple_metric.compute()
+            for name in ("accuracy", "fp", "fn", "f1"):
+                pl_module.log(f"{prefix}/tusimple_{name}", float(vals[name]))
+        if self.use_culane and self._any_images(self.culane_metric):
+            vals = self.culane_metric.compute()
+            for t in self.culane_metric.iou_thresholds:
+                for name in ("f1", "precision", "recall"):
+                    pl_module.log(f"{prefix}/culane_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+        self.tusimple_metric.reset()
+        self.culane_metric.reset()
+
+    @staticmethod
+    def _any_images(metric: TuSimpleMetric | CULaneMetric) -> bool:
+        """Whether any process saw an image (every rank must take the same branch before compute's sync)."""
+        n = metric.images.clone()
+        if torch.distributed.is_available() and torch.distributed.is_initialized():
+            torch.distributed.all_reduce(n)
+        return int(n) > 0

@@ -1,0 +1,237 @@
+"""Readers for the benchmark file formats, with errors that name the file, the line and the problem.
+
+- TuSimple: json-lines, one object per line (``raw_file``, ``lanes``, ``h_samples`` / ``run_time``).
+- CULane / ApolloScape: one ``.lines.txt`` per image, one lane per line, ``x1 y1 x2 y2 ...``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "LaneFileError",
+    "culane_entries",
+    "culane_lines_path",
+    "read_culane_lines",
+    "read_tusimple",
+    "read_vil100_json",
+    "video_frames",
+]
+
+
+class LaneFileError(ValueError):
+    """An input file that cannot be evaluated; the message names the file and the problem."""
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"non-finite number {name}")
+
+
+def read_tusimple(path: str | os.PathLike) -> list[dict]:
+    """Read a TuSimple json-lines file (predictions or ground truth).
+
+    As the official ``lane.py`` (``[json.loads(line) for line in readlines()]``), every line must be one JSON
+    object: a blank line, including a blank line at the end of the file, is an error.
+
+    Args:
+        path: the file.
+
+    Returns:
+        The records in file order.
+
+    Raises:
+        LaneFileError: unreadable file, invalid JSON (with its line number), a line that is not an object,
+            NaN/Infinity literals, or an empty file.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise LaneFileError(f"{p}: cannot read: {e}") from None
+    if not text.strip():
+        raise LaneFileError(f"{p}: empty file")
+    body = text[:-1] if text.endswith("\n") else text
+    try:  # fast path: one parse for the whole file (a blank line makes ",," and falls to the slow path)
+        records = json.loads("[" + body.replace("\n", ",") + "]", parse_constant=_reject_constant)
+        if len(records) == body.count("\n") + 1 and all(type(r) is dict for r in records):
+            return records
+    except ValueError:
+        pass
+    lines = text.splitlines()
+    out = []
+    for i, line in enumerate(lines, 1):  # slow path: find the first bad line
+        if not line.strip():
+            raise LaneFileError(f"{p}: line {i} is blank (every line must be one JSON object, as lane.py requires)")
+        try:
+            rec = json.loads(line, parse_constant=_reject_constant)
+        except ValueError as e:
+            raise LaneFileError(f"{p}: line {i}: invalid JSON ({e})") from None
+        if not isinstance(rec, dict):
+            raise LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
+        out.append(rec)
+    return out
+
+
+def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:
+    """Read one CULane ``.lines.txt`` file.
+
+    As the official C++ tool, every line is a lane, a blank line included (a lane with 0 points); a missing
+    file is an image without lanes when ``missing_ok``.
+
+    Args:
+        path: the file.
+        missing_ok: return ``[]`` for a missing file instead of raising.
+
+    Returns:
+        Per lane, an ``(N, 2)`` float64 array of ``(x, y)`` points in file order.
+
+    Raises:
+        LaneFileError: unreadable file, a non-number, NaN/inf, or an odd number of coordinates on a line.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        if missing_ok:
+            return []
+        raise LaneFileError(f"{p}: no such file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise LaneFileError(f"{p}: cannot read: {e}") from None
+    lanes = []
+    for i, line in enumerate(text.splitlines(), 1):
+        fields = line.split()
+        try:
+            vals = [float(v) for v in fields]
+        except ValueError:
+            raise LaneFileError(f"{p}: line {i}: not a number in {line.strip()[:60]!r}") from None
+        if len(vals) % 2:
+            raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
+        if not all(math.isfinite(v) for v in vals):
+            raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
+        lanes.append(np.array(vals, dtype=np.float64).reshape(-1, 2))
+    return lanes
+
+
+def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
+    """The ``.lines.txt`` of a list entry: ``/driver_x/y.MP4/00000.jpg`` -> ``root/driver_x/y.MP4/00000.lines.txt``."""
+    rel = entry.strip().lstrip("/")
+    stem = rel[: rel.rfind(".")] if "." in Path(rel).name else rel
+    if stem.endswith(".lines"):
+        stem = stem[: -len(".lines")]
+    return Path(root) / (stem + ".lines.txt")
+
+
+def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | None = None) -> list[str]:
+    """The images to evaluate: the lines of ``list_file``, or every ``.lines.txt`` under ``gt_dir`` (sorted).
+
+    Raises:
+        LaneFileError: unreadable or empty list, missing ``gt_dir``, or no annotation found.
+    """
+    root = Path(gt_dir)
+    if not root.is_dir():
+        raise LaneFileError(f"{root}: not a directory")
+    if list_file is not None:
+        try:
+            entries = [ln.strip() for ln in Path(list_file).read_text(encoding="utf-8").splitlines() if ln.strip()]
+        except (OSError, UnicodeDecodeError) as e:
+            raise LaneFileError(f"{list_file}: cannot read: {e}") from None
+        if not entries:
+            raise LaneFileError(f"{list_file}: empty list")
+        return entries
+    entries = sorted("/" + str(q.relative_to(root).as_posix()) for q in _walk_lines(root))
+    if not entries:
+        raise LaneFileError(f"{root}: no .lines.txt file found")
+    return entries
+
+
+def _walk_lines(root: Path) -> Iterator[Path]:
+    for dirpath, _, files in os.walk(root):
+        for f in files:
+            if f.endswith(".lines.txt"):
+                yield Path(dirpath) / f
+
+
+def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[int], tuple[int, int] | None]:
+    """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``).
+
+    Returns:
+        lanes (``(N, 2)`` float ``(x, y)`` arrays), their ``lane_id``s, and the image ``(W, H)`` from ``info``
+        (None when absent).
+
+    Raises:
+        LaneFileError: unreadable file, invalid JSON, or a missing/odd ``annotations.lane`` entry.
+    """
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"), parse_constant=_reject_constant)
+    except (OSError, UnicodeDecodeError) as e:
+        raise LaneFileError(f"{p}: cannot read: {e}") from None
+    except ValueError as e:
+        raise LaneFileError(f"{p}: invalid JSON ({e})") from None
+    try:
+        entries = data["annotations"]["lane"]
+        info = data.get("info", {})
+    except (KeyError, TypeError):
+        raise LaneFileError(f"{p}: no annotations.lane list (VIL-100 format expected)") from None
+    if not isinstance(entries, list):
+        raise LaneFileError(f"{p}: annotations.lane must be a list, got {type(entries).__name__}")
+    lanes, ids = [], []
+    for k, lane in enumerate(entries):
+        try:
+            pts = np.asarray(lane["points"], dtype=np.float64).reshape(-1, 2)
+            lane_id = int(lane.get("lane_id", k))
+        except (KeyError, TypeError, ValueError):
+            raise LaneFileError(f"{p}: lane {k}: needs points [[x, y], ...] and an integer lane_id") from None
+        if not np.isfinite(pts).all():
+            raise LaneFileError(f"{p}: lane {k}: non-finite coordinate")
+        lanes.append(pts)
+        ids.append(lane_id)
+    if len(set(ids)) != len(ids):
+        raise LaneFileError(f"{p}: duplicate lane_id in {ids}")
+    size = None
+    if isinstance(info, dict) and "width" in info and "height" in info:
+        try:
+            size = (int(info["width"]), int(info["height"]))
+        except (TypeError, ValueError):
+            raise LaneFileError(f"{p}: info.width/height must be integers") from None
+    return lanes, ids, size
+
+
+def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[str, Path]]]]:
+    """The sequences and frames of an annotated video set, in name order.
+
+    Two layouts: VIL-100 (``GT/Json/<video>/<frame>.jpg.json``) or CULane-style text
+    (``GT/<video>/<frame>.lines.txt``).
+
+    Returns:
+        ``("vil100" | "lines", {sequence: [(frame_stem, annotation_path), ...]})``; the prediction of a frame is
+        ``PRED/<sequence>/<frame_stem>.lines.txt``.
+
+    Raises:
+        LaneFileError: no such folder, or no annotation found.
+    """
+    root = Path(gt_dir)
+    if not root.is_dir():
+        raise LaneFileError(f"{root}: not a directory")
+    seqs: dict[str, list[tuple[str, Path]]] = {}
+    if (root / "Json").is_dir():
+        kind, base, suffix = "vil100", root / "Json", ".json"
+    else:
+        kind, base, suffix = "lines", root, ".lines.txt"
+    for dirpath, _, files in sorted(os.walk(base)):
+        for f in sorted(files):
+            if not f.endswith(suffix):
+                continue
+            stem = f[: -len(suffix)]
+            stem = stem[: stem.rfind(".")] if kind == "vil100" and "." in stem else stem  # 00000.jpg -> 00000
+            seq = Path(dirpath).relative_to(base).as_posix()
+            seqs.setdefault(seq, []).append((stem, Path(dirpath) / f))
+    if not seqs:
+        raise LaneFileError(f"{root}: no annotation found (expected Json/<video>/*.json or <video>/*.lines.txt)")
+    return kind, seqs

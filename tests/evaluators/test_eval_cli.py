@@ -1,0 +1,172 @@
+"""``stamlane-eval`` command line: happy paths, --json, --per-image, and every bad input -> one line, exit 2."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from stamlane_eval.cli import main
+
+GOLDEN = Path(__file__).parent / "golden"
+TS_PRED, TS_GT = GOLDEN / "tusimple_pred.json", GOLDEN / "tusimple_gt.json"
+CU = GOLDEN / "culane"
+H56 = list(range(160, 720, 10))
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_tusimple_table_json_and_per_image(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    exp = json.loads((GOLDEN / "tusimple_expected.json").read_text())
+    code, out, err = _run(capsys, "tusimple", TS_PRED, TS_GT)
+    assert code == 0 and err == ""
+    assert "accuracy" in out and f"{exp['totals']['accuracy']:.4f}" in out
+    code, out, _ = _run(capsys, "tusimple", TS_PRED, TS_GT, "--json", "--per-image", tmp_path / "per.jsonl")
+    res = json.loads(out)
+    assert code == 0
+    assert {"accuracy", "fp", "fn", "f1", "images"} <= set(res)
+    assert (res["accuracy"], res["fp"], res["fn"]) == tuple(exp["totals"][k] for k in ("accuracy", "fp", "fn"))
+    rows = [json.loads(x) for x in (tmp_path / "per.jsonl").read_text().splitlines()]
+    assert [(r["acc"], r["fp"], r["fn"]) for r in rows] == [(p["acc"], p["fp"], p["fn"]) for p in exp["per_image"]]
+    assert rows[0]["raw_file"] == exp["per_image"][0]["raw_file"]
+
+
+@pytest.mark.parametrize("variant", ["official", "lanedet"])
+def test_culane_json_and_per_image(capsys: pytest.CaptureFixture[str], tmp_path: Path, variant: str) -> None:
+    exp = json.loads((CU / "expected.json").read_text())["per_image"]
+    key = "cpp" if variant == "official" else "lanedet"
+    argv = ["culane", CU / "pred", CU / "anno", "--list", CU / "list.txt", "--variant", variant, "--json"]
+    code, out, _ = _run(capsys, *argv, "--per-image", tmp_path / "per.jsonl")
+    assert code == 0
+    res = json.loads(out)
+    assert set(res) == {"0.3", "0.5", "images"} and res["images"] == len(exp)
+    for t in ("0.3", "0.5"):
+        assert res[t]["tp"] == sum(p[key][t][0] for p in exp)
+        assert res[t]["fp"] == sum(p[key][t][1] for p in exp)
+        assert res[t]["fn"] == sum(p[key][t][2] for p in exp)
+    rows = [json.loads(x) for x in (tmp_path / "per.jsonl").read_text().splitlines()]
+    assert [r["0.5"] for r in rows] == [p[key]["0.5"] for p in exp]
+
+
+def test_culane_without_list_missing_prediction_and_table(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    shutil.copytree(CU / "pred", tmp_path / "pred")
+    missing = tmp_path / "pred" / "driver_edge" / "edge.MP4" / "00000.lines.txt"
+    missing.unlink()  # a missing prediction file means no lanes
+    code, out, _ = _run(capsys, "culane", tmp_path / "pred", CU / "anno", "--json", "--iou", "0.5")
+    res = json.loads(out)
+    assert code == 0 and set(res) == {"0.5", "images"}
+    exp = json.loads((CU / "expected.json").read_text())["per_image"]
+    assert res["0.5"]["tp"] == sum(p["cpp"]["0.5"][0] for p in exp) - 4
+    code, out, _ = _run(capsys, "apollo", CU / "pred", CU / "anno", "--width", "10", "--size", "1640x590")
+    assert code == 0 and "apollo (official)" in out and "F1" in out
+
+
+def test_culane_scores_tusimple_files(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = _run(capsys, "culane", TS_PRED, TS_GT, "--size", "1280x720", "--json")
+    assert code == 0 and json.loads(out)["images"] == 22
+    code, _, err = _run(capsys, "culane", TS_PRED, TS_GT)
+    assert code == 2 and "--size" in err
+
+
+def _write(path: Path, lines: list[object]) -> Path:
+    path.write_text("".join((x if isinstance(x, str) else json.dumps(x)) + "\n" for x in lines))
+    return path
+
+
+GT_REC = {"raw_file": "a.jpg", "lanes": [[300] * 56], "h_samples": H56}
+PRED_REC = {"raw_file": "a.jpg", "lanes": [[300] * 56], "run_time": 5}
+
+TUSIMPLE_BAD = {
+    "malformed_json": ([PRED_REC, "{oops"], [GT_REC, {**GT_REC, "raw_file": "b.jpg"}], "pred", "line 2"),
+    "missing_key": ([{"raw_file": "a.jpg", "lanes": []}], [GT_REC], "pred", "run_time"),
+    "gt_missing_key": ([PRED_REC], [{"raw_file": "a.jpg", "lanes": []}], "gt", "h_samples"),
+    "lane_length": ([{**PRED_REC, "lanes": [[300] * 55]}], [GT_REC], "pred", "Format of lanes error"),
+    "gt_lane_length": ([PRED_REC], [{**GT_REC, "lanes": [[300] * 50]}], "gt", "Format of lanes error"),
+    "nan": (['{"raw_file": "a.jpg", "lanes": [[NaN]], "run_time": 1}'], [GT_REC], "pred", "line 1"),
+    "null_values": ([{**PRED_REC, "lanes": [[None] * 56]}], [GT_REC], "pred", "Format of lanes error"),
+    "unknown_raw_file": ([{**PRED_REC, "raw_file": "z.jpg"}], [GT_REC], "pred", "do not exist"),
+    "duplicate_raw_file": (
+        [PRED_REC, PRED_REC],
+        [GT_REC, {**GT_REC, "raw_file": "b.jpg"}],
+        "pred",
+        "duplicate prediction",
+    ),
+    "count_mismatch": ([PRED_REC], [GT_REC, {**GT_REC, "raw_file": "b.jpg"}], "pred", "predictions of all"),
+    "empty_file": ([], [GT_REC], "pred", "empty file"),
+    "blank_line": ([PRED_REC, ""], [GT_REC], "pred", "blank"),
+    "not_an_object": (["[1, 2]"], [GT_REC], "pred", "JSON object"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TUSIMPLE_BAD))
+def test_tusimple_bad_input(capsys: pytest.CaptureFixture[str], tmp_path: Path, case: str) -> None:
+    preds, gts, culprit, words = TUSIMPLE_BAD[case]
+    p, g = _write(tmp_path / "pred.json", preds), _write(tmp_path / "gt.json", gts)
+    if not preds:
+        p.write_text("")
+    code, out, err = _run(capsys, "tusimple", p, g)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert str(p if culprit == "pred" else g) in err and words in err, err
+
+
+def test_tusimple_unreadable_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    code, _, err = _run(capsys, "tusimple", tmp_path / "nope.json", TS_GT)
+    assert code == 2 and "nope.json" in err and len(err.strip().splitlines()) == 1
+    code, _, err = _run(capsys, "tusimple", tmp_path, TS_GT)  # a directory
+    assert code == 2 and "cannot read" in err
+
+
+def _culane_tree(tmp_path: Path, pred_text: str, gt_text: str = "10 500 20 400 30 300\n") -> tuple[Path, Path]:
+    for sub, text in (("pred", pred_text), ("anno", gt_text)):
+        (tmp_path / sub / "d").mkdir(parents=True)
+        (tmp_path / sub / "d" / "0.lines.txt").write_text(text)
+    return tmp_path / "pred", tmp_path / "anno"
+
+
+@pytest.mark.parametrize(
+    ("pred_text", "words"),
+    [("10 500 20\n", "odd number"), ("10 500 abc 400\n", "not a number"), ("10 500 nan 400\n", "non-finite")],
+)
+def test_culane_bad_files(capsys: pytest.CaptureFixture[str], tmp_path: Path, pred_text: str, words: str) -> None:
+    pred, gt = _culane_tree(tmp_path, pred_text)
+    code, out, err = _run(capsys, "culane", pred, gt)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "0.lines.txt" in err and words in err and "line 1" in err
+
+
+def test_culane_bad_setup(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    pred, gt = _culane_tree(tmp_path, "10 500 20 400\n")
+    (tmp_path / "list.txt").write_text("/d/0.jpg\n/d/missing.jpg\n")
+    cases = [
+        (["culane", pred, gt, "--list", tmp_path / "list.txt"], "missing.lines.txt"),  # gt file missing
+        (["culane", pred, tmp_path / "nodir"], "not a directory"),
+        (["culane", pred, gt, "--list", tmp_path / "nolist.txt"], "nolist.txt"),
+        (["culane", pred, gt, "--size", "12"], "WxH"),
+        (["culane", pred, gt, "--iou", "1.5"], "IoU"),
+        (["culane", pred, gt, "--variant", "cpp"], "variant"),
+        (["culane", pred, gt, "--width", "0"], "positive"),
+        (["culane", pred, tmp_path / "empty"], "no .lines.txt"),
+        (["nosuch"], "invalid choice"),
+    ]
+    (tmp_path / "empty").mkdir()
+    for argv, words in cases:
+        code, out, err = _run(capsys, *argv)
+        assert code == 2 and out == "", argv
+        assert len(err.strip().splitlines()) == 1 and words in err and "Traceback" not in err, (argv, err)
+
+
+def test_console_script_runs() -> None:
+    exe = Path(sys.executable).with_name("stamlane-eval")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "stamlane_eval.cli"]
+    ok = subprocess.run([*cmd, "tusimple", str(TS_PRED), str(TS_GT), "--json"], capture_output=True, text=True)
+    assert ok.returncode == 0 and "accuracy" in json.loads(ok.stdout)
+    bad = subprocess.run([*cmd, "tusimple", str(TS_PRED), "/nonexistent.json"], capture_output=True, text=True)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr

@@ -1,0 +1,46 @@
+"""Readers: the official tools' reading rules and clear errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from stamlane_eval.io import LaneFileError, culane_entries, culane_lines_path, read_culane_lines, read_tusimple
+
+
+def test_culane_reader_keeps_blank_lines_as_empty_lanes(tmp_path: Path) -> None:
+    f = tmp_path / "a.lines.txt"
+    f.write_text("1 2 3 4\n   \n5.5 6\n")
+    lanes = read_culane_lines(f)
+    assert [lane.shape for lane in lanes] == [(2, 2), (0, 2), (1, 2)]  # the C++ counts every line as a lane
+    assert lanes[2].tolist() == [[5.5, 6.0]]
+    assert read_culane_lines(tmp_path / "missing.lines.txt") == []  # a missing prediction: no lanes
+    with pytest.raises(LaneFileError, match="no such file"):
+        read_culane_lines(tmp_path / "missing.lines.txt", missing_ok=False)
+
+
+def test_culane_paths_and_entries(tmp_path: Path) -> None:
+    assert culane_lines_path(tmp_path, "/d/v.MP4/001.jpg") == tmp_path / "d" / "v.MP4" / "001.lines.txt"
+    assert culane_lines_path(tmp_path, "/d/v.MP4/001.lines.txt") == tmp_path / "d" / "v.MP4" / "001.lines.txt"
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "b.lines.txt").write_text("")
+    (tmp_path / "d" / "a.lines.txt").write_text("")
+    assert culane_entries(tmp_path) == ["/d/a.lines.txt", "/d/b.lines.txt"]
+    (tmp_path / "list.txt").write_text("\n")
+    with pytest.raises(LaneFileError, match="empty list"):
+        culane_entries(tmp_path, tmp_path / "list.txt")
+
+
+def test_tusimple_reader(tmp_path: Path) -> None:
+    f = tmp_path / "p.json"
+    f.write_text('{"a": 1}\n{"a": 2}')  # no final newline is fine
+    assert read_tusimple(f) == [{"a": 1}, {"a": 2}]
+    f.write_text('{"a": 1}\n\n{"a": 2}\n')
+    with pytest.raises(LaneFileError, match="line 2 is blank"):
+        read_tusimple(f)
+    f.write_text('{"a": Infinity}\n')
+    with pytest.raises(LaneFileError, match=r"line 1.*non-finite"):
+        read_tusimple(f)
+    f.write_bytes(b"\xff\xfe\n")
+    with pytest.raises(LaneFileError, match="cannot read"):
+        read_tusimple(f)

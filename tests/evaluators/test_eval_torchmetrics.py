@@ -1,0 +1,90 @@
+"""torchmetrics classes equal the per-image functions; 2 DDP processes (gloo) give the numbers of one."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("torchmetrics")
+
+from stamlane_eval import culane, tusimple  # noqa: E402
+from stamlane_eval.integrations.torchmetrics import CULaneMetric, TuSimpleMetric  # noqa: E402
+
+
+def _tusimple_update(metric: TuSimpleMetric, preds: list[dict], gts: list[dict]) -> None:
+    for s in range(0, len(preds), 5):  # several batches
+        p, g = preds[s : s + 5], gts[s : s + 5]
+        metric.update(
+            [x["lanes"] for x in p], [x["lanes"] for x in g], [x["h_samples"] for x in g], [x["run_time"] for x in p]
+        )
+
+
+WORKER = Path(__file__).parent / "ddp_worker.py"
+
+
+def test_tusimple_metric_equals_function(golden: ModuleType) -> None:
+    preds, gts = golden.tusimple_records()
+    want = tusimple.evaluate(preds, gts)
+    m = TuSimpleMetric()
+    _tusimple_update(m, preds, gts)
+    got = m.compute()
+    assert float(got["accuracy"]) == want.accuracy
+    assert float(got["fp"]) == want.fp
+    assert float(got["fn"]) == want.fn
+    assert float(got["f1"]) == want.f1
+    assert float(got["lane_f1"]) == want.lane_f1
+    m.reset()
+    assert int(m.images) == 0
+
+
+@pytest.mark.parametrize("variant", ["official", "lanedet"])
+def test_culane_metric_equals_function(variant: str, golden: ModuleType) -> None:
+    preds, gts = golden.culane_lanes()
+    want = culane.evaluate(preds, gts, variant=variant)
+    m = CULaneMetric(variant=variant)
+    m.update(preds[:7], [[torch.as_tensor(x) for x in g] for g in gts[:7]])
+    m.update(preds[7:], gts[7:], sizes=[(1640, 590)] * (len(preds) - 7))
+    got = m.compute()
+    for t in (0.3, 0.5):
+        c = want.totals[t]
+        assert (int(got[f"tp@{t:g}"]), int(got[f"fp@{t:g}"]), int(got[f"fn@{t:g}"])) == (c.tp, c.fp, c.fn)
+        assert float(got[f"f1@{t:g}"]) == c.f1
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_ddp_two_processes_equal_one(tmp_path: Path, golden: ModuleType) -> None:
+    out, port = tmp_path / "ddp.json", _free_port()
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(WORKER), str(r), "2", str(port), str(out)], env=env, stderr=subprocess.PIPE
+        )
+        for r in range(2)
+    ]
+    errs = [p.communicate(timeout=120)[1].decode() for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], errs
+    ddp = json.loads(out.read_text())
+    preds, gts = golden.tusimple_records()
+    one = TuSimpleMetric()
+    _tusimple_update(one, preds, gts)
+    cp, cg = golden.culane_lanes()
+    cu = CULaneMetric()
+    cu.update(cp, cg)
+    single = {k: float(v) for k, v in {**one.compute(), **cu.compute()}.items()}
+    assert set(ddp) == set(single)
+    for k, v in single.items():
+        assert ddp[k] == pytest.approx(v, rel=1e-12, abs=1e-12), k  # float sums: order of addition differs
+    assert ddp["tp@0.5"] == single["tp@0.5"] and ddp["lane_precision"] == single["lane_precision"]

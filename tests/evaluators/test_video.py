@@ -1,0 +1,138 @@
+"""Video metrics on hand-made sequences with known answers, and the ``stamlane-eval video`` command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from stamlane_eval import video
+from stamlane_eval.cli import main
+from stamlane_eval.video import Frame
+
+SIZE = (640, 360)
+A = np.array([[100.0, 359.0], [180.0, 250.0], [260.0, 150.0]])
+B = np.array([[540.0, 359.0], [460.0, 250.0], [380.0, 150.0]])
+FAR = np.array([[320.0, 100.0], [330.0, 0.0]])  # overlaps neither A nor B: IoU 0
+
+
+def _frame(preds: list[np.ndarray], target: list[np.ndarray], **kw: object) -> Frame:
+    return Frame(preds, target, size=SIZE, **kw)
+
+
+def test_perfect_sequence() -> None:
+    res = video.evaluate({"s": [_frame([A, B], [A, B])] * 3})
+    assert res.miou == 1.0
+    assert res.totals[0.5].f1 == 1.0 and res.totals[0.8].tp == 6
+    assert (res.id_switches, res.switch_rate, res.flickers, res.flicker_rate) == (0, 0.0, 0, 0.0)
+    assert res.per_sequence[0].switch_chances == 4 and res.per_sequence[0].flicker_chances == 2
+
+
+def test_identity_switches() -> None:
+    # the model lists the lanes in another order in frame 1: both annotated lanes change predicted identity
+    # between frames 0->1 and again 1->2: 4 switches out of 4 chances
+    res = video.evaluate({"s": [_frame([A, B], [A, B]), _frame([B, A], [A, B]), _frame([A, B], [A, B])]})
+    assert (res.id_switches, res.switch_rate) == (4, 1.0)
+    assert res.totals[0.5].f1 == 1.0  # frame-level numbers do not see it
+    # explicit ids that follow the lanes: no switch
+    ids = [_frame([A, B], [A, B], pred_ids=[7, 8]), _frame([B, A], [A, B], pred_ids=[8, 7])]
+    assert video.evaluate({"s": ids}).id_switches == 0
+
+
+def test_flicker_and_counts() -> None:
+    frames = [_frame([A, B], [A, B]), _frame([B], [A, B]), _frame([A, B], [A, B]), _frame([A, B], [A, B])]
+    res = video.evaluate({"s": frames})
+    # lane A matched in frames 0 and 2, missed in 1: one flicker; chances: frame 1 (A and B, both matched in
+    # frames 0 and 2) and frame 2 (B only: A is not matched in frame 1)
+    assert (res.flickers, res.per_sequence[0].flicker_chances) == (1, 3)
+    assert res.flicker_rate == 1 / 3
+    c = res.totals[0.5]
+    assert (c.tp, c.fp, c.fn) == (7, 0, 1)
+    # the lone B in frame 1 is predicted lane 0 there but 1 elsewhere: 2 switches
+    assert res.id_switches == 2
+
+
+def test_miou_per_frame_over_predictions_then_sequences() -> None:
+    # frame mIoU: mean over predicted lanes (unmatched -> 0): [1.0, 0.5] -> sequence 0.75; other sequence 1.0
+    seqs = {
+        "one": [_frame([A], [A]), _frame([A, FAR], [A])],
+        "two": [_frame([B], [B])],
+        "empty": [_frame([], [])],  # nothing to score: skipped
+    }
+    res = video.evaluate(seqs)
+    assert res.per_sequence[0].miou == 0.75 and res.per_sequence[1].miou == 1.0 and res.per_sequence[2].miou is None
+    assert res.miou == 0.875  # not the frame mean 0.8333
+    assert video.evaluate({"s": [_frame([], [A])]}).miou == 0.0  # annotations, no prediction: 0
+    assert res.sequences == 3 and res.frames == 4
+
+
+def test_lane_absent_in_middle_frame_is_no_flicker() -> None:
+    frames = [
+        _frame([A, B], [A, B], target_ids=[1, 2]),
+        _frame([B], [B], target_ids=[2]),
+        _frame([A, B], [A, B], target_ids=[1, 2]),
+    ]
+    res = video.evaluate({"s": frames})
+    assert res.flickers == 0 and res.per_sequence[0].flicker_chances == 1
+
+
+def test_bad_ids() -> None:
+    with pytest.raises(ValueError, match="duplicate"):
+        video.evaluate({"s": [_frame([A, B], [A, B], target_ids=[1, 1])]})
+    with pytest.raises(ValueError, match="ids for"):
+        video.evaluate({"s": [_frame([A, B], [A, B], pred_ids=[1])]})
+    with pytest.raises(ValueError, match="no sequence"):
+        video.evaluate({})
+
+
+def _lines(lanes: list[np.ndarray]) -> str:
+    return "".join(" ".join(f"{x} {y}" for x, y in lane) + "\n" for lane in lanes)
+
+
+def _vil_tree(tmp_path: Path) -> tuple[Path, Path]:
+    gt, pred = tmp_path / "vil", tmp_path / "pred"
+    order = [[A, B], [B, A], [A, B]]
+    for f, lanes in enumerate(order):
+        ann = {
+            "info": {"width": SIZE[0], "height": SIZE[1], "image_path": f"{f:05d}.jpg"},
+            "annotations": {"lane": [{"lane_id": 1, "points": A.tolist()}, {"lane_id": 2, "points": B.tolist()}]},
+        }
+        (gt / "Json" / "0_road").mkdir(parents=True, exist_ok=True)
+        (gt / "Json" / "0_road" / f"{f:05d}.jpg.json").write_text(json.dumps(ann))
+        (pred / "0_road").mkdir(parents=True, exist_ok=True)
+        (pred / "0_road" / f"{f:05d}.lines.txt").write_text(_lines(lanes))
+    return pred, gt
+
+
+def test_cli_vil100_layout(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    pred, gt = _vil_tree(tmp_path)
+    assert main(["video", str(pred), str(gt), "--json", "--per-sequence", str(tmp_path / "seq.jsonl")]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["miou"] == 1.0 and res["0.5"]["f1"] == 1.0 and res["0.8"]["tp"] == 6
+    assert (res["id_switches"], res["switch_rate"], res["flickers"]) == (4, 1.0, 0)
+    assert json.loads((tmp_path / "seq.jsonl").read_text())["sequence"] == "0_road"
+    (pred / "0_road" / "00001.lines.txt").unlink()  # missing prediction: no lanes in that frame
+    assert main(["video", str(pred), str(gt)]) == 0
+    out = capsys.readouterr().out
+    assert "flicker 2 (rate 1.0000)" in out and "identity switches 0" in out
+
+
+def test_cli_lines_layout_and_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    gt, pred = tmp_path / "gt" / "seq", tmp_path / "pred" / "seq"
+    gt.mkdir(parents=True)
+    pred.mkdir(parents=True)
+    for f in range(2):
+        (gt / f"{f}.lines.txt").write_text(_lines([A]))
+        (pred / f"{f}.lines.txt").write_text(_lines([A]))
+    code = main(["video", str(pred.parent), str(gt.parent)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--size" in err and len(err.strip().splitlines()) == 1
+    assert main(["video", str(pred.parent), str(gt.parent), "--size", "640x360", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["0.5"]["tp"] == 2
+    bad = tmp_path / "bad"
+    (bad / "Json" / "v").mkdir(parents=True)
+    (bad / "Json" / "v" / "0.jpg.json").write_text('{"annotations": {}}')
+    code = main(["video", str(pred.parent), str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and "annotations.lane" in err and "0.jpg.json" in err
