@@ -1,0 +1,252 @@
+"""``stamlane align``: precompute ``key_from_hist`` for every clip of a dataset into a JSON cache.
+
+    stamlane align DATA_ROOT --cache CACHE_DIR [--num-frames 5] [--stride 1] [--key-frames last|all]
+                   [--horizon-row 0.45] [--strategy chain|direct] [--workers 1] [--visualize DIR]
+
+Walks ``DATA_ROOT`` for clip folders (any folder with numbered frames ``<n>.jpg``/``<n>.png``), and for each
+key frame estimates the homography of its ``num_frames - 1`` previous frames (every ``stride``-th). Writes
+one JSON per clip folder (layout in ``stamlane.align.cache``); clip folders whose JSON already covers the
+request are skipped, so an interrupted run resumes. numpy/OpenCV only: no torch import.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from stamlane.align.cache import alignment_to_json, cache_file, find_clip_dirs, list_frames, read_cache, write_cache
+from stamlane.align.homography import DEFAULT_HORIZON_FRACTION, AlignConfig, Alignment, FramePrep, estimate_prepared
+from stamlane.align.warp import alignments_to_key
+
+__all__ = ["AlignJob", "main", "process_clip"]
+
+
+@dataclass(frozen=True)
+class AlignJob:
+    """What to compute for every clip folder (picklable, sent to the workers)."""
+
+    root: Path
+    cache_dir: Path
+    num_frames: int = 5
+    stride: int = 1
+    key_frames: str = "last"
+    horizon: float = DEFAULT_HORIZON_FRACTION
+    strategy: str = "chain"
+    visualize_dir: Path | None = None
+
+
+def horizon_for(horizon: float, height: int) -> int:
+    """``--horizon-row``: a value below 1 is a fraction of the frame height, otherwise a row."""
+    row = round(horizon * height) if horizon < 1 else int(horizon)
+    return min(max(row, 0), height - 32)
+
+
+def requested_pairs(num_frames_in_clip: int, job: AlignJob) -> dict[int, list[int]]:
+    """``{key index: [history indices, oldest first]}`` of one clip."""
+    keys = range(num_frames_in_clip) if job.key_frames == "all" else [num_frames_in_clip - 1]
+    out = {}
+    for k in keys:
+        hist = [k - job.stride * j for j in range(job.num_frames - 1, 0, -1)]
+        out[k] = [i for i in hist if i >= 0]
+    return out
+
+
+def _covered(existing: dict, frames: list[Path], pairs: dict[int, list[int]]) -> bool:
+    return all(
+        frames[k].name in existing and all(frames[i].name in existing[frames[k].name] for i in hist)
+        for k, hist in pairs.items()
+    )
+
+
+class _Clip:
+    """Frames of one clip read and prepared on first use."""
+
+    def __init__(self, frames: list[Path], job: AlignJob, cfg: AlignConfig) -> None:
+        self.frames, self.job, self.cfg = frames, job, cfg
+        self.images: dict[int, np.ndarray | None] = {}
+        self.preps: dict[tuple[int, int], FramePrep] = {}
+        self.pairs: dict[tuple[int, int], Alignment] = {}
+
+    def image(self, i: int) -> np.ndarray | None:
+        if i not in self.images:
+            self.images[i] = cv2.imread(str(self.frames[i]), cv2.IMREAD_COLOR)
+        return self.images[i]
+
+    def estimate(self, i: int, k: int) -> Alignment:
+        """Alignment of frame ``i`` to frame ``k``, computed once (chains of several key frames share links)."""
+        if (i, k) not in self.pairs:
+            self.pairs[(i, k)] = self._estimate(i, k)
+        return self.pairs[(i, k)]
+
+    def _estimate(self, i: int, k: int) -> Alignment:
+        hist, key = self.image(i), self.image(k)
+        if hist is None or key is None:
+            bad = self.frames[i if hist is None else k].name
+            return Alignment.failed(f"could not read {bad}")
+        if hist.shape != key.shape:
+            return Alignment.failed(
+                f"size mismatch: {self.frames[i].name} {hist.shape} vs {self.frames[k].name} {key.shape}"
+            )
+        row = horizon_for(self.job.horizon, key.shape[0])
+        return estimate_prepared(self.prep(i, row), self.prep(k, row), self.cfg)
+
+    def prep(self, i: int, row: int) -> FramePrep:
+        if (i, row) not in self.preps:
+            self.preps[(i, row)] = FramePrep(self.image(i), row, self.cfg)
+        return self.preps[(i, row)]
+
+
+def process_clip(clip_dir: Path, job: AlignJob) -> tuple[str, int, int]:
+    """Compute and write one clip folder's cache; returns ``(status, pairs, ok pairs)``, status ``done|skipped``."""
+    frames = list_frames(clip_dir)
+    pairs = requested_pairs(len(frames), job)
+    path = cache_file(job.cache_dir, job.root, clip_dir)
+    existing = read_cache(path)
+    if _covered(existing, frames, pairs):
+        return "skipped", 0, 0
+    cv2.setNumThreads(1)
+    cfg = AlignConfig()
+    clip = _Clip(frames, job, cfg)
+    n_pairs = n_ok = 0
+    for k, hist in pairs.items():
+        seq = [*hist, k]  # oldest first, key last
+        key = clip.image(k)
+        shape = key.shape[:2] if key is not None else (720, 1280)  # only for checks; every pair fails then
+        alignments = alignments_to_key(
+            len(seq),
+            lambda a, b, seq=seq: clip.estimate(seq[a], seq[b]),
+            shape,
+            horizon_for(job.horizon, shape[0]),
+            cfg,
+            job.strategy,
+        )
+        entry = existing.setdefault(frames[k].name, {})
+        for i, alignment in zip(hist, alignments, strict=True):
+            entry[frames[i].name] = alignment_to_json(alignment)
+            n_pairs += 1
+            n_ok += bool(alignment.ok)
+    write_cache(path, existing)
+    if job.visualize_dir is not None:
+        _visualize(clip, clip_dir, pairs, job)
+    return "done", n_pairs, n_ok
+
+
+def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: AlignJob) -> None:
+    from stamlane.align.visualize import draw_alignment  # only when asked for
+
+    k = max(pairs)
+    if not pairs[k]:
+        return
+    i = pairs[k][-1]  # the nearest history frame
+    hist, key = clip.image(i), clip.image(k)
+    if hist is None or key is None or hist.shape != key.shape:
+        return
+    row = horizon_for(job.horizon, key.shape[0])
+    picture = draw_alignment(hist, key, clip.estimate(i, k), row, clip.cfg)
+    rel = clip_dir.resolve().relative_to(job.root.resolve())
+    name = "__".join(rel.parts) or "root"
+    job.visualize_dir.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"), picture)
+
+
+def _run_one(task: tuple[Path, AlignJob]) -> tuple[str, int, int]:
+    return process_clip(*task)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit status 2, no usage dump
+        print(f"stamlane align: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="stamlane align", description="Precompute key_from_hist for every clip of a dataset into a JSON cache."
+    )
+    p.add_argument("root", type=Path, help="dataset root to walk for clip folders")
+    p.add_argument("--cache", type=Path, default=None, help="cache folder (default outputs/align/<root name>)")
+    p.add_argument("--num-frames", type=int, default=5, help="frames per clip including the key frame (default 5)")
+    p.add_argument("--stride", type=int, default=1, help="step between the frames used (default 1)")
+    p.add_argument("--key-frames", choices=("last", "all"), default="last", help="which frames are key frames")
+    p.add_argument(
+        "--horizon-row",
+        type=float,
+        default=DEFAULT_HORIZON_FRACTION,
+        help=f"first row of the ground region: a fraction of the height if < 1, else a row (default {DEFAULT_HORIZON_FRACTION})",
+    )
+    p.add_argument(
+        "--strategy", choices=("chain", "direct"), default="chain", help="see stamlane.align.align_clip (default chain)"
+    )
+    p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    p.add_argument("--visualize", type=Path, default=None, metavar="DIR", help="write a picture per clip here")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv: list[str]) -> int:
+    """Run ``stamlane align``; returns the exit status (2 on bad input)."""
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as exit_:
+        return int(exit_.code or 0)
+    problems = [
+        (args.num_frames < 2, f"--num-frames must be >= 2, got {args.num_frames}"),
+        (args.stride < 1, f"--stride must be >= 1, got {args.stride}"),
+        (args.workers < 1, f"--workers must be >= 1, got {args.workers}"),
+        (not 0 <= args.horizon_row, f"--horizon-row must be >= 0, got {args.horizon_row}"),
+        (not args.root.is_dir(), f"dataset root {args.root} is not a folder"),
+    ]
+    for bad, message in problems:
+        if bad:
+            print(f"stamlane align: {message}", file=sys.stderr)
+            return 2
+    root = args.root.resolve()  # clip folders are then absolute; cache_file reads relative ones as under root
+    clips = find_clip_dirs(root)
+    if not clips:
+        print(f"stamlane align: no clip folders (numbered frames <n>.jpg/.png) under {args.root}", file=sys.stderr)
+        return 2
+    cache_dir = args.cache or Path("outputs") / "align" / args.root.resolve().name
+    job = AlignJob(
+        root,
+        cache_dir,
+        args.num_frames,
+        args.stride,
+        args.key_frames,
+        args.horizon_row,
+        args.strategy,
+        args.visualize,
+    )
+    tasks = [(clip, job) for clip in clips]
+    bar = tqdm(total=len(tasks), desc="align", unit="clip", disable=args.quiet)
+    done = skipped = pairs = ok = 0
+    if args.workers == 1:
+        results = map(_run_one, tasks)
+        pool = None
+    else:
+        pool = get_context("spawn").Pool(args.workers)
+        results = pool.imap_unordered(_run_one, tasks, chunksize=1)
+    try:
+        for status, n, n_ok in results:
+            done += status == "done"
+            skipped += status == "skipped"
+            pairs, ok = pairs + n, ok + n_ok
+            bar.update(1)
+    finally:
+        bar.close()
+        if pool is not None:
+            pool.close()
+            pool.join()
+    rate = f", {100 * ok / pairs:.1f} % ok" if pairs else ""
+    print(f"aligned {done} clip folders ({skipped} already cached), {pairs} frame pairs{rate}; cache: {cache_dir}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
