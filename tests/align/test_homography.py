@@ -193,6 +193,7 @@ def test_invalid_input_raises_with_the_value(hist, key, kwargs, message):
         ({"key_scales": (0.5,)}, "0.5"),
         ({"ratio": 1.5}, "1.5"),
         ({"min_inliers": 3}, "3"),
+        ({"max_models": 0}, "max_models must be >= 1, got 0"),
     ],
 )
 def test_align_config_rejects_bad_values(kwargs, message):

@@ -5,7 +5,8 @@ Two stages, both on the ground region below ``horizon_row``:
 1. **Match** (the paper's method): evenly spread ORB features of the history frame against those of the
    key frame on a small scale pyramid (the key frame sees the road from closer, so its level ``s``
    matches the history's level 1), Hamming cross-check matching, RANSAC homography, plausibility checks.
-   Done at ``working_scale`` (half resolution by default) for speed.
+   Done at ``working_scale`` (half resolution by default, but never narrower than ``min_working_width``) for
+   speed.
 2. **Refine** (ours, for sub-pixel accuracy): warp the history frame with the stage-1 homography, track
    the key frame's spread corners into it with pyramidal Lucas-Kanade at full resolution (the residual
    motion is now small and nearly scale-free), and compose the residual RANSAC homography.
@@ -49,6 +50,10 @@ class AlignConfig:
     Attributes:
         features: evenly spread feature settings at ``working_scale`` (cell 15 px there = 30 px at full size).
         working_scale: resize factor of the matching stage (0.5: half resolution).
+        min_working_width: the matching stage never shrinks a frame below this width (the scale used is
+            ``max(working_scale, min(1, min_working_width / W))``): half of a 1280-wide TuSimple frame is 640 px,
+            but half of a 640-wide frame leaves too little texture to match 1-3 m of forward motion
+            (measured on 640x360 clips in ``benchmarks/synth_align.py``). 0: always ``working_scale``.
         key_scales: pyramid shrink factors of the key frame's features (the history frame uses level 1).
         max_hamming: largest Hamming distance (of 256 bits) of a kept match.
         ratio: Lowe's ratio test on two nearest neighbours; ``None`` uses a cross check instead.
@@ -64,10 +69,14 @@ class AlignConfig:
         refine_threshold: RANSAC threshold of the refinement, pixels.
         max_scale: largest scale change (either way) of the ground region's area and of each side.
         max_displacement: largest shift of a ground-region corner as a fraction of the image width.
+        max_models: homographies tried per pair: when the tracking check rejects a fit (or it is implausible),
+            its RANSAC inliers are set aside and the rest of the matches are fitted again (sequential RANSAC:
+            a car driving ahead is a second, wrong "plane" that can outvote the road). 1: one fit only.
     """
 
     features: FeatureConfig = field(default_factory=lambda: FeatureConfig(cell_size=15, max_features=300))
     working_scale: float = 0.5
+    min_working_width: int = 640
     key_scales: tuple[float, ...] = (1.0, 1.3, 1.69)
     max_hamming: int = 64
     ratio: float | None = None
@@ -82,16 +91,21 @@ class AlignConfig:
     refine_threshold: float = 1.0
     max_scale: float = 3.0
     max_displacement: float = 0.5
+    max_models: int = 3
 
     def __post_init__(self) -> None:
         if not 0.1 <= self.refine_scale <= 1:
             raise ValueError(f"refine_scale must be in [0.1, 1], got {self.refine_scale}")
         if not 0.1 <= self.working_scale <= 1:
             raise ValueError(f"working_scale must be in [0.1, 1], got {self.working_scale}")
+        if self.min_working_width < 0:
+            raise ValueError(f"min_working_width must be >= 0, got {self.min_working_width}")
         if not self.key_scales or min(self.key_scales) < 1:
             raise ValueError(f"key_scales must be non-empty and >= 1, got {self.key_scales}")
         if self.ratio is not None and not 0 < self.ratio <= 1:
             raise ValueError(f"ratio must be in (0, 1] or None, got {self.ratio}")
+        if self.max_models < 1:
+            raise ValueError(f"max_models must be >= 1, got {self.max_models}")
         if self.min_inliers < 4 or self.min_matches < 4:
             raise ValueError(f"min_matches and min_inliers must be >= 4, got {self.min_matches}, {self.min_inliers}")
 
@@ -162,7 +176,8 @@ class FramePrep:
 
     Attributes:
         gray: ``(H - top, W)`` uint8 grey rows ``top:`` of the frame (the ground region and a margin).
-        small: ``gray`` resized by ``cfg.working_scale``.
+        scale: resize factor of the matching stage for this frame's width (see ``AlignConfig.min_working_width``).
+        small: ``gray`` resized by ``scale``.
 
     Args:
         image: uint8 ``(H, W, 3)`` BGR or ``(H, W)`` grey (checked by the caller).
@@ -177,7 +192,8 @@ class FramePrep:
         # only the ground region (and a margin for descriptor patches and LK windows) is ever read
         self.top = max(horizon_row - 40, 0)
         self.gray = to_gray(image[self.top :])
-        s = cfg.working_scale
+        s = max(cfg.working_scale, min(1.0, cfg.min_working_width / image.shape[1]))
+        self.scale = s
         self.small = self.gray if s == 1 else cv2.resize(self.gray, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
         self._levels: dict[float, Features] = {}
         self._normalized: dict[float, np.ndarray] = {}
@@ -188,7 +204,7 @@ class FramePrep:
         if scale not in self._normalized:
             if scale == 1:
                 image = self.gray
-            elif scale == self.cfg.working_scale:
+            elif scale == self.scale:
                 image = self.small
             else:
                 image = cv2.resize(self.gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
@@ -203,7 +219,7 @@ class FramePrep:
 
         Levels are computed once each: the frame's level 1 serves both as a history frame and as a key frame.
         """
-        s = self.cfg.working_scale
+        s = self.scale
         for scale in scales:
             if scale not in self._levels:
                 row = round((self.horizon_row - self.top) * s)
@@ -341,22 +357,29 @@ def fit_homography(
         horizon_row: first row of the ground region.
         cfg: thresholds.
     """
-    cfg = cfg or AlignConfig()
+    return _fit(src, dst, shape, horizon_row, cfg or AlignConfig())[0]
+
+
+def _fit(
+    src: np.ndarray, dst: np.ndarray, shape: tuple[int, int], horizon_row: int, cfg: AlignConfig
+) -> tuple[Alignment, np.ndarray | None]:
+    """``fit_homography`` and the RANSAC inlier mask ``(M,)`` bool (None when RANSAC did not run or found nothing)."""
     n = len(src)
     if n < cfg.min_matches:
-        return Alignment.failed(f"too few matches: {n} < {cfg.min_matches}", n)
+        return Alignment.failed(f"too few matches: {n} < {cfg.min_matches}", n), None
     # USAC_ACCURATE (GC-RANSAC with local optimisation): on the pairs of benchmarks/align.py it was 5-50x faster than
     # cv2.RANSAC at the low inlier ratios of pyramid matching (0.2-0.6 vs 1-21 ms), and more accurate on weak texture
     h, mask = cv2.findHomography(src, dst, cv2.USAC_ACCURATE, cfg.ransac_threshold, maxIters=2000, confidence=0.999)
     if h is None or mask is None:
-        return Alignment.failed("RANSAC found no homography (degenerate matches)", n)
+        return Alignment.failed("RANSAC found no homography (degenerate matches)", n), None
     inliers = int(mask.sum())
+    mask = mask.ravel().astype(bool)
     if inliers < cfg.min_inliers:
-        return Alignment.failed(f"too few inliers: {inliers} < {cfg.min_inliers}", n, inliers)
+        return Alignment.failed(f"too few inliers: {inliers} < {cfg.min_inliers}", n, inliers), mask
     reason = check_plausible(h, shape, horizon_row, cfg)
     if reason:
-        return Alignment.failed(reason, n, inliers)
-    return Alignment(h / h[2, 2], n, inliers, True, "")
+        return Alignment.failed(reason, n, inliers), mask
+    return Alignment(h / h[2, 2], n, inliers, True, ""), mask
 
 
 def estimate_prepared(hist: FramePrep, key: FramePrep, cfg: AlignConfig | None = None) -> Alignment:
@@ -366,17 +389,25 @@ def estimate_prepared(hist: FramePrep, key: FramePrep, cfg: AlignConfig | None =
     if len(fh) < 4 or len(fk) < 4:
         return Alignment.failed(f"too few features: {len(fh)} in history, {len(fk)} in key (textureless?)")
     src, dst = match_features(fh, fk, cfg)
-    alignment = fit_homography(src, dst, key.shape, key.horizon_row, cfg)
-    if alignment.ok and cfg.refine:
-        refined, agree, tracked = refine_homography(hist, key, alignment.key_from_hist, cfg)
-        if refined is None or agree < cfg.min_track_ratio * tracked:
-            # a wrong homography (e.g. locked on a car driving ahead, or on self-similar lane lines) leaves
-            # the warped frame unlike the key frame, and few corners track consistently
-            reason = f"not confirmed by tracking: {agree} of {tracked} corners agree"
-            return Alignment.failed(reason, alignment.num_matches, alignment.num_inliers)
-        if not check_plausible(refined, key.shape, key.horizon_row, cfg):
-            alignment.key_from_hist = refined
-    return alignment
+    first: Alignment | None = None
+    for _ in range(cfg.max_models):
+        alignment, mask = _fit(src, dst, key.shape, key.horizon_row, cfg)
+        if alignment.ok and cfg.refine:
+            refined, agree, tracked = refine_homography(hist, key, alignment.key_from_hist, cfg)
+            if refined is None or agree < cfg.min_track_ratio * tracked:
+                # a wrong homography (e.g. locked on a car driving ahead, or on self-similar lane lines) leaves
+                # the warped frame unlike the key frame, and few corners track consistently
+                reason = f"not confirmed by tracking: {agree} of {tracked} corners agree"
+                alignment = Alignment.failed(reason, alignment.num_matches, alignment.num_inliers)
+            elif not check_plausible(refined, key.shape, key.horizon_row, cfg):
+                alignment.key_from_hist = refined
+        if alignment.ok:
+            return alignment
+        first = first or alignment
+        if mask is None or alignment.num_inliers < cfg.min_inliers:
+            break  # nothing was fitted, or too little to set aside: another fit would not differ
+        src, dst = src[~mask], dst[~mask]  # set the rejected model's inliers aside and fit the rest
+    return first
 
 
 def estimate_homography(

@@ -74,12 +74,14 @@ def sample_vehicles(
     lane_change_prob: float = 0.3,
     truck_prob: float = 0.2,
     oncoming_prob: float = 0.4,
+    ahead: tuple[float, float] = (3.0, 30.0),
 ) -> list[Vehicle]:
     """Draw ``count`` vehicles spread over the lanes, near the camera's path.
 
     Args:
         ego_track: the camera's ``(t, x, z)`` per frame, (T, 3); no vehicle comes within 5 m ahead of it
             (or beside it) in its own lane, and vehicles do not overlap at ``t = 0``.
+        ahead: range (metres) of a vehicle's distance ahead of the camera's final position at the key frame.
     """
     offsets = np.array([m.offset for m in road.marks])
     lane_centres = (offsets[:-1] + offsets[1:]) / 2.0
@@ -98,8 +100,8 @@ def sample_vehicles(
         speed = ego_speed * float(rng.uniform(0.35, 1.25))
         if oncoming and lane_centres[lane] < ego_x - 0.5 * road.lane_width:
             speed = -float(rng.uniform(10, 25))
-        # where it is when the key frame is taken: mostly 3-30 m ahead of the ego's final position
-        z_end = ego_speed * duration + float(rng.uniform(3, 30))
+        # where it is when the key frame is taken: ``ahead`` metres ahead of the ego's final position
+        z_end = ego_speed * duration + float(rng.uniform(*ahead))
         z0 = z_end - speed * duration
         offset0 = float(lane_centres[lane] + rng.uniform(-0.3, 0.3))
         lateral_speed, start, dur = 0.0, 0.0, 1.0

@@ -3,8 +3,10 @@
 A flat road (``synth_road``) is seen by a pinhole camera (``synth_camera``) that drives along it with
 speed, lateral drift or a lane change, the matching yaw, curvature and pitch jitter; box vehicles
 (``synth_vehicles``) drive on the road at their own speeds, change lanes, occlude lane marks and cast
-moving shadows. The ground texture is rendered once per clip and each frame is one perspective warp of
-it, so the ground-plane homography of every frame is known exactly.
+moving shadows. The ground texture is rendered once per clip and each frame samples it through the
+frame's ground homography (``synth_render``: averaged along the road as far as one image row spans, with
+ground-anchored asphalt grain near the camera), so the ground-plane homography of every frame is known
+exactly. Defaults follow TuSimple: 20 frames at 20 fps (0.6-1.4 m of forward motion per frame).
 
 What each effect tests (see the README):
     * moving vehicles and their shadows hide paint in the key frame that an ALIGNED history frame shows
@@ -35,13 +37,15 @@ import numpy as np
 from tqdm import tqdm
 
 from stamlane.data.synth_camera import Camera, Pose
+from stamlane.data.synth_render import GrainLayer, GroundRenderer
 from stamlane.data.synth_road import Road, render_texture, sample_road
 from stamlane.data.synth_vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
 __all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_dataset", "write_clip"]
 
 SPLITS = ("train", "val", "test", "challenging")
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: 20 fps, asphalt grain near the camera, along-road prefiltering, vehicles 4-35 m ahead (1: 10 fps, 3-30 m)."""
 FAR_M = 120.0
 """Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
 HAZE_PX = 0.04
@@ -58,7 +62,7 @@ class SynthConfig:
     width: int = 640
     height: int = 360
     num_frames: int = 20
-    fps: float = 10.0
+    fps: float = 20.0
     hfov_deg: float = 60.0
     horizon: float = 0.42
     cam_height: float = 1.8
@@ -74,6 +78,8 @@ class SynthConfig:
     oncoming_prob: float = 0.6
     truck_prob: float = 0.2
     vehicle_lane_change_prob: float = 0.35
+    vehicle_ahead: tuple[float, float] = (4.0, 35.0)
+    """Distance (metres) of a vehicle's rear ahead of the camera at the key frame."""
     static_shadows: tuple[int, int] = (0, 5)
     shadow_depth: float = 0.5
     moving_shadow_depth: float = 0.6
@@ -83,6 +89,10 @@ class SynthConfig:
     jpeg_quality: int = 92
     ppm: float = 0.0
     """Texture pixels per metre; 0 = ``16 * width / 640``."""
+    grain: float = 0.12
+    """Relative brightness amplitude of the fine asphalt grain near the camera (``synth_render``); 0: none."""
+    prefilter: bool = True
+    """Average the texture along the road as far as one image row spans (no far-field aliasing)."""
 
     @classmethod
     def challenging(cls, **overrides: object) -> SynthConfig:
@@ -93,6 +103,7 @@ class SynthConfig:
             truck_prob=0.35,
             oncoming_prob=0.9,
             vehicle_lane_change_prob=0.5,
+            vehicle_ahead=(3.0, 30.0),
             static_shadows=(4, 10),
             shadow_depth=0.7,
             moving_shadow_depth=0.8,
@@ -261,11 +272,12 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
             lane_change_prob=cfg.vehicle_lane_change_prob,
             truck_prob=cfg.truck_prob,
             oncoming_prob=cfg.oncoming_prob,
+            ahead=cfg.vehicle_ahead,
         )
     sky, ridge = _sky(cfg, rng)
     haze = tuple(float(c) for c in sky[-1, 0])
-    tex_from_ground = road.texture_from_ground()
-    ground_from_tex = np.linalg.inv(tex_from_ground)
+    grain = GrainLayer(rng, cfg.grain) if cfg.grain > 0 else None
+    renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=7 if cfg.prefilter else 1)
     h_samples = cfg.h_samples()
     gains = 1.0 + 0.03 * rng.standard_normal(cfg.num_frames)
 
@@ -273,16 +285,9 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
     for i, pose in enumerate(poses):
         t = float(track[i, 0])
         img_from_ground = camera.image_from_ground(pose)
-        frame = cv2.warpPerspective(
-            texture,
-            img_from_ground @ ground_from_tex,
-            (cfg.width, cfg.height),
-            flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=haze,
-        )
         horizon = camera.horizon_row(pose)
         sky_rows = int(np.clip(np.ceil(horizon + 1), 0, cfg.height))
+        frame = renderer.render(img_from_ground, (cfg.width, cfg.height), sky_rows, haze)
         frame[:sky_rows] = sky[:sky_rows]
         _haze(frame, sky_rows, haze)
         _draw_ridge(frame, ridge, horizon, pose, camera)
@@ -434,7 +439,14 @@ def generate_dataset(
     """
     root = Path(root)
     cfg = config or SynthConfig()
-    hard = SynthConfig.challenging(width=cfg.width, height=cfg.height, num_frames=cfg.num_frames, fps=cfg.fps)
+    hard = SynthConfig.challenging(
+        width=cfg.width,
+        height=cfg.height,
+        num_frames=cfg.num_frames,
+        fps=cfg.fps,
+        grain=cfg.grain,
+        prefilter=cfg.prefilter,
+    )
     counts = {"train": train, "val": val, "test": test, "challenging": challenging}
     for name, n in counts.items():
         if n < 0:
