@@ -1,0 +1,216 @@
+"""``stamlane stream VIDEO``: lanes of every frame of a video with `StreamingPredictor`.
+
+Usage::
+
+    stamlane stream drive.mp4 --ckpt outputs/demo/stam4/run/checkpoints/last.ckpt [--out DIR]
+    stamlane stream frames_dir/ --config configs/demo.yaml [--ckpt CKPT]
+
+``VIDEO`` is a video file or a folder of frames (sorted by name). The network comes from a checkpoint
+written by ``stamlane fit`` (``--ckpt``; T, the input size and the horizon row are read from it) or is built
+from a training config (``--config``, with the weights of ``--ckpt`` when given, else untrained). Writes under
+``--out`` (default ``outputs/stream/<VIDEO name>``):
+
+- ``lanes.jsonl``: one line per frame, ``{"frame": i, "lanes": [[[x, y], ...], ...], "run_time": ms,
+  "aligned": [ok per history slot]}``, points in original pixels;
+- ``overlay.mp4`` (mp4v): each frame with its lanes drawn (``--no-video`` to skip).
+
+A progress bar shows frames per second. Bad input: one line on stderr, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+__all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+class StreamError(Exception):
+    """Bad input to ``stamlane stream`` (reported as one line, exit status 2)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
+    parser.add_argument("video", help="a video file or a folder of frames (sorted by name)")
+    parser.add_argument("--ckpt", help="checkpoint written by `stamlane fit`")
+    parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
+    parser.add_argument("--out", help="output folder (default outputs/stream/<VIDEO name>)")
+    parser.add_argument("--num-frames", type=int, help="T, frames fused (default: as trained)")
+    parser.add_argument(
+        "--image-size", type=int, nargs=2, metavar=("H", "W"), help="network input (default: as trained)"
+    )
+    parser.add_argument("--horizon-row", type=int, help="first ground row in original pixels, for the alignment")
+    parser.add_argument("--no-align", action="store_true", help="fuse unaligned history features")
+    parser.add_argument("--max-frames", type=int, help="stop after this many frames")
+    parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")
+    parser.add_argument("--fps", type=float, help="frame rate of overlay.mp4 (default: the video's, else 10)")
+    return parser
+
+
+def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[np.ndarray], int | None, float | None]:
+    """Frames of a video file or an image folder: ``(iterator of BGR uint8 images, count or None, fps or None)``."""
+    if source.is_dir():
+        paths = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not paths:
+            raise StreamError(f"{source} holds no image ({', '.join(IMAGE_SUFFIXES)})")
+        paths = paths[:max_frames] if max_frames else paths
+
+        def read_images() -> Iterator[np.ndarray]:
+            for path in paths:
+                image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+                if image is None:
+                    raise StreamError(f"cannot read image {path}")
+                yield image
+
+        return read_images(), len(paths), None
+    capture = cv2.VideoCapture(str(source))
+    if not capture.isOpened():
+        raise StreamError(f"cannot open video {source}")
+    count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
+    fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
+    if max_frames and count:
+        count = min(count, max_frames)
+
+    def read_video() -> Iterator[np.ndarray]:
+        n = 0
+        try:
+            while not max_frames or n < max_frames:
+                ok, frame = capture.read()
+                if not ok:
+                    break
+                n += 1
+                yield frame
+        finally:
+            capture.release()
+        if n == 0:
+            raise StreamError(f"no frame could be decoded from {source}")
+
+    return read_video(), count, fps
+
+
+def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
+    """The LightningModule and the data options (num_frames, image_size, horizon_row) it was trained with."""
+    import torch
+
+    from stamlane.module import StamLaneModule
+
+    data: dict[str, Any] = {}
+    if args.config:
+        from stamlane.cli import build_cli
+
+        if not Path(args.config).is_file():
+            raise StreamError(f"config {args.config} does not exist")
+        cli = build_cli(["--config", args.config], run=False)
+        module = cli.model
+        data = dict(vars(cli.config["data"])) if hasattr(cli.config["data"], "__dict__") else dict(cli.config["data"])
+        if args.ckpt:
+            checkpoint = torch.load(args.ckpt, map_location="cpu", weights_only=True)
+            module.load_state_dict(checkpoint["state_dict"])
+        return module, data
+    if not args.ckpt:
+        raise StreamError("give --ckpt CKPT or --config CFG")
+    try:
+        module = StamLaneModule.load_from_checkpoint(args.ckpt, map_location="cpu")
+    except (KeyError, TypeError) as err:
+        raise StreamError(f"{args.ckpt} cannot be rebuilt from its hyper-parameters ({err}); add --config") from None
+    checkpoint = torch.load(args.ckpt, map_location="cpu", weights_only=True)
+    data = dict(checkpoint.get("datamodule_hyper_parameters") or {})
+    return module, data
+
+
+def load_predictor(args: argparse.Namespace) -> Any:
+    """The `StreamingPredictor` the command line asks for."""
+    from stamlane.stream.predictor import StreamingPredictor
+
+    if args.ckpt and not Path(args.ckpt).is_file():
+        raise StreamError(f"checkpoint {args.ckpt} does not exist")
+    module, data = _load_module(args)
+    module.eval()
+    overrides: dict[str, Any] = {"align": not args.no_align}
+    num_frames = args.num_frames or getattr(module, "num_frames", None) or data.get("num_frames")
+    image_size = args.image_size or module.hparams.get("image_size") or data.get("image_size")
+    if num_frames is None or image_size is None:
+        raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
+    horizon_row = args.horizon_row if args.horizon_row is not None else data.get("horizon_row")
+    return StreamingPredictor.from_module(
+        module, num_frames=int(num_frames), image_size=tuple(image_size), horizon_row=horizon_row, **overrides
+    )
+
+
+def _lanes_json(lanes: list[np.ndarray]) -> list[list[list[float]]]:
+    return [[[round(float(x), 2), round(float(y), 2)] for x, y in lane] for lane in lanes]
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+    from tqdm import tqdm
+
+    from stamlane.overlay import draw_lanes
+
+    source = Path(args.video)
+    if not source.exists():
+        raise StreamError(f"{source} does not exist")
+    if args.max_frames is not None and args.max_frames < 1:
+        raise StreamError(f"--max-frames must be >= 1, got {args.max_frames}")
+    frames, count, fps = iter_frames(source, args.max_frames)
+    predictor = load_predictor(args)
+    out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
+    out_dir.mkdir(parents=True, exist_ok=True)
+    writer = None
+    written = 0
+    start = time.perf_counter()
+    with torch.inference_mode(), open(out_dir / "lanes.jsonl", "w") as jsonl:
+        bar = tqdm(frames, total=count, desc=f"stream {source.name}", unit="frame")
+        for image in bar:
+            t0 = time.perf_counter()
+            out = predictor(image)
+            ms = (time.perf_counter() - t0) * 1000.0
+            record = {
+                "frame": out.index,
+                "lanes": _lanes_json(out.lanes),
+                "run_time": round(ms, 2),
+                "aligned": [bool(a.ok) for a in out.alignments],
+            }
+            jsonl.write(json.dumps(record) + "\n")
+            if not args.no_video:
+                if writer is None:
+                    size = (image.shape[1], image.shape[0])
+                    writer = cv2.VideoWriter(
+                        str(out_dir / "overlay.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, size
+                    )
+                writer.write(draw_lanes(image, out.lanes))
+            written += 1
+        bar.close()
+    if writer is not None:
+        writer.release()
+    seconds = time.perf_counter() - start
+    print(
+        f"stamlane stream: {written} frames in {seconds:.1f} s ({written / max(seconds, 1e-9):.1f} frames/s); "
+        f"wrote {out_dir / 'lanes.jsonl'}" + ("" if args.no_video else f" and {out_dir / 'overlay.mp4'}")
+    )
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``stamlane stream``; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        return run(args)
+    except (StreamError, FileNotFoundError, ValueError) as err:
+        print(f"stamlane stream: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

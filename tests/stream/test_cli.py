@@ -1,0 +1,106 @@
+"""``stamlane stream``: a checkpoint and a folder of frames in, lanes json-lines and an overlay video out."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+import torch
+
+from stamlane.align.egomotion import Camera
+from stamlane.align.synthetic import render_road, road_texture
+from stamlane.stream.cli import main
+
+torch.set_num_threads(1)
+
+NUM_FRAMES = 5
+HPARAMS = {
+    "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
+    "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
+    "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
+    "num_frames": 2,
+    "image_size": [64, 128],
+    "_instantiator": "lightning.pytorch.cli.instantiate_module",
+}
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A checkpoint as `stamlane fit` writes it (hyper-parameters from the config, weights, data options)."""
+    import lightning
+    from lightning.pytorch.cli import instantiate_module
+
+    from stamlane.module import StamLaneModule
+
+    torch.manual_seed(0)
+    module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})
+    path = tmp_path_factory.mktemp("ckpt") / "last.ckpt"
+    torch.save(
+        {
+            "state_dict": module.state_dict(),
+            "hyper_parameters": dict(HPARAMS),
+            "datamodule_hyper_parameters": {"num_frames": 2, "image_size": [64, 128], "horizon_row": 100},
+            "pytorch-lightning_version": lightning.__version__,
+        },
+        path,
+    )
+    return path
+
+
+@pytest.fixture(scope="module")
+def frames_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    camera = Camera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
+    texture = road_texture(seed=1)
+    folder = tmp_path_factory.mktemp("frames")
+    for i in range(NUM_FRAMES):
+        cv2.imwrite(str(folder / f"{i:04d}.jpg"), render_road(texture, camera, forward=0.7 * i))
+    return folder
+
+
+def test_stream_writes_lanes_and_overlay(checkpoint: Path, frames_dir: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main([str(frames_dir), "--ckpt", str(checkpoint), "--out", str(out)]) == 0
+    records = [json.loads(line) for line in (out / "lanes.jsonl").read_text().splitlines()]
+    assert [r["frame"] for r in records] == list(range(NUM_FRAMES))
+    for record in records:
+        assert isinstance(record["lanes"], list) and record["run_time"] > 0
+        assert len(record["aligned"]) == 1  # T = 2 from the checkpoint: one history slot
+        for lane in record["lanes"]:
+            assert all(len(point) == 2 for point in lane)
+    capture = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert capture.isOpened()
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == NUM_FRAMES
+    assert (int(capture.get(cv2.CAP_PROP_FRAME_WIDTH)), int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT))) == (320, 180)
+    capture.release()
+    assert f"{NUM_FRAMES} frames" in capsys.readouterr().out
+
+
+def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    argv = [str(frames_dir), "--ckpt", str(checkpoint), "--out", str(out), "--num-frames", "3", "--no-align"]
+    assert main([*argv, "--max-frames", "2", "--no-video"]) == 0
+    records = [json.loads(line) for line in (out / "lanes.jsonl").read_text().splitlines()]
+    assert len(records) == 2 and all(r["aligned"] == [] for r in records)
+    assert not (out / "overlay.mp4").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "match"),
+    [
+        (["missing.mp4", "--ckpt", "x.ckpt"], "does not exist"),
+        (["{frames}"], "--ckpt CKPT or --config CFG"),
+        (["{frames}", "--ckpt", "nowhere.ckpt"], "checkpoint nowhere.ckpt does not exist"),
+        (["{empty}", "--ckpt", "x.ckpt"], "holds no image"),
+        (["{frames}", "--ckpt", "x.ckpt", "--max-frames", "0"], "--max-frames must be >= 1"),
+    ],
+)
+def test_bad_input_is_one_line_and_status_2(
+    argv: list[str], match: str, frames_dir: Path, tmp_path: Path, capsys
+) -> None:
+    (tmp_path / "empty").mkdir()
+    argv = [a.format(frames=frames_dir, empty=tmp_path / "empty") for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and match in err, err
