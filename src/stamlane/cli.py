@@ -1,15 +1,31 @@
 """The ``stamlane`` command.
 
-``stamlane fit|validate|test|predict --config ...`` is LightningCLI (the only place that knows both the
-LightningModule and the DataModule); the other subcommands are plain tools with their own ``main``.
+``stamlane fit|validate|test|predict --config ...`` is LightningCLI (`StamLaneCLI`, the only place that
+knows both the LightningModule and the DataModule); the other subcommands are plain tools with their own
+``main``.
+
+What `StamLaneCLI` adds to plain LightningCLI:
+
+- ``data.num_frames`` and ``data.image_size`` are linked into ``model.num_frames`` / ``model.image_size``
+  (written once, in the data section);
+- ``LaneEvalCallback`` (stamlane-eval) is always on, configured under ``eval:`` (TuSimple metrics for
+  frames with ``h_samples``, the CULane IoU F1 for all): validation logs ``val/tusimple_f1``,
+  ``val/culane_f1@0.5``, ...;
+- ``LanePredictionWriter`` is always on, configured under ``predictions:`` (``stamlane predict`` writes
+  TuSimple json / CULane text and overlay pictures);
+- ``--source PATH`` (predict only): a folder of frames or a video file instead of the data split;
+- ``seed_everything`` defaults to 0 (runs repeat); ``--trainer.deterministic true`` for deterministic
+  kernels; checkpoints hold only tensors and plain values and are loaded with ``weights_only=True``
+  (torch's default; ``--weights_only false`` only for a trusted, foreign checkpoint).
 """
 
 from __future__ import annotations
 
 import importlib
 import sys
+from typing import Any
 
-__all__ = ["main"]
+__all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 
 # subcommand -> module whose ``main(argv) -> int`` runs it; imported only when asked for, so
 # ``stamlane synth`` does not pay for importing Lightning.
@@ -18,6 +34,8 @@ TOOLS: dict[str, str] = {
     "synth": "stamlane.data.synth_cli",  # write a synthetic clip set in the TuSimple layout
     "show": "stamlane.data.show_cli",  # picture grid of clips with targets, for checking a conversion
     "demo": "stamlane.demo",  # README command 1: synthetic data, train, evaluate, pictures
+    "ablate": "stamlane.experiments.ablate",  # the paper's ablation tables over seeds
+    "stream": "stamlane.stream.cli",  # per-frame streaming inference on a video, overlay video
 }
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
@@ -28,6 +46,13 @@ def _usage() -> str:
     return f"usage: stamlane {{{names}}} ..."
 
 
+def build_cli(args: list[str] | None = None, run: bool = True, **kwargs: Any) -> Any:
+    """Build (and by default run) `StamLaneCLI`; ``args`` as on the command line after ``stamlane``."""
+    from stamlane.lightning_cli import StamLaneCLI
+
+    return StamLaneCLI(args=args, run=run, **kwargs)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -36,6 +61,16 @@ def main(argv: list[str] | None = None) -> int:
     command, rest = argv[0], argv[1:]
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
+    if command in LIGHTNING_COMMANDS:
+        from stamlane.data.labels import DataError
+
+        try:
+            # args=None when they are sys.argv's own (LightningCLI warns when given both)
+            build_cli(None if argv == sys.argv[1:] else [command, *rest])
+        except (DataError, FileNotFoundError) as err:  # bad data or a missing checkpoint: one line, status 2
+            print(f"stamlane {command}: {err}", file=sys.stderr)
+            return 2
+        return 0
     print(f"stamlane: unknown command {command!r}; {_usage()}", file=sys.stderr)
     return 2
 

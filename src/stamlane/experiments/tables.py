@@ -1,0 +1,156 @@
+"""The paper's ablation tables as rows of configs: reading ``configs/paper/tables.yaml``.
+
+The index names, per table, its rows (a row = a config file ``rows/<id>.yaml`` holding only what defines
+the row), the label printed for it and the paper's numbers; ``default_base`` and ``layers`` name the
+configs every run starts from (paths relative to the index file). See the index file's header.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+__all__ = [
+    "METRIC_KINDS",
+    "PaperRow",
+    "PaperTable",
+    "TableIndex",
+    "default_index_path",
+    "load_tables",
+    "metric_key",
+]
+
+METRIC_KINDS = ("tusimple", "iou")
+"""``tusimple``: accuracy / FP / FN / F1 (TuSimple protocol); ``iou``: precision / recall / F1 at IoU
+thresholds (CULane area metric, the paper's ApolloScape tables)."""
+
+_PREFIX = {"tusimple": "tusimple_", "iou": "culane_"}
+
+
+def metric_key(kind: str, short: str) -> str:
+    """The name `LaneEvalCallback` logs (after ``test/``) for a paper column: ``("iou", "f1@0.5")`` ->
+    ``"culane_f1@0.5"``, ``("tusimple", "fp")`` -> ``"tusimple_fp"``."""
+    if kind not in _PREFIX:
+        raise ValueError(f"metric kind must be one of {METRIC_KINDS}, got {kind!r}")
+    return _PREFIX[kind] + short
+
+
+@dataclass(frozen=True)
+class PaperRow:
+    """One row of a paper table.
+
+    Attributes:
+        id: row id = stem of its config ``rows/<id>.yaml``; runs are stored (and shared) under it.
+        label: the row's text in our tables.
+        config: path of the row's config file.
+        paper: the paper's numbers for the row, as logged metric names (``tusimple_f1``, ``culane_f1@0.5``)
+            -> fractions.
+    """
+
+    id: str
+    label: str
+    config: Path
+    paper: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PaperTable:
+    """A paper table: number (``"1"``), title, metric kind and rows in the paper's order."""
+
+    name: str
+    title: str
+    kind: str
+    rows: tuple[PaperRow, ...]
+
+    @property
+    def f1_key(self) -> str:
+        """The headline metric: TuSimple's paper F1, or the IoU F1 at 0.5."""
+        return metric_key(self.kind, "f1") if self.kind == "tusimple" else metric_key(self.kind, "f1@0.5")
+
+    def select(self, ids: list[str] | None) -> tuple[PaperRow, ...]:
+        """The rows named by ``ids`` (all when None), in the table's order.
+
+        Raises:
+            ValueError: an id that is not a row of this table.
+        """
+        if not ids:
+            return self.rows
+        known = {r.id for r in self.rows}
+        unknown = [i for i in ids if i not in known]
+        if unknown:
+            raise ValueError(f"table {self.name} has no row {unknown[0]!r}; its rows: {', '.join(sorted(known))}")
+        return tuple(r for r in self.rows if r.id in ids)
+
+
+@dataclass(frozen=True)
+class TableIndex:
+    """The parsed index: tables by number, the default base config and the shared layers."""
+
+    path: Path
+    default_base: Path
+    layers: tuple[Path, ...]
+    tables: dict[str, PaperTable]
+
+    def table(self, name: str) -> PaperTable:
+        """Table ``name`` (``"1"``, ``"7"``, ...). Raises ValueError for an unknown one."""
+        if name not in self.tables:
+            raise ValueError(f"no table {name!r} in {self.path}; tables: {', '.join(self.tables)}")
+        return self.tables[name]
+
+
+def default_index_path() -> Path:
+    """``configs/paper/tables.yaml`` of the working directory, else of the source checkout."""
+    local = Path("configs/paper/tables.yaml")
+    if local.is_file():
+        return local
+    return Path(__file__).resolve().parents[3] / "configs" / "paper" / "tables.yaml"
+
+
+def load_tables(path: str | Path | None = None) -> TableIndex:
+    """Read and check the table index.
+
+    Args:
+        path: the index yaml; None for `default_index_path`.
+
+    Returns:
+        the index, with every config path resolved and checked to exist.
+
+    Raises:
+        FileNotFoundError: the index or a config it names is missing.
+        ValueError: a malformed index (missing keys, unknown metric kind, duplicate rows in a table).
+    """
+    path = Path(path) if path is not None else default_index_path()
+    if not path.is_file():
+        raise FileNotFoundError(f"table index {path} not found")
+    raw = yaml.safe_load(path.read_text())
+    if not isinstance(raw, dict) or not isinstance(raw.get("tables"), dict):
+        raise ValueError(f"{path}: expected a mapping with a 'tables' mapping")
+    here = path.parent
+
+    def existing(rel: str) -> Path:
+        p = (here / rel).resolve()
+        if not p.is_file():
+            raise FileNotFoundError(f"{path}: config {rel!r} not found at {p}")
+        return p
+
+    default_base = existing(raw.get("default_base", "../demo.yaml"))
+    layers = tuple(existing(p) for p in raw.get("layers", []))
+    tables: dict[str, PaperTable] = {}
+    for name, spec in raw["tables"].items():
+        name = str(name)
+        kind = spec.get("metrics")
+        if kind not in METRIC_KINDS:
+            raise ValueError(f"{path}: table {name}: metrics must be one of {METRIC_KINDS}, got {kind!r}")
+        rows = []
+        for r in spec.get("rows", []):
+            if "id" not in r:
+                raise ValueError(f"{path}: table {name}: a row without 'id': {r!r}")
+            paper = {metric_key(kind, k): float(v) for k, v in (r.get("paper") or {}).items()}
+            rows.append(PaperRow(str(r["id"]), str(r.get("label", r["id"])), existing(f"rows/{r['id']}.yaml"), paper))
+        ids = [r.id for r in rows]
+        if len(set(ids)) != len(ids) or not ids:
+            raise ValueError(f"{path}: table {name}: rows must be unique and non-empty, got {ids}")
+        tables[name] = PaperTable(name, str(spec.get("title", f"Table {name}")), kind, tuple(rows))
+    return TableIndex(path.resolve(), default_base, layers, tables)

@@ -1,0 +1,92 @@
+"""`StamLaneCLI`: LightningCLI for ``stamlane fit|validate|test|predict`` (see ``stamlane.cli``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from lightning.pytorch import Trainer
+from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
+from stamlane_eval.integrations.lightning import LaneEvalCallback
+
+from stamlane.data.datamodule import ClipDataModule
+from stamlane.module import StamLaneModule
+from stamlane.predict import FramesDataModule, LanePredictionWriter
+from stamlane.resume import ExactResume
+
+__all__ = ["StamLaneCLI"]
+
+
+class StamLaneCLI(LightningCLI):
+    """LightningCLI with `StamLaneModule` and ``ClipDataModule``, linked sizes and the lane callbacks.
+
+    Args:
+        args: command-line style arguments (``["fit", "--config", ...]``); ``None`` = ``sys.argv``.
+        run: run the subcommand (False: only build model, data and trainer).
+        **kwargs: passed to ``LightningCLI``.
+    """
+
+    def __init__(self, args: list[str] | None = None, run: bool = True, **kwargs: Any) -> None:
+        kwargs.setdefault("seed_everything_default", 0)
+        kwargs.setdefault("save_config_kwargs", {"overwrite": True})
+        super().__init__(StamLaneModule, ClipDataModule, args=args, run=run, **kwargs)
+
+    def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
+        # the data section is the one place these numbers are written
+        parser.link_arguments("data.num_frames", "model.num_frames")
+        parser.link_arguments("data.image_size", "model.image_size")
+        parser.add_lightning_class_args(LaneEvalCallback, "eval")
+        parser.add_lightning_class_args(LanePredictionWriter, "predictions")
+        parser.add_argument(
+            "--source",
+            type=str | None,
+            default=None,
+            help="predict only: a folder of frames or a video file to predict on instead of the data split",
+        )
+
+    def _parse_ckpt_path(self) -> None:
+        """Keep the command line in charge: plain LightningCLI re-applies the checkpoint's saved ``model``
+        hyperparameters OVER ``--config``/``--model.*`` (so ``--model.postprocess.eps`` would be ignored at
+        predict time). The model is built from the config (pass the run's saved ``config.yaml``)."""
+
+    def instantiate_trainer(self, **kwargs: Any) -> Trainer:
+        trainer = super().instantiate_trainer(**kwargs)
+        trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
+        return trainer
+
+    def before_fit(self) -> None:
+        self._check("fit")
+
+    def before_validate(self) -> None:
+        self._check("validate")
+
+    def before_test(self) -> None:
+        self._check("test")
+
+    def _check(self, subcommand: str) -> None:
+        if self.config[subcommand].get("source"):
+            raise SystemExit(f"stamlane {subcommand}: --source is for predict only")
+        self._safe_load(subcommand)
+
+    def _safe_load(self, subcommand: str) -> None:
+        # our checkpoints hold only tensors and plain values, so they load with weights_only=True (Lightning
+        # would default to False); a foreign, trusted checkpoint may need --weights_only false
+        if self.config_init[subcommand].get("weights_only") is None:
+            self.config_init[subcommand]["weights_only"] = True
+
+    def before_predict(self) -> None:
+        self._safe_load("predict")
+        source = self.config["predict"].get("source")
+        if not source:
+            return
+        data = self.config["predict"]["data"]
+        align = data["align"] if data["align"] in ("fly", "none") else "fly"
+        self.datamodule = FramesDataModule(
+            source,
+            num_frames=data["num_frames"],
+            stride=data["stride"],
+            image_size=tuple(data["image_size"]),
+            align=align,
+            batch_size=data["batch_size"],
+            num_workers=data["num_workers"],
+            horizon_row=data["horizon_row"],
+        )

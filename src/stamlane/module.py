@@ -1,0 +1,254 @@
+"""``StamLaneModule``: the LightningModule around encoder, fusion and decoder (paper 3, 4.1.2).
+
+Training logs the loss terms separately (``train/loss``, ``train/loss_seg``, ``train/loss_var``,
+``train/loss_dist``, ``train/loss_reg``). Validation and test decode lanes with
+`stamlane.postprocess.decode_lanes` (numpy, outside any ``forward``) and return the dict that
+``stamlane_eval.integrations.lightning.LaneEvalCallback`` reads: ``pred_lanes`` (per image, lanes in
+original pixels), ``gt_lanes``, ``h_samples``, ``orig_size`` and ``run_time`` (ms per image, network
+share of the batch + post-processing). ``predict_step`` returns lanes with each sample's meta.
+
+Optimisation (paper 4.1.2): SGD with momentum 0.9 and a poly learning rate ``lr * (1 - step / total)^0.9``
+stepped every iteration; ``total`` is the trainer's ``estimated_stepping_batches`` (``max_steps`` when
+set), so the schedule length is never written twice.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from lightning.pytorch import LightningModule
+from torch import Tensor, nn
+from torch.optim import Optimizer
+from torch.optim.lr_scheduler import LRScheduler
+
+from stamlane.losses import LaneLoss
+from stamlane.models import LaneNet
+from stamlane.postprocess import PostprocessConfig, decode_lanes
+
+__all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
+
+OptimizerCallable = Callable[[Iterable], Optimizer]
+SchedulerCallable = Callable[[Optimizer, int], LRScheduler]
+
+
+def paper_sgd(params: Iterable) -> Optimizer:
+    """SGD as in the paper: momentum 0.9. The paper's base learning rate was lost from our copy of the text;
+    0.05 (with weight decay 5e-4) is the reference LaneNet implementation's (MaybeShewill-CV/lanenet)."""
+    return torch.optim.SGD(params, lr=0.05, momentum=0.9, weight_decay=5e-4)
+
+
+class PolyLR(LRScheduler):
+    """Poly learning-rate policy: ``base_lr * (1 - step / total_steps) ** power``, stepped every iteration.
+
+    Args:
+        optimizer: the wrapped optimizer.
+        total_steps: the step at which the learning rate reaches 0 (the run's number of optimizer steps).
+        power: the exponent (paper: 0.9).
+    """
+
+    def __init__(self, optimizer: Optimizer, total_steps: int, power: float = 0.9) -> None:
+        if total_steps < 1:
+            raise ValueError(f"total_steps must be >= 1, got {total_steps}")
+        self.total_steps = int(total_steps)
+        self.power = float(power)
+        super().__init__(optimizer)
+
+    def get_lr(self) -> list[float]:
+        factor = max(0.0, 1.0 - min(self.last_epoch, self.total_steps) / self.total_steps) ** self.power
+        return [base_lr * factor for base_lr in self.base_lrs]
+
+
+def _is_plain(value: Any) -> bool:
+    """True for values a ``weights_only`` checkpoint can hold (yaml-like: numbers, strings, lists, dicts)."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return all(_is_plain(v) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _is_plain(v) for k, v in value.items())
+    return False
+
+
+class StamLaneModule(LightningModule):
+    """Lane detection on clips: ``LaneNet(encoder, fusion, decoder)`` trained with ``LaneLoss``.
+
+    Args:
+        encoder: per-frame encoder with ``out_channels`` (e.g. ``stamlane.models.VGGEncoder``).
+        fusion: factory ``fusion(channels) -> module (B, T, C, h, w) -> (B, C, h, w)`` (e.g. ``STAM``).
+        decoder: factory ``decoder(encoder.out_channels) -> module`` (e.g. ``LaneDecoder``).
+        loss: the loss, ``loss(logits, embedding, binary, instance) -> {"loss", "seg", "var", "dist", "reg"}``.
+        optimizer: ``optimizer(params) -> Optimizer``; default `paper_sgd`.
+        scheduler: ``scheduler(optimizer, total_steps) -> LRScheduler`` stepped every iteration, or ``None``
+            for a constant rate; default `PolyLR` (power 0.9).
+        postprocess: options of the lane decoding (DBSCAN, curve fit).
+        num_frames: T, frames per clip the network expects (linked from the data); checked on every batch.
+        image_size: ``(H, W)`` of the network input (linked from the data); must be multiples of the
+            encoder's stride; sets ``example_input_array``.
+        bf16: run the network under ``torch.autocast(dtype=bfloat16)`` (fast on CPUs with AMX / AVX512-BF16);
+            losses and decoding stay float32.
+        channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
+        report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
+            200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
+    """
+
+    def __init__(
+        self,
+        encoder: nn.Module,
+        fusion: Callable[[int], nn.Module],
+        decoder: Callable[[Sequence[int]], nn.Module],
+        loss: LaneLoss | None = None,
+        optimizer: OptimizerCallable = paper_sgd,
+        scheduler: SchedulerCallable | None = PolyLR,
+        postprocess: PostprocessConfig | None = None,
+        num_frames: int | None = None,
+        image_size: tuple[int, int] | None = None,
+        bf16: bool = False,
+        channels_last: bool = False,
+        report_run_time: bool = True,
+    ) -> None:
+        super().__init__()
+        with warnings.catch_warnings():  # "Attribute 'encoder' is an instance of nn.Module": dropped just below
+            warnings.filterwarnings("ignore", message="Attribute .* is an instance of `nn.Module`")
+            self.save_hyperparameters()
+        # keep only what a weights_only checkpoint can hold (under LightningCLI the hparams are the plain
+        # config, which all stays; built objects passed from Python are dropped)
+        for key in [k for k, v in self.hparams.items() if not _is_plain(v)]:
+            del self._hparams[key]
+            self._hparams_initial.pop(key, None)
+        if num_frames is not None and num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {num_frames}")
+        self.net = LaneNet(encoder, fusion, decoder)
+        self.loss = loss if loss is not None else LaneLoss()
+        self.optimizer_factory = optimizer
+        self.scheduler_factory = scheduler
+        self.postprocess = postprocess if postprocess is not None else PostprocessConfig()
+        self.num_frames = num_frames
+        self.bf16 = bf16
+        self.channels_last = channels_last
+        self.report_run_time = report_run_time
+        if image_size is not None:
+            stride = int(getattr(encoder, "total_stride", 1))
+            height, width = image_size
+            if height % stride or width % stride:
+                raise ValueError(
+                    f"image_size must be multiples of the encoder stride {stride}, got {tuple(image_size)}"
+                )
+            self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
+        if channels_last:
+            self.net.to(memory_format=torch.channels_last)
+
+    # ------------------------------------------------------------------ network
+    def forward(self, clip: Tensor) -> tuple[Tensor, Tensor]:
+        """Run the network.
+
+        Args:
+            clip: (B, T, 3, H, W) float in [0, 1], key frame last, history pre-aligned.
+
+        Returns:
+            ``(logits (B, 2, H, W), embedding (B, E, H, W))``, float32.
+        """
+        if clip.ndim != 5:
+            raise ValueError(f"expected a clip of shape (B, T, 3, H, W), got {tuple(clip.shape)}")
+        if self.num_frames is not None and clip.shape[1] != self.num_frames:
+            raise ValueError(f"expected clips of {self.num_frames} frames, got {clip.shape[1]} ({tuple(clip.shape)})")
+        with torch.autocast(device_type=clip.device.type, dtype=torch.bfloat16, enabled=self.bf16):
+            logits, embedding = self.net(clip)
+        return logits.float(), embedding.float()
+
+    def _losses(self, batch: dict, logits: Tensor, embedding: Tensor) -> dict[str, Tensor]:
+        return self.loss(logits, embedding, batch["binary"], batch["instance"])
+
+    # ------------------------------------------------------------------ steps
+    def training_step(self, batch: dict, batch_idx: int) -> Tensor:
+        logits, embedding = self(batch["frames"])
+        terms = self._losses(batch, logits, embedding)
+        size = batch["frames"].shape[0]
+        self.log("train/loss", terms["loss"], prog_bar=True, batch_size=size)
+        for name in ("seg", "var", "dist", "reg"):
+            self.log(f"train/loss_{name}", terms[name], batch_size=size)
+        return terms["loss"]
+
+    def decode(self, logits: Tensor, embedding: Tensor, metas: Sequence[dict]) -> list[list[np.ndarray]]:
+        """Lanes of each image of a batch, in original pixels (see `stamlane.postprocess.decode_lanes`).
+
+        Args:
+            logits: (B, 2, H, W) lane / background logits.
+            embedding: (B, E, H, W) pixel embeddings.
+            metas: per-sample meta (``net_from_orig``, ``orig_size``, ``h_samples``; see `stamlane.types`).
+
+        Returns:
+            per image, its lanes: ``(N, 2)`` ``(x, y)`` float arrays in original pixels.
+        """
+        prob = logits.detach().float().softmax(dim=1)[:, 1].cpu().numpy()
+        emb = embedding.detach().float().cpu().numpy()
+        lanes = []
+        for i, meta in enumerate(metas):
+            orig_from_net = np.linalg.inv(np.asarray(meta["net_from_orig"], dtype=np.float64))
+            lanes.append(
+                decode_lanes(
+                    prob[i],
+                    emb[i],
+                    orig_from_net,
+                    self.postprocess,
+                    y_samples=meta.get("h_samples"),
+                    orig_size=tuple(meta["orig_size"]),
+                )
+            )
+        return lanes
+
+    def _detect(self, batch: dict) -> tuple[Tensor, Tensor, list[list[np.ndarray]], list[float]]:
+        start = time.perf_counter()
+        logits, embedding = self(batch["frames"])
+        network_ms = (time.perf_counter() - start) * 1000.0 / max(len(batch["meta"]), 1)
+        lanes, run_time = [], []
+        for i, meta in enumerate(batch["meta"]):
+            start = time.perf_counter()
+            lanes += self.decode(logits[i : i + 1], embedding[i : i + 1], [meta])
+            run_time.append(network_ms + (time.perf_counter() - start) * 1000.0)
+        return logits, embedding, lanes, run_time
+
+    def _eval_step(self, batch: dict, stage: str) -> dict[str, Any]:
+        logits, embedding, lanes, run_time = self._detect(batch)
+        if "binary" in batch and "instance" in batch:
+            terms = self._losses(batch, logits, embedding)
+            self.log(f"{stage}/loss", terms["loss"], batch_size=len(lanes), sync_dist=True)
+        metas = batch["meta"]
+        return {
+            "pred_lanes": lanes,
+            "gt_lanes": batch["lanes"],
+            "h_samples": [m.get("h_samples") for m in metas],
+            "orig_size": [tuple(m["orig_size"]) for m in metas],
+            "run_time": run_time if self.report_run_time else None,
+            "raw_file": [m.get("raw_file") for m in metas],
+        }
+
+    def validation_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
+        return self._eval_step(batch, "val")
+
+    def test_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
+        return self._eval_step(batch, "test")
+
+    def predict_step(self, batch: dict, batch_idx: int, dataloader_idx: int = 0) -> list[dict[str, Any]]:
+        """Per image: ``{"lanes", "meta", "run_time"}`` (lanes in original pixels, run_time in ms)."""
+        _, _, lanes, run_time = self._detect(batch)
+        return [
+            {"lanes": image_lanes, "meta": meta, "run_time": ms}
+            for image_lanes, meta, ms in zip(lanes, batch["meta"], run_time)
+        ]
+
+    # ------------------------------------------------------------------ optimisation
+    def configure_optimizers(self) -> Any:
+        optimizer = self.optimizer_factory(self.parameters())
+        if self.scheduler_factory is None:
+            return optimizer
+        total = self.trainer.estimated_stepping_batches
+        if not math.isfinite(total):
+            raise ValueError("the poly LR schedule needs a finite run: set trainer.max_steps or trainer.max_epochs")
+        scheduler = self.scheduler_factory(optimizer, int(total))
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}

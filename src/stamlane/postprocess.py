@@ -1,0 +1,257 @@
+"""Decode the two network heads into lanes: DBSCAN on pixel embeddings, then a robust curve per cluster.
+
+METHOD §5 (paper 3.4). numpy in, numpy out; called from ``StamLaneModule`` steps, never inside a
+``forward``. Steps, per image:
+
+1. lane pixels = pixels whose lane probability > ``prob_thresh`` (paper: 0.5);
+2. at most ``max_points`` of the CONFIDENT ones (probability > ``cluster_thresh``, default
+   ``prob_thresh``; a fixed-seed random subset, so the result is deterministic) are clustered with
+   sklearn DBSCAN in embedding space (``eps`` of the order of the loss's ``delta_v``). The embedding
+   loss never sees background pixels, so the uncertain rim the class-weighted cross-entropy adds
+   around lanes carries arbitrary embeddings that can bridge two lanes' clusters; a higher
+   ``cluster_thresh`` keeps it out of the clustering (it is still assigned in step 3);
+   clustering every pixel is what makes LaneNet's post-processing cost 300-400 ms (and sklearn DBSCAN
+   on 50k tight points 11 s and 5.7 GB);
+3. every lane pixel is assigned to the nearest cluster centre (mean embedding of the cluster), pixels
+   farther than ``assign_radius`` from every centre are dropped as noise;
+4. clusters with fewer than ``min_cluster_pixels`` pixels are dropped;
+5. the cluster's pixels are mapped to ORIGINAL-image pixels with ``orig_from_net`` (inverse of the
+   sample's ``net_from_orig``), one x (the median) is taken per ``y_step``-pixel band of original rows,
+   a polynomial x = f(y) of degree ``degree`` is fitted to those points with iterative outlier
+   rejection (points farther than ``max(outlier_px, 3 * MAD)`` from the curve are dropped and the curve
+   refitted), and the curve is sampled every ``y_step`` original pixels (or at the given ``y_samples``,
+   e.g. TuSimple ``h_samples``) inside the rows the cluster covers.
+
+Lanes come out left to right (by x at their lowest row), as ``(N, 2)`` float arrays of ``(x, y)`` in
+original-image pixels (``stamlane.types``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.cluster import DBSCAN
+
+from stamlane.types import Lanes
+
+__all__ = ["PostprocessConfig", "cluster_lane_pixels", "decode_lanes", "fit_lane"]
+
+
+@dataclass(frozen=True)
+class PostprocessConfig:
+    """Options of :func:`decode_lanes`.
+
+    Args:
+        prob_thresh: a pixel is a lane pixel when its lane probability is above this (paper: 0.5).
+        cluster_thresh: only lane pixels above this probability go into DBSCAN (``None``: ``prob_thresh``).
+            Measured on the synthetic validation clips (4-frame demo model): 0.9 instead of 0.5 raised
+            TuSimple accuracy from 0.56 to 0.86 and the paper's F1 from 0.52 to 0.78.
+        eps: DBSCAN neighbourhood radius in embedding units (the loss pulls pixels to within
+            ``delta_v`` = 0.5 of their lane's mean and pushes means ``2 * delta_d`` = 3 apart); 0.35 as
+            LaneNet's reference implementation.
+        min_samples: DBSCAN core-point count, measured on the subsample (25 of <= 2000 points: a thin
+            bridge of stray pixels between two lanes does not join them).
+        max_points: at most this many lane pixels go into DBSCAN; the rest are assigned afterwards.
+        assign_radius: a pixel farther than this (embedding units) from every cluster centre is noise.
+        min_cluster_pixels: clusters with fewer lane pixels (network resolution) are dropped.
+        y_step: original-image pixels between the rows x is sampled at (paper: 10).
+        degree: polynomial degree of x = f(y); lowered when a cluster covers too few rows.
+        outlier_px: residual (original pixels) below which a point is never an outlier.
+        max_lanes: keep at most this many lanes (the largest clusters).
+        seed: seed of the subsample, so decoding is deterministic.
+    """
+
+    prob_thresh: float = 0.5
+    cluster_thresh: float | None = 0.9
+    eps: float = 0.35
+    min_samples: int = 25
+    max_points: int = 2000
+    assign_radius: float = 1.5
+    min_cluster_pixels: int = 50
+    y_step: int = 10
+    degree: int = 2
+    outlier_px: float = 10.0
+    max_lanes: int = 8
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.prob_thresh < 1.0:
+            raise ValueError(f"prob_thresh must be in [0, 1), got {self.prob_thresh}")
+        if self.cluster_thresh is not None and not self.prob_thresh <= self.cluster_thresh < 1.0:
+            raise ValueError(f"cluster_thresh must be in [prob_thresh, 1), got {self.cluster_thresh}")
+        for name in ("eps", "assign_radius", "outlier_px"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("min_samples", "max_points", "min_cluster_pixels", "y_step", "max_lanes"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.degree < 1:
+            raise ValueError(f"degree must be >= 1, got {self.degree}")
+
+
+def cluster_lane_pixels(
+    embedding: np.ndarray, config: PostprocessConfig, confident: np.ndarray | None = None
+) -> np.ndarray:
+    """Cluster lane-pixel embeddings; DBSCAN on a subsample, nearest-centre assignment for all.
+
+    Args:
+        embedding: ``(N, E)`` float embeddings of the lane pixels.
+        config: the decoding options.
+        confident: ``(N,)`` bool, the pixels DBSCAN may use (``None``: all).
+
+    Returns:
+        ``(N,)`` int labels: ``0..K-1`` clusters ordered by size (largest first), ``-1`` noise.
+    """
+    if embedding.ndim != 2:
+        raise ValueError(f"expected embedding of shape (N, E), got {embedding.shape}")
+    n = len(embedding)
+    labels = np.full(n, -1, dtype=np.int64)
+    if n < config.min_samples:
+        return labels
+    emb = np.ascontiguousarray(embedding, dtype=np.float32)
+    subset = np.arange(n) if confident is None else np.flatnonzero(confident)
+    if len(subset) < config.min_samples:
+        return labels
+    if len(subset) > config.max_points:
+        rng = np.random.default_rng(config.seed)
+        subset = np.sort(rng.choice(subset, size=config.max_points, replace=False))
+    # ball_tree: 2-3x faster than kd_tree on tight 4-d clusters (benchmarks/postprocess.py)
+    dbscan = DBSCAN(eps=config.eps, min_samples=config.min_samples, algorithm="ball_tree")
+    sub_labels = dbscan.fit_predict(emb[subset])
+    cluster_ids = np.unique(sub_labels[sub_labels >= 0])
+    if len(cluster_ids) == 0:
+        return labels
+    centres = np.stack([emb[subset][sub_labels == c].mean(axis=0) for c in cluster_ids])  # (K, E)
+    # squared distances of every lane pixel to every centre, (N, K)
+    d2 = (emb**2).sum(1, keepdims=True) - 2.0 * emb @ centres.T + (centres**2).sum(1)[None, :]
+    nearest = d2.argmin(axis=1)
+    near_enough = d2[np.arange(n), nearest] <= config.assign_radius**2
+    counts = np.bincount(nearest[near_enough], minlength=len(centres))
+    order = np.argsort(-counts, kind="stable")  # largest first
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    labels[near_enough] = rank[nearest[near_enough]]
+    return labels
+
+
+def fit_lane(
+    points: np.ndarray, config: PostprocessConfig, y_samples: Sequence[float] | None = None
+) -> np.ndarray | None:
+    """Fit x = f(y) with outlier rejection to one cluster's pixels and sample it.
+
+    Args:
+        points: ``(N, 2)`` ``(x, y)`` of the cluster's pixels in original-image pixels.
+        config: the decoding options (``y_step``, ``degree``, ``outlier_px``).
+        y_samples: rows to sample the curve at (e.g. TuSimple ``h_samples``); ``None`` = every
+            ``y_step`` pixels on multiples of ``y_step``.
+
+    Returns:
+        ``(M, 2)`` ``(x, y)`` points with y ascending, inside the rows the cluster covers; ``None``
+        when fewer than 2 bands of rows are covered.
+    """
+    x, y = points[:, 0], points[:, 1]
+    band = np.floor(y / config.y_step).astype(np.int64)
+    bands, inverse = np.unique(band, return_inverse=True)
+    if len(bands) < 2:
+        return None
+    # one point per band of rows: the median x and the median y (robust to a stray pixel)
+    bx, by = _band_median(x, inverse, len(bands)), _band_median(y, inverse, len(bands))
+    keep = np.ones(len(bx), dtype=bool)
+    coef = None
+    for _ in range(3):
+        degree = min(config.degree, int(keep.sum()) - 1)
+        coef = np.polyfit(by[keep], bx[keep], degree)
+        resid = np.abs(np.polyval(coef, by) - bx)
+        mad = np.median(resid[keep])
+        new_keep = resid <= max(config.outlier_px, 3.0 * 1.4826 * mad)
+        if new_keep.sum() < 2 or np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    y_lo, y_hi = by[keep].min(), by[keep].max()
+    if y_samples is None:
+        start = np.ceil(y_lo / config.y_step) * config.y_step
+        ys = np.arange(start, y_hi + 1e-6, config.y_step, dtype=np.float64)
+    else:
+        ys = np.asarray(y_samples, dtype=np.float64)
+        ys = np.sort(ys[(ys >= y_lo - config.y_step / 2) & (ys <= y_hi + config.y_step / 2)])
+    if len(ys) < 2:
+        return None
+    return np.stack([np.polyval(coef, ys), ys], axis=1)
+
+
+def _band_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of ``values`` per group ``0..n_groups-1`` (every group non-empty), without a Python loop."""
+    order = np.lexsort((values, group))
+    sorted_values = values[order]
+    counts = np.bincount(group, minlength=n_groups)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    lo = starts + (counts - 1) // 2
+    hi = starts + counts // 2
+    return 0.5 * (sorted_values[lo] + sorted_values[hi])
+
+
+def decode_lanes(
+    lane_prob: np.ndarray,
+    embedding: np.ndarray,
+    orig_from_net: np.ndarray | Sequence[Sequence[float]] | None = None,
+    config: PostprocessConfig | None = None,
+    y_samples: Sequence[float] | None = None,
+    orig_size: tuple[int, int] | None = None,
+) -> Lanes:
+    """Lanes of one image from the network's two heads.
+
+    Args:
+        lane_prob: ``(H, W)`` lane probability at network resolution (softmax of the binary logits).
+        embedding: ``(E, H, W)`` pixel embeddings at network resolution.
+        orig_from_net: 3x3 map from network-input pixels to original-image pixels (the inverse of the
+            sample's ``net_from_orig``); ``None`` = identity.
+        config: decoding options; ``None`` = defaults.
+        y_samples: original-image rows to sample each lane at (TuSimple ``h_samples``); ``None`` =
+            every ``config.y_step`` pixels.
+        orig_size: ``(W, H)`` of the original image; points outside it are dropped (``None`` = keep all).
+
+    Returns:
+        the image's lanes, left to right: ``(N, 2)`` float arrays of ``(x, y)`` in original pixels.
+    """
+    config = config or PostprocessConfig()
+    if lane_prob.ndim != 2:
+        raise ValueError(f"expected lane_prob of shape (H, W), got {lane_prob.shape}")
+    if embedding.ndim != 3 or embedding.shape[1:] != lane_prob.shape:
+        raise ValueError(
+            f"expected embedding of shape (E, {lane_prob.shape[0]}, {lane_prob.shape[1]}), got {embedding.shape}"
+        )
+    matrix = np.eye(3) if orig_from_net is None else np.asarray(orig_from_net, dtype=np.float64)
+    if matrix.shape != (3, 3):
+        raise ValueError(f"expected orig_from_net of shape (3, 3), got {matrix.shape}")
+
+    ys, xs = np.nonzero(lane_prob > config.prob_thresh)
+    if len(ys) == 0:
+        return []
+    confident = None
+    if config.cluster_thresh is not None and config.cluster_thresh > config.prob_thresh:
+        confident = lane_prob[ys, xs] > config.cluster_thresh
+    labels = cluster_lane_pixels(embedding[:, ys, xs].T, config, confident)
+    counts = np.bincount(labels[labels >= 0], minlength=1)
+    pts_net = np.stack([xs, ys, np.ones_like(xs)], axis=0).astype(np.float64)  # (3, N) homogeneous
+    pts_orig = matrix @ pts_net
+    pts_orig = (pts_orig[:2] / pts_orig[2:]).T  # (N, 2) (x, y) original pixels
+    lanes: Lanes = []
+    for cluster in range(len(counts)):
+        if counts[cluster] < config.min_cluster_pixels or len(lanes) >= config.max_lanes:
+            continue
+        lane = fit_lane(pts_orig[labels == cluster], config, y_samples)
+        if lane is not None and orig_size is not None:
+            inside = (
+                (lane[:, 0] >= 0)
+                & (lane[:, 0] <= orig_size[0] - 1)
+                & (lane[:, 1] >= 0)
+                & (lane[:, 1] <= orig_size[1] - 1)
+            )
+            lane = lane[inside] if inside.sum() >= 2 else None
+        if lane is not None:
+            lanes.append(lane)
+    # left to right by x at the lane's lowest (largest y) row
+    lanes.sort(key=lambda lane: float(lane[np.argmax(lane[:, 1]), 0]))
+    return lanes

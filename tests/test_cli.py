@@ -1,0 +1,202 @@
+"""``stamlane fit|validate|test|predict`` (StamLaneCLI): configs, fit -> predict -> stamlane-eval, resume, DDP."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import lightning.pytorch as pl
+import pytest
+import torch
+from stamlane_eval.cli import main as eval_main
+
+from stamlane.cli import main
+from stamlane.data import SynthConfig, generate_dataset
+from stamlane.lightning_cli import StamLaneCLI
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIGS = sorted((REPO / "configs").glob("*.yaml"))
+torch.set_num_threads(1)
+
+
+@pytest.fixture(autouse=True)
+def _plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
+    """LightningCLI warns when given args while sys.argv holds pytest's own."""
+    monkeypatch.setattr(sys, "argv", ["stamlane"])
+
+
+@pytest.fixture(scope="module")
+def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """4 train, 2 val, 2 test clips of 4 frames at 256x144 (a few seconds to write)."""
+    root = tmp_path_factory.mktemp("synth")
+    cfg = SynthConfig(width=256, height=144, num_frames=4)
+    generate_dataset(root, train=4, val=2, test=2, challenging=0, seed=0, config=cfg, progress=False)
+    return root
+
+
+def _args(root: Path, out: Path, *extra: str) -> list[str]:
+    """The demo config shrunk: 2 frames at 64x128, width 1/8, 2 clips a batch (2 steps an epoch)."""
+    return [
+        "--config",
+        str(REPO / "configs" / "demo.yaml"),
+        f"--data.root={root}",
+        "--data.num_frames=2",
+        "--data.image_size=[64, 128]",
+        "--data.batch_size=2",
+        "--data.num_workers=0",
+        "--data.align=none",
+        "--model.encoder.width=0.125",
+        "--model.bf16=false",
+        "--model.channels_last=false",
+        f"--trainer.default_root_dir={out}",
+        f"--trainer.logger.save_dir={out}",
+        "--trainer.enable_progress_bar=false",
+        "--trainer.enable_model_summary=false",
+        f"--predictions.output_dir={out / 'predictions'}",
+        *extra,
+    ]
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=[c.stem for c in CONFIGS])
+def test_config_loads(config: Path, capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as exc:
+        StamLaneCLI(args=["fit", "--config", str(config), "--print_config"], run=True)
+    assert exc.value.code in (0, None)
+    out = capsys.readouterr().out
+    assert "class_path: stamlane.models.VGGEncoder" in out and "num_frames:" in out
+
+
+def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["fit", *_args(tiny_set, tmp_path, "--trainer.max_steps=4", "--trainer.val_check_interval=2")]) == 0
+    version = tmp_path / "stam4" / "version_0"
+    rows = list(csv.DictReader((version / "metrics.csv").open()))
+    logged = {k for row in rows for k, v in row.items() if v}
+    assert {"val/tusimple_f1", "val/tusimple_accuracy", "val/culane_f1@0.5", "val/loss"} <= logged
+    ckpt = version / "checkpoints" / "last.ckpt"
+    assert ckpt.is_file()
+    assert torch.load(ckpt, weights_only=True)["global_step"] == 4  # loads without pickled objects
+
+    config = str(version / "config.yaml")
+    assert main(["predict", "--config", config, f"--ckpt_path={ckpt}", "--trainer.logger=false"]) == 0
+    pred = tmp_path / "predictions" / "predictions.json"
+    records = [json.loads(line) for line in pred.read_text().splitlines()]
+    assert [r["raw_file"] for r in records] == ["clips/test-0000/4.jpg", "clips/test-0001/4.jpg"]
+    assert len(list((tmp_path / "predictions" / "overlays").rglob("*.jpg"))) == 2
+    capsys.readouterr()
+    assert eval_main(["tusimple", str(pred), str(tiny_set / "test.json"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["images"] == 2
+
+    # a folder of frames instead of the split: CULane text, one file per frame
+    frames = tiny_set / "clips" / "val-0000"
+    out = tmp_path / "folder"
+    args = ["--config", config, f"--ckpt_path={ckpt}", "--trainer.logger=false", f"--predictions.output_dir={out}"]
+    assert main(["predict", *args, f"--source={frames}"]) == 0
+    assert sorted(p.name for p in (out / "lines").iterdir()) == [f"{i}.lines.txt" for i in range(1, 5)]
+
+    # a video file: decoded to frames beside it, then the same
+    video = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5, (256, 144))
+    for i in range(1, 5):
+        writer.write(cv2.imread(str(frames / f"{i}.jpg")))
+    writer.release()
+    out = tmp_path / "video"
+    args[-1] = f"--predictions.output_dir={out}"
+    assert main(["predict", *args, f"--source={video}"]) == 0
+    assert len(list((out / "lines").iterdir())) == 4 and len(list((out / "overlays").iterdir())) == 4
+
+
+def test_bad_data_root_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    args = _args(tmp_path / "missing", tmp_path, "--ckpt_path=null")
+    assert main(["validate", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("stamlane validate: ") and "missing" in err[-1] and "Traceback" not in "".join(err)
+
+
+class _Kill(pl.Callback):
+    """Dies (as a killed process would: no clean-up, no checkpoint) at the start of a given step."""
+
+    def __init__(self, at_step: int) -> None:
+        self.at_step = at_step
+
+    def on_train_batch_start(self, trainer: pl.Trainer, *args: object) -> None:
+        if trainer.global_step == self.at_step:
+            raise _Killed
+
+
+class _Killed(Exception):
+    pass
+
+
+def _fit_in_process(args: list[str], callbacks: list[pl.Callback] | None = None) -> StamLaneCLI:
+    extra = {"trainer_defaults": {"callbacks": callbacks}} if callbacks else {}
+    return StamLaneCLI(args=["fit", *args], **extra)
+
+
+def test_resume_equals_uninterrupted_run(tiny_set: Path, tmp_path: Path) -> None:
+    """Killed in the 3rd epoch, resumed from the mid-epoch step-3 checkpoint: the same weights as never killed."""
+    common = [
+        "--trainer.max_steps=6",  # 3 epochs of 2 steps
+        "--trainer.val_check_interval=2",  # validation must not shift the training draws
+        "--trainer.limit_val_batches=1",
+        "--trainer.callbacks=[]",
+        "--trainer.callbacks+=lightning.pytorch.callbacks.ModelCheckpoint",
+        "--trainer.callbacks.monitor=null",
+        "--trainer.callbacks.every_n_train_steps=3",
+        "--trainer.callbacks.save_last=true",
+    ]
+
+    def args(name: str) -> list[str]:
+        return [a for a in _args(tiny_set, tmp_path / name) if not a.startswith("--trainer.callbacks")] + common
+
+    straight = _fit_in_process(args("a"))
+    final = {k: v.clone() for k, v in straight.model.state_dict().items()}
+    with pytest.raises(_Killed):
+        _fit_in_process(args("b"), callbacks=[_Kill(at_step=5)])
+    last = next((tmp_path / "b").rglob("last.ckpt"))
+    assert torch.load(last, weights_only=True)["global_step"] == 3  # mid-epoch
+    resumed = _fit_in_process([*args("b"), f"--ckpt_path={last}"])
+    assert resumed.trainer.global_step == 6
+    for key, value in resumed.model.state_dict().items():
+        assert torch.equal(value, final[key]), key
+
+
+def _metrics(csv_path: Path) -> dict[str, float]:
+    rows = list(csv.DictReader(csv_path.open()))
+    return {k: float(v) for row in rows for k, v in row.items() if v and k.startswith("val/")}
+
+
+def test_ddp_validate_equals_single_process(tiny_set: Path, tmp_path: Path) -> None:
+    train = _args(tiny_set, tmp_path / "fit", "--trainer.max_steps=2", "--trainer.limit_val_batches=0")
+    train = [a for a in train if not a.startswith("--trainer.callbacks")] + ["--trainer.callbacks=[]"]
+    cli = _fit_in_process(train)
+    ckpt = tmp_path / "w.ckpt"
+    cli.trainer.save_checkpoint(ckpt)
+
+    def validate(out: Path, *extra: str) -> list[str]:
+        args = _args(tiny_set, out, "--data.batch_size=1", "--model.report_run_time=false", f"--ckpt_path={ckpt}")
+        return ["validate", *[a for a in args if not a.startswith("--trainer.callbacks")], *extra]
+
+    assert main(validate(tmp_path / "single")) == 0
+    single = _metrics(next((tmp_path / "single").rglob("metrics.csv")))
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
+    ddp = ["--trainer.strategy=ddp", "--trainer.devices=2", "--trainer.accelerator=cpu"]
+    proc = subprocess.run(  # a real command line: DDP re-launches it for rank 1
+        [sys.executable, "-m", "stamlane.cli", *validate(tmp_path / "ddp", *ddp)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    double = _metrics(next((tmp_path / "ddp").rglob("metrics.csv")))
+    assert "val/tusimple_f1" in single and "val/culane_f1@0.5" in single
+    assert double.keys() == single.keys()
+    for key, value in single.items():
+        if key != "val/loss":  # the mean of per-rank batch means: equal here (1 image a batch) up to rounding
+            assert double[key] == pytest.approx(value, abs=1e-9), key
+    assert double["val/loss"] == pytest.approx(single["val/loss"], rel=1e-5)
