@@ -53,12 +53,24 @@ def build_cli(args: list[str] | None = None, run: bool = True, **kwargs: Any) ->
     return StamLaneCLI(args=args, run=run, **kwargs)
 
 
+def _stream_args(rest: list[str]) -> list[str]:
+    """``predict --stream VIDEO [options]`` -> the arguments of ``stamlane stream VIDEO [options]``."""
+    for i, arg in enumerate(rest):
+        if arg.startswith("--stream="):
+            return [arg.split("=", 1)[1], *rest[:i], *rest[i + 1 :]]
+        if arg == "--stream":
+            return [*rest[i + 1 : i + 2], *rest[:i], *rest[i + 2 :]]
+    return rest
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
         return 0 if argv else 2
     command, rest = argv[0], argv[1:]
+    if command == "predict" and any(arg == "--stream" or arg.startswith("--stream=") for arg in rest):
+        command, rest = "stream", _stream_args(rest)
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:

@@ -1,0 +1,33 @@
+"""The ``stamlane`` dispatcher: tools, LightningCLI commands, ``predict --stream``."""
+
+from __future__ import annotations
+
+import pytest
+
+from stamlane import cli
+
+
+def test_usage_and_unknown_command(capsys):
+    assert cli.main([]) == 2
+    assert cli.main(["--help"]) == 0
+    assert "fit" in capsys.readouterr().out
+    assert cli.main(["nonsense"]) == 2
+    assert "unknown command 'nonsense'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("rest", "expected"),
+    [
+        (["--stream", "drive.mp4", "--ckpt", "a.ckpt"], ["drive.mp4", "--ckpt", "a.ckpt"]),
+        (["--ckpt", "a.ckpt", "--stream=drive.mp4", "--no-video"], ["drive.mp4", "--ckpt", "a.ckpt", "--no-video"]),
+    ],
+)
+def test_predict_stream_arguments(rest, expected):
+    assert cli._stream_args(rest) == expected
+
+
+def test_predict_stream_runs_the_stream_tool(tmp_path, capsys):
+    missing = tmp_path / "missing.mp4"
+    assert cli.main(["predict", "--stream", str(missing), "--config", "configs/demo.yaml"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("stamlane stream") and "missing.mp4" in err[0], err
