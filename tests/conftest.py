@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -20,3 +21,9 @@ def shared_dir() -> Path:
     if not SHARED.is_dir():
         pytest.skip(f"{SHARED} is absent (it exists only beside the project's own checkouts)")
     return SHARED
+
+
+@pytest.fixture
+def plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``sys.argv`` set to ``["stamlane"]``: LightningCLI warns when given args while it holds pytest's own."""
+    monkeypatch.setattr(sys, "argv", ["stamlane"])

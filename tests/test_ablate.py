@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import sys
 from pathlib import Path
 
 import pytest
@@ -36,10 +35,7 @@ SHRINK = [
 ]
 
 
-@pytest.fixture(autouse=True)
-def _plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
-    """LightningCLI warns when given args while sys.argv holds pytest's own."""
-    monkeypatch.setattr(sys, "argv", ["stamlane"])
+pytestmark = pytest.mark.usefixtures("plain_argv")  # LightningCLI warns when sys.argv holds pytest's own args
 
 
 @pytest.fixture(scope="module")

@@ -24,10 +24,7 @@ CONFIGS = sorted((REPO / "configs").glob("*.yaml"))
 torch.set_num_threads(1)
 
 
-@pytest.fixture(autouse=True)
-def _plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
-    """LightningCLI warns when given args while sys.argv holds pytest's own."""
-    monkeypatch.setattr(sys, "argv", ["stamlane"])
+pytestmark = pytest.mark.usefixtures("plain_argv")  # LightningCLI warns when sys.argv holds pytest's own args
 
 
 @pytest.fixture(scope="module")

@@ -24,10 +24,7 @@ REAL_BASES = [
 torch.set_num_threads(1)
 
 
-@pytest.fixture(autouse=True)
-def _plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
-    """LightningCLI warns when given args while sys.argv holds pytest's own."""
-    monkeypatch.setattr(sys, "argv", ["stamlane"])
+pytestmark = pytest.mark.usefixtures("plain_argv")
 
 
 def _configs(row: Path, base: Path = INDEX.default_base) -> list[str]:

@@ -106,17 +106,7 @@ def _make_data(root: Path | None, out: Path, quick: bool) -> Path:
     if root.exists() and not root.is_dir():
         raise DemoError(f"--data {root} is not a folder")
     if not (root / "train.json").is_file():  # the default set's settings, generated at the given place
-        hp = ClipDataModule(root=None).hparams
-        w, h = hp.synth_size
-        generate_dataset(
-            root,
-            train=hp.synth_train,
-            val=hp.synth_val,
-            test=hp.synth_test,
-            challenging=hp.synth_challenging,
-            seed=hp.synth_seed,
-            config=SynthConfig(width=int(w), height=int(h)),
-        )
+        ClipDataModule(root=None).generate_synthetic(root)
     return root
 
 

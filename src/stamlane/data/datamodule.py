@@ -128,12 +128,10 @@ class ClipDataModule(LightningDataModule):
         """
         if not self.synthetic:
             return
-        hp = self.hparams
-        w, h = hp.synth_size
         info_path = self.root / "dataset.json"
         if info_path.is_file():
             info = json.loads(info_path.read_text())
-            wanted = asdict(SynthConfig(width=int(w), height=int(h)))
+            wanted = asdict(self._synth_config())
             if info.get("format_version") != FORMAT_VERSION or info.get("config") != json.loads(json.dumps(wanted)):
                 warnings.warn(
                     f"the synthetic set in {self.root} was generated with other settings or another generator "
@@ -141,15 +139,30 @@ class ClipDataModule(LightningDataModule):
                     stacklevel=2,
                 )
             return
+        self.generate_synthetic(self.root)
+
+    def generate_synthetic(self, root: str | Path) -> None:
+        """Write a synthetic set with this module's ``synth_*`` settings (with a progress bar).
+
+        ``prepare_data`` calls it for the default set; it writes whether or not a set is already there.
+
+        Args:
+            root: the folder to write the set in.
+        """
+        hp = self.hparams
         generate_dataset(
-            self.root,
+            root,
             train=hp.synth_train,
             val=hp.synth_val,
             test=hp.synth_test,
             challenging=hp.synth_challenging,
             seed=hp.synth_seed,
-            config=SynthConfig(width=int(w), height=int(h)),
+            config=self._synth_config(),
         )
+
+    def _synth_config(self) -> SynthConfig:
+        w, h = self.hparams.synth_size
+        return SynthConfig(width=int(w), height=int(h))
 
     def split_labels(self, split: str) -> list[str]:
         """Label/list files of a split (the defaults apply to TuSimple-layout sets)."""

@@ -16,25 +16,8 @@ from stamlane.models._checks import check_clip_features
 __all__ = ["STPSA", "ConvLSTMFusion", "CosineWeightedSum", "KeyFrameOnly", "STDANet", "SimpleAdd"]
 
 
-class KeyFrameOnly(nn.Module):
-    """The single-frame baseline: returns the key frame's features, ignores history. No parameters.
-
-    Args:
-        channels: C, checked against the input.
-    """
-
-    def __init__(self, channels: int) -> None:
-        super().__init__()
-        self.channels = channels
-
-    def forward(self, feats: Tensor) -> Tensor:
-        """(B, T, C, h, w), key frame last -> key-frame features (B, C, h, w)."""
-        check_clip_features(feats, self.channels)
-        return feats[:, -1]
-
-
-class SimpleAdd(nn.Module):
-    """Table 4 "simple add": the sum of all frames' features, ``out = sum_t F_t``. No parameters.
+class _ParameterFree(nn.Module):
+    """Base of the aggregators without parameters: checks the input, then ``_fuse`` combines the frames.
 
     Args:
         channels: C, checked against the input.
@@ -47,6 +30,32 @@ class SimpleAdd(nn.Module):
     def forward(self, feats: Tensor) -> Tensor:
         """(B, T, C, h, w), key frame last -> (B, C, h, w)."""
         check_clip_features(feats, self.channels)
+        return self._fuse(feats)
+
+    def _fuse(self, feats: Tensor) -> Tensor:
+        """Checked (B, T, C, h, w), key frame last -> (B, C, h, w)."""
+        raise NotImplementedError
+
+
+class KeyFrameOnly(_ParameterFree):
+    """The single-frame baseline: returns the key frame's features, ignores history. No parameters.
+
+    Args:
+        channels: C, checked against the input.
+    """
+
+    def _fuse(self, feats: Tensor) -> Tensor:
+        return feats[:, -1]
+
+
+class SimpleAdd(_ParameterFree):
+    """Table 4 "simple add": the sum of all frames' features, ``out = sum_t F_t``. No parameters.
+
+    Args:
+        channels: C, checked against the input.
+    """
+
+    def _fuse(self, feats: Tensor) -> Tensor:
         return feats.sum(dim=1)
 
 
@@ -113,7 +122,7 @@ class ConvLSTMFusion(nn.Module):
         return self.project(sequence[-1])
 
 
-class CosineWeightedSum(nn.Module):
+class CosineWeightedSum(_ParameterFree):
     """Table 4 cosine-similarity weighted sum: per pixel, the cosine similarity of each frame's feature vector
     to the key frame's, softmax over frames, weighted sum of the frames. No parameters (the key frame's
     own similarity is 1, so it always weighs the most).
@@ -122,13 +131,7 @@ class CosineWeightedSum(nn.Module):
         channels: C, checked against the input.
     """
 
-    def __init__(self, channels: int) -> None:
-        super().__init__()
-        self.channels = channels
-
-    def forward(self, feats: Tensor) -> Tensor:
-        """(B, T, C, h, w), key frame last -> (B, C, h, w)."""
-        check_clip_features(feats, self.channels)
+    def _fuse(self, feats: Tensor) -> Tensor:
         similarity = F.cosine_similarity(feats, feats[:, -1:], dim=2, eps=1e-6)  # (B, T, h, w)
         weights = similarity.softmax(dim=1).unsqueeze(2)
         return (weights * feats).sum(dim=1)
