@@ -26,8 +26,9 @@ Accuracy (needs ``--ckpt``): every clip of ``--labels`` (default the synthetic `
 it, as streamed), ``none`` (no alignment); TuSimple accuracy / FP / FN / F1 by ``stamlane_eval.tusimple`` and
 pixel F1 against the binary target. ``--finetune-steps N`` also continues training the checkpoint N steps
 (batch 4, lr 0.005, no augmentation, on ``--finetune-labels``) twice, once with image-space and once with
-feature-space alignment, and evaluates both (same data and steps, so continued training alone is not credited
-to feature-space alignment).
+feature-space alignment (the library's ``warp="image"`` / ``warp="feature"`` data and `StamLaneModule`'s
+forward, as ``stamlane fit --data.warp feature`` trains), and evaluates both (same data and steps, so continued
+training alone is not credited to feature-space alignment).
 
 Prints tables and writes json to ``--out`` (default ``outputs/bench/stream.json``).
 """
@@ -54,9 +55,12 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder
+from stamlane.data.clips import NET_HOMOGRAPHIES
+from stamlane.data.collate import collate_clips
+from stamlane.data.transforms import net_homographies
+from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder, forward_feature_aligned
 from stamlane.postprocess import decode_lanes
-from stamlane.stream import StreamingPredictor, feature_homography, fuse_feature_aligned, sampling_grid
+from stamlane.stream import StreamingPredictor, feature_homography, sampling_grid
 from stamlane.stream.export import export_all, export_clip
 
 REPO = Path(__file__).resolve().parents[1]
@@ -212,7 +216,7 @@ def _load(ckpt: Path) -> tuple[torch.nn.Module, dict]:
     return module, data
 
 
-def _dataset(module: torch.nn.Module, data: dict, root: Path, labels: list[str]) -> object:
+def _dataset(module: torch.nn.Module, data: dict, root: Path, labels: list[str], warp: str = "image") -> object:
     from stamlane.data.clips import TuSimpleClips
 
     return TuSimpleClips(
@@ -224,55 +228,31 @@ def _dataset(module: torch.nn.Module, data: dict, root: Path, labels: list[str])
         align="fly",
         horizon_row=data.get("horizon_row"),
         align_strategy=data.get("align_strategy", "chain"),
+        warp=warp,
     )
-
-
-def _net_homographies(key_from_hist: np.ndarray, net_from_orig: np.ndarray) -> np.ndarray:
-    """(T, 3, 3) original-pixel homographies -> network pixels."""
-    return net_from_orig @ key_from_hist @ np.linalg.inv(net_from_orig)
 
 
 def finetune(module: torch.nn.Module, data: dict, root: Path, labels: list[str], steps: int, feature: bool) -> None:
     """Continue training ``module`` for ``steps`` SGD steps (batch 4, lr 0.005, momentum 0.9, no augmentation)
-    on the clips of ``labels``, with history aligned in image space (``feature=False``) or in feature space."""
-    dataset = _dataset(module, data, root, labels)
-    samples = []
-    for entry in tqdm(dataset.entries, desc="fine-tune data", unit="clip"):
-        sample = dataset.load(entry)
-        frames = dataset.read_frames(entry)
-        key_from_hist, _ = dataset.aligner(entry.frame_paths, frames)
-        params = dataset.transform.draw((frames[0].shape[1], frames[0].shape[0]))
-        if feature:
-            eye = np.repeat(np.eye(3)[None], len(frames), axis=0)
-            clip = torch.from_numpy(dataset.transform.apply_frames(frames, eye, params))
-        else:
-            clip = sample["frames"]
-        mats = _net_homographies(key_from_hist, params.net_from_orig)[:-1]
-        samples.append((clip, mats, sample["binary"], sample["instance"]))
-    net, stride = module.net, int(module.net.encoder.strides[-1])
-    optimizer = torch.optim.SGD(net.parameters(), lr=0.005, momentum=0.9, weight_decay=5e-4)
+    on the clips of ``labels``, with history aligned in image space (``feature=False``) or in feature space.
+
+    The samples are the library's (``warp="image"`` / ``warp="feature"`` data) and the forward pass is
+    `StamLaneModule`'s, which runs feature-space alignment when a batch carries ``key_from_hist_net``.
+    """
+    dataset = _dataset(module, data, root, labels, warp="feature" if feature else "image")
+    samples = [dataset.load(entry) for entry in tqdm(dataset.entries, desc="fine-tune data", unit="clip")]
+    optimizer = torch.optim.SGD(module.net.parameters(), lr=0.005, momentum=0.9, weight_decay=5e-4)
     rng = np.random.default_rng(0)
-    net.train()
+    module.train()
     for _ in tqdm(range(steps), desc=f"fine-tune ({'feature' if feature else 'image'} space)", unit="step"):
-        batch = [samples[i] for i in rng.choice(len(samples), size=4, replace=False)]
-        clips = torch.stack([b[0] for b in batch])
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bool(module.bf16)):
-            if feature:
-                feats = net.encode(clips.flatten(0, 1))
-                per_clip = [f.unflatten(0, clips.shape[:2]) for f in feats]
-                mats = np.stack([b[1] for b in batch])
-                logits, embedding = fuse_feature_aligned(
-                    net, [f[:, -1] for f in per_clip], per_clip[-1][:, :-1], mats, stride
-                )
-            else:
-                logits, embedding = net(clips)
-        loss = module.loss(
-            logits.float(), embedding.float(), torch.stack([b[2] for b in batch]), torch.stack([b[3] for b in batch])
-        )
+        picked = rng.choice(len(samples), size=min(4, len(samples)), replace=False)
+        batch = collate_clips([samples[i] for i in picked])
+        logits, embedding = module(batch["frames"], batch.get(NET_HOMOGRAPHIES))
+        loss = module.loss(logits, embedding, batch["binary"], batch["instance"])
         optimizer.zero_grad()
         loss["loss"].backward()
         optimizer.step()
-    net.eval()
+    module.eval()
 
 
 def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: list[str], limit: int | None) -> dict:
@@ -291,7 +271,7 @@ def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: li
             if line.strip():
                 record = json.loads(line)
                 gts[record["raw_file"]] = record
-    net, stride = module.net, int(module.net.encoder.strides[-1])
+    net = module.net
     autocast = torch.autocast("cpu", dtype=torch.bfloat16, enabled=bool(module.bf16))
     preds: dict[str, list[dict]] = {"image": [], "feature": [], "none": []}
     pixels = {name: np.zeros(3, np.int64) for name in preds}  # TP, FP, FN
@@ -309,11 +289,8 @@ def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: li
         target = sample["binary"].numpy() > 0
         with torch.inference_mode(), autocast:
             outputs = {"image": net(aligned), "none": net(raw)}
-            feats = net.encode(raw[0])
-            hist = feats[-1][:-1][None]
-            key = [f[-1:] for f in feats]
-            mats = _net_homographies(key_from_hist, params.net_from_orig)[None, :-1]
-            outputs["feature"] = fuse_feature_aligned(net, key, hist, mats, stride)
+            mats = torch.from_numpy(net_homographies(key_from_hist, params.net_from_orig))[None]
+            outputs["feature"] = forward_feature_aligned(net, raw, mats)
         h_samples = gts[entry.raw_file]["h_samples"]
         for name, (logits, embedding) in outputs.items():
             prob = logits.float().softmax(1)[0, 1].numpy()

@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             # args=None when they are sys.argv's own (LightningCLI warns when given both)
             build_cli(None if argv == sys.argv[1:] else [command, *rest])
-        except (DataError, FileNotFoundError) as err:  # bad data or a missing checkpoint: one line, status 2
+        except (DataError, FileNotFoundError, ValueError) as err:  # bad data, checkpoint or value: one line, status 2
             print(f"stamlane {command}: {err}", file=sys.stderr)
             return 2
         return 0

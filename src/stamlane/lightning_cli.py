@@ -86,6 +86,7 @@ class StamLaneCLI(LightningCLI):
             stride=data["stride"],
             image_size=tuple(data["image_size"]),
             align=align,
+            warp=data.get("warp", "image"),  # as trained: a feature-warp model gets unwarped frames + homographies
             batch_size=data["batch_size"],
             num_workers=data["num_workers"],
             horizon_row=data["horizon_row"],

@@ -7,6 +7,12 @@ Training logs the loss terms separately (``train/loss``, ``train/loss_seg``, ``t
 original pixels), ``gt_lanes``, ``h_samples``, ``orig_size`` and ``run_time`` (ms per image, network
 share of the batch + post-processing). ``predict_step`` returns lanes with each sample's meta.
 
+Alignment space: a batch of ``warp="image"`` data holds history frames already warped onto the key frame and
+runs ``LaneNet.forward``; a batch of ``warp="feature"`` data also holds ``key_from_hist_net`` (B, T, 3, 3,
+network pixels) and runs `stamlane.models.forward_feature_aligned` (every frame encoded once, the history's
+deepest features warped), the computation of `stamlane.stream.StreamingPredictor`, in training, validation,
+test and prediction alike.
+
 Optimisation (paper 4.1.2): SGD with momentum 0.9 and a poly learning rate ``lr * (1 - step / total)^0.9``
 stepped every iteration; ``total`` is the trainer's ``estimated_stepping_batches`` (``max_steps`` when
 set), so the schedule length is never written twice.
@@ -18,6 +24,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,10 +35,12 @@ from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
 from stamlane.losses import LaneLoss
-from stamlane.models import LaneNet
+from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
+
 
 OptimizerCallable = Callable[[Iterable], Optimizer]
 SchedulerCallable = Callable[[Optimizer, int], LRScheduler]
@@ -95,6 +104,10 @@ class StamLaneModule(LightningModule):
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
+        init_weights: a checkpoint of this module (same network) whose weights start ``fit``: fine-tuning, e.g.
+            an image-space model with ``warp="feature"`` data for the streaming predictor. Only the weights
+            (optimizer, schedule and step start afresh); read at the start of ``fit``, so a resumed run
+            (``--ckpt_path``) keeps its own weights, and loading or testing the result never needs the file.
     """
 
     def __init__(
@@ -111,6 +124,7 @@ class StamLaneModule(LightningModule):
         bf16: bool = False,
         channels_last: bool = False,
         report_run_time: bool = True,
+        init_weights: str | None = None,
     ) -> None:
         super().__init__()
         with warnings.catch_warnings():  # "Attribute 'encoder' is an instance of nn.Module": dropped just below
@@ -132,6 +146,7 @@ class StamLaneModule(LightningModule):
         self.bf16 = bf16
         self.channels_last = channels_last
         self.report_run_time = report_run_time
+        self.init_weights = init_weights
         if image_size is not None:
             stride = int(getattr(encoder, "total_stride", 1))
             height, width = image_size
@@ -143,12 +158,33 @@ class StamLaneModule(LightningModule):
         if channels_last:
             self.net.to(memory_format=torch.channels_last)
 
+    def setup(self, stage: str) -> None:
+        """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""
+        if stage == "fit" and self.init_weights:
+            if not Path(self.init_weights).is_file():
+                raise FileNotFoundError(f"init_weights: checkpoint {self.init_weights!r} does not exist")
+            try:
+                ckpt = torch.load(self.init_weights, map_location="cpu", weights_only=True)
+            except (OSError, RuntimeError) as err:
+                raise ValueError(f"init_weights: cannot read checkpoint {self.init_weights!r}: {err}") from err
+            state = ckpt.get("state_dict") if isinstance(ckpt, dict) else None
+            if state is None:
+                raise ValueError(f"init_weights: {self.init_weights!r} holds no state_dict (not a stamlane checkpoint)")
+            try:
+                self.load_state_dict(state)
+            except RuntimeError as err:  # other architecture: missing / unexpected keys, other shapes
+                raise ValueError(f"init_weights: {self.init_weights!r} does not fit this network: {err}") from err
+
     # ------------------------------------------------------------------ network
-    def forward(self, clip: Tensor) -> tuple[Tensor, Tensor]:
-        """Run the network.
+    def forward(self, clip: Tensor, key_from_hist_net: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """Run the network, the history aligned in image space (pre-aligned clip) or in feature space.
 
         Args:
-            clip: (B, T, 3, H, W) float in [0, 1], key frame last, history pre-aligned.
+            clip: (B, T, 3, H, W) float in [0, 1], key frame last; history pre-aligned when ``key_from_hist_net``
+                is None, else unwarped.
+            key_from_hist_net: None, or (B, T, 3, 3) homographies history -> key frame in NETWORK pixels (key
+                frame last): the history's deepest encoder features are warped with them
+                (`stamlane.models.forward_feature_aligned`).
 
         Returns:
             ``(logits (B, 2, H, W), embedding (B, E, H, W))``, float32.
@@ -158,15 +194,22 @@ class StamLaneModule(LightningModule):
         if self.num_frames is not None and clip.shape[1] != self.num_frames:
             raise ValueError(f"expected clips of {self.num_frames} frames, got {clip.shape[1]} ({tuple(clip.shape)})")
         with torch.autocast(device_type=clip.device.type, dtype=torch.bfloat16, enabled=self.bf16):
-            logits, embedding = self.net(clip)
+            if key_from_hist_net is None:
+                logits, embedding = self.net(clip)
+            else:
+                logits, embedding = forward_feature_aligned(self.net, clip, key_from_hist_net)
         return logits.float(), embedding.float()
+
+    def _run(self, batch: dict) -> tuple[Tensor, Tensor]:
+        """The network on a batch, in the alignment space of its data (``key_from_hist_net`` present or not)."""
+        return self(batch["frames"], batch.get(NET_HOMOGRAPHIES))
 
     def _losses(self, batch: dict, logits: Tensor, embedding: Tensor) -> dict[str, Tensor]:
         return self.loss(logits, embedding, batch["binary"], batch["instance"])
 
     # ------------------------------------------------------------------ steps
     def training_step(self, batch: dict, batch_idx: int) -> Tensor:
-        logits, embedding = self(batch["frames"])
+        logits, embedding = self._run(batch)
         terms = self._losses(batch, logits, embedding)
         size = batch["frames"].shape[0]
         self.log("train/loss", terms["loss"], prog_bar=True, batch_size=size)
@@ -204,7 +247,7 @@ class StamLaneModule(LightningModule):
 
     def _detect(self, batch: dict) -> tuple[Tensor, Tensor, list[list[np.ndarray]], list[float]]:
         start = time.perf_counter()
-        logits, embedding = self(batch["frames"])
+        logits, embedding = self._run(batch)
         network_ms = (time.perf_counter() - start) * 1000.0 / max(len(batch["meta"]), 1)
         lanes, run_time = [], []
         for i, meta in enumerate(batch["meta"]):

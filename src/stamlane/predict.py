@@ -11,7 +11,7 @@
 
 With several processes (DDP) every rank writes ``predictions.rank<r>.json``.
 
-`FramesDataModule` serves clips of consecutive frames from a folder of images (sorted by name) or a video
+`FramesDataModule` serves clips of consecutive frames from a folder of images (in name order, ``2.jpg`` before ``10.jpg``) or a video
 file (decoded to JPEG files under ``frames_dir`` first), key frame last; the first frames of the sequence
 repeat the earliest available frame as history.
 """
@@ -28,6 +28,7 @@ from lightning.pytorch.callbacks import BasePredictionWriter
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
@@ -132,7 +133,7 @@ class LanePredictionWriter(BasePredictionWriter):
 
 
 class FolderClips(ClipDataset):
-    """Every image of one folder (sorted by name) as the key frame of a clip of its predecessors; no labels.
+    """Every image of one folder (in name order, numbers compared as numbers) as the key frame of a clip of its predecessors; no labels.
 
     ``raw_file`` is the image's name; ``h_samples`` is ``None`` (lanes are written as CULane text).
     """
@@ -185,6 +186,8 @@ class FramesDataModule(pl.LightningDataModule):
         stride: distance between clip frames, in positions of the sorted listing.
         image_size: network input ``(H, W)``.
         align: ``"fly"`` (the paper's pre-alignment) or ``"none"``.
+        warp: ``"image"`` (history frames warped before the network) or ``"feature"`` (unwarped frames and
+            ``key_from_hist_net``, for a model trained with ``warp="feature"``; see `stamlane.data.clips`).
         batch_size: clips per batch.
         num_workers: DataLoader workers.
         frames_dir: where a video is decoded (default: ``<video>.frames`` beside the video).
@@ -198,6 +201,7 @@ class FramesDataModule(pl.LightningDataModule):
         stride: int = 1,
         image_size: tuple[int, int] = (128, 256),
         align: str = "fly",
+        warp: str = "image",
         batch_size: int = 4,
         num_workers: int = 0,
         frames_dir: str | None = None,
@@ -209,6 +213,8 @@ class FramesDataModule(pl.LightningDataModule):
             raise DataError(f"prediction source {path} does not exist")
         if align not in ("fly", "none"):
             raise ValueError(f"align must be 'fly' or 'none' for a folder or video, got {align!r}")
+        if warp not in WARP_MODES:
+            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
         self.source = path
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
         if path.is_file() and not self.is_video:
@@ -219,6 +225,7 @@ class FramesDataModule(pl.LightningDataModule):
             "stride": stride,
             "image_size": tuple(image_size),
             "align": align,
+            "warp": warp,
             "horizon_row": horizon_row,
         }
         self.batch_size = batch_size

@@ -16,10 +16,14 @@ Transforms
     network-input pixels (crop + scale); ``orig_from_net`` is its inverse.
 
 Samples (what a dataset returns, what the LightningModule consumes)
-    ``frames``        float32 ``(T, 3, H, W)`` in [0, 1], key frame last, history pre-aligned if asked.
+    ``frames``        float32 ``(T, 3, H, W)`` in [0, 1], key frame last, history pre-aligned if asked
+                      (``warp="image"``; with ``warp="feature"`` every frame only gets the key frame's crop).
     ``binary``        int64 ``(H, W)``: 1 on lane pixels, 0 elsewhere, at the network resolution.
     ``instance``      int64 ``(H, W)``: 0 background, lanes 1..n in left-to-right order.
     ``key_from_hist`` float32 ``(T, 3, 3)``: the alignment applied to each frame (identity for the key).
+    ``key_from_hist_net`` (``NET_HOMOGRAPHIES``) float32 ``(T, 3, 3)``, only with ``warp="feature"`` data:
+                      history -> key frame in NETWORK pixels (``net_from_orig @ key_from_hist @ inv(net_from_orig)``,
+                      identity for the key); the model warps the history's features with it.
     ``lanes``         list of ``(N, 2)`` float arrays: the key frame's lanes in original pixels.
     ``meta``          dict: ``raw_file`` (str, the benchmark's name of the key frame), ``orig_size``
                       ``(W, H)``, ``net_from_orig`` (3x3 list), ``h_samples`` (list[int] or None),
@@ -34,10 +38,13 @@ from typing import TypedDict
 
 import numpy as np
 
-__all__ = ["KEY_FRAME", "Lane", "Lanes", "SampleMeta"]
+__all__ = ["KEY_FRAME", "NET_HOMOGRAPHIES", "Lane", "Lanes", "SampleMeta"]
 
 KEY_FRAME = -1
 """Index of the key frame along the time axis of every clip."""
+
+NET_HOMOGRAPHIES = "key_from_hist_net"
+"""Sample / batch key of the history -> key homographies in network pixels (``warp="feature"`` data only)."""
 
 Lane = np.ndarray
 """One lane: ``(N, 2)`` float array of ``(x, y)`` points in original-image pixels."""

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from stamlane.data import ApolloClips, CULaneClips, DataError, TuSimpleClips, VIL100Clips
+from stamlane.data.clips import frame_order
 from tests.data.conftest import H, W
 
 SIZE = (32, 48)
@@ -164,3 +165,31 @@ def test_bad_options_are_refused(tusimple_root: Path):
             TuSimpleClips(tusimple_root, "label_data.json", image_size=SIZE, **kwargs)
     with pytest.raises(DataError, match="not a folder"):
         TuSimpleClips(tusimple_root / "nope", "label_data.json")
+
+
+def test_frame_order_compares_numbers_as_numbers():
+    names = ["10.jpg", "2.jpg", "1.jpg", "20.jpg", "frame_9.png", "frame_10.png", "a.jpg"]
+    assert sorted(names, key=frame_order) == [
+        "1.jpg",
+        "2.jpg",
+        "10.jpg",
+        "20.jpg",
+        "a.jpg",
+        "frame_9.png",
+        "frame_10.png",
+    ]
+
+
+def test_sorted_history_follows_the_frame_numbers_not_the_characters(tmp_path: Path):
+    """TuSimple-style clips number frames 1..20: the history of 10.jpg is 8.jpg and 9.jpg, not 1.jpg (which
+    plain name sorting would put just before 10.jpg)."""
+    import cv2
+
+    clip = tmp_path / "clips" / "c"
+    clip.mkdir(parents=True)
+    for i in range(1, 13):
+        cv2.imwrite(str(clip / f"{i}.jpg"), np.full((H, W, 3), 10 * i, np.uint8))
+    label = {"lanes": [[10, 20, 30]], "h_samples": [20, 40, 60], "raw_file": "clips/c/10.jpg"}
+    (tmp_path / "labels.json").write_text(json.dumps(label) + "\n")
+    ds = TuSimpleClips(tmp_path, "labels.json", num_frames=3, image_size=SIZE, history="sorted")
+    assert [Path(p).name for p in ds[0]["meta"]["frame_paths"]] == ["8.jpg", "9.jpg", "10.jpg"]

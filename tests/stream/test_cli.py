@@ -6,12 +6,13 @@ import json
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 import torch
 
 from stamlane.align.egomotion import Camera
 from stamlane.align.synthetic import render_road, road_texture
-from stamlane.stream.cli import main
+from stamlane.stream.cli import iter_frames, main
 
 torch.set_num_threads(1)
 
@@ -104,3 +105,12 @@ def test_bad_input_is_one_line_and_status_2(
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and match in err, err
+
+
+def test_a_folder_of_frames_plays_in_number_order(tmp_path: Path) -> None:
+    """1.jpg .. 12.jpg (TuSimple's naming) play 1, 2, ..., 12 — not 1, 10, 11, 12, 2, ... as plain sorting has it."""
+    for i in range(1, 13):
+        cv2.imwrite(str(tmp_path / f"{i}.png"), np.full((8, 8, 3), i, np.uint8))
+    frames, count, _ = iter_frames(tmp_path)
+    assert count == 12
+    assert [int(image[0, 0, 0]) for image in frames] == list(range(1, 13))

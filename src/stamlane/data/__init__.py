@@ -8,16 +8,26 @@ from __future__ import annotations
 
 from typing import Any
 
-from stamlane.data.alignment import ALIGN_MODES, ClipAligner
-from stamlane.data.clips import ApolloClips, ClipDataset, ClipEntry, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.alignment import ALIGN_MODES, WARP_MODES, ClipAligner
+from stamlane.data.clips import (
+    NET_HOMOGRAPHIES,
+    ApolloClips,
+    ClipDataset,
+    ClipEntry,
+    CULaneClips,
+    TuSimpleClips,
+    VIL100Clips,
+)
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
 from stamlane.data.synthetic import SynthConfig, generate_clip, generate_dataset
 from stamlane.data.targets import draw_lane_targets, left_to_right
-from stamlane.data.transforms import ClipParams, ClipTransform
+from stamlane.data.transforms import ClipParams, ClipTransform, net_homographies
 
 __all__ = [
     "ALIGN_MODES",
+    "NET_HOMOGRAPHIES",
+    "WARP_MODES",
     "ApolloClips",
     "CULaneClips",
     "ClipAligner",
@@ -35,6 +45,7 @@ __all__ = [
     "generate_clip",
     "generate_dataset",
     "left_to_right",
+    "net_homographies",
 ]
 
 

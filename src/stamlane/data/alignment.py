@@ -14,6 +14,11 @@ Modes:
                 oracle for experiments, only for synthetic sets.
 A failed estimate is the identity (``ok`` False), as ``stamlane.align`` returns it; the dataset never
 crashes on it.
+
+Where the alignment is applied is a separate choice (``WARP_MODES``, the datasets' ``warp`` option):
+    ``"image"``   history IMAGES are warped onto the key frame before the network (the paper's pre-alignment).
+    ``"feature"`` the frames stay unwarped and the homographies go with the sample in network pixels
+                  (``key_from_hist_net``); the model warps the history FEATURES (as the streaming predictor).
 """
 
 from __future__ import annotations
@@ -26,9 +31,11 @@ import numpy as np
 
 from stamlane.data.labels import DataError
 
-__all__ = ["ALIGN_MODES", "ClipAligner"]
+__all__ = ["ALIGN_MODES", "WARP_MODES", "ClipAligner"]
 
 ALIGN_MODES = ("none", "fly", "cache", "true")
+
+WARP_MODES = ("image", "feature")
 
 
 class ClipAligner:

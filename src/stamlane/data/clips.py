@@ -6,6 +6,11 @@ number, or by order within the folder), and returns samples as ``stamlane.types`
 ``binary``/``instance`` (H, W) int64 at the network size, ``key_from_hist`` (T, 3, 3) float32 in
 ORIGINAL pixels, ``lanes`` (key frame, original pixels, sorted left to right) and ``meta``.
 
+With ``warp="feature"`` the history frames are NOT warped (every frame gets the key frame's crop, scale and
+flip) and the sample also carries ``key_from_hist_net``: float32 (T, 3, 3), history -> key frame in NETWORK
+pixels (``net_from_orig @ key_from_hist @ inv(net_from_orig)``, identity for the key frame), which the model
+applies to the history FEATURES (`stamlane.models.forward_feature_aligned`).
+
 Bad data (missing or unreadable frame, a path outside the root, malformed labels, mismatched lane
 lengths) raises ``DataError`` naming the file with ``on_error="raise"``; with ``on_error="skip"`` the
 entry is dropped at indexing time (or replaced by the next good sample when an image turns out
@@ -14,6 +19,7 @@ unreadable at load time) with a warning. A sample is never silently wrong.
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -24,7 +30,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from stamlane.data.alignment import ClipAligner
+from stamlane.data.alignment import WARP_MODES, ClipAligner
 from stamlane.data.labels import (
     DataError,
     history_name,
@@ -35,11 +41,33 @@ from stamlane.data.labels import (
     tusimple_lanes,
 )
 from stamlane.data.targets import draw_lane_targets, left_to_right
-from stamlane.data.transforms import ClipTransform
+from stamlane.data.transforms import ClipTransform, net_homographies
+from stamlane.types import NET_HOMOGRAPHIES
 
-__all__ = ["ApolloClips", "CULaneClips", "ClipDataset", "ClipEntry", "TuSimpleClips", "VIL100Clips"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "NET_HOMOGRAPHIES",
+    "ApolloClips",
+    "CULaneClips",
+    "ClipDataset",
+    "ClipEntry",
+    "TuSimpleClips",
+    "VIL100Clips",
+    "frame_order",
+]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+def frame_order(name: str) -> tuple[str | int, ...]:
+    """Sort key of frame file names: runs of digits compare as numbers, so ``2.jpg`` comes before ``10.jpg``
+    (TuSimple numbers a clip's frames ``1.jpg`` .. ``20.jpg``; plain ``sorted`` would put ``10.jpg`` second).
+
+    ``re.split`` with a capturing group puts text at even and digits at odd positions, so two keys never
+    compare a string with a number.
+    """
+    return tuple(int(part) if i % 2 else part for i, part in enumerate(re.split(r"(\d+)", name)))
+
 
 
 @dataclass
@@ -74,6 +102,8 @@ class ClipDataset(Dataset):
         require_labels: when False, a missing label file gives an unlabelled sample (prediction).
         horizon_row: first ground row for on-the-fly alignment (None: ``stamlane.align`` default).
         align_strategy: ``"chain"`` or ``"direct"`` for ``align="fly"`` (see ``stamlane.data.alignment``).
+        warp: where the alignment is applied (``WARP_MODES``): ``"image"`` warps the history frames onto the key
+            frame; ``"feature"`` leaves them unwarped and adds ``key_from_hist_net`` (see the module docstring).
     """
 
     format = ""
@@ -95,6 +125,7 @@ class ClipDataset(Dataset):
         require_labels: bool = True,
         horizon_row: int | None = None,
         align_strategy: str = "chain",
+        warp: str = "image",
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -109,6 +140,8 @@ class ClipDataset(Dataset):
             raise ValueError(f"history must be 'number' or 'sorted', got {history!r}")
         if thickness < 1:
             raise ValueError(f"thickness must be >= 1, got {thickness}")
+        if warp not in WARP_MODES:
+            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
         self.num_frames, self.stride = int(num_frames), int(stride)
         self.image_size = (int(image_size[0]), int(image_size[1]))
         self.transform = transform or ClipTransform(self.image_size)
@@ -119,6 +152,7 @@ class ClipDataset(Dataset):
         self.history = history
         self.repeat_missing_history = repeat_missing_history
         self.require_labels = require_labels
+        self.warp = warp
         self.aligner = ClipAligner(align, self.root, cache_dir, horizon_row, align_strategy)
         self._listing: dict[Path, list[str]] = {}
         self.skipped: list[str] = []
@@ -173,7 +207,7 @@ class ClipDataset(Dataset):
     def _sorted_listing(self, folder: Path) -> list[str]:
         if folder not in self._listing:
             self._listing[folder] = (
-                sorted(p.name for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+                sorted((p.name for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=frame_order)
                 if folder.is_dir()
                 else []
             )
@@ -226,12 +260,14 @@ class ClipDataset(Dataset):
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
         params = self.transform.draw((w0, h0), rng)
-        clip = self.transform.apply_frames(frames, key_from_hist, params)
+        feature = self.warp == "feature"
+        applied = np.repeat(np.eye(3)[None], len(frames), axis=0) if feature else key_from_hist
+        clip = self.transform.apply_frames(frames, applied, params)
         lanes_net = ClipTransform.map_lanes(entry.lanes, params.net_from_orig)
         binary, instance = draw_lane_targets(lanes_net, self.image_size, self.thickness, source=entry.label_file)
         usable = [lane for lane in entry.lanes if len(lane) >= 2]
         lanes = [usable[i].astype(np.float64) for i in left_to_right(usable)]
-        return {
+        sample = {
             "frames": torch.from_numpy(clip),
             "binary": torch.from_numpy(binary),
             "instance": torch.from_numpy(instance),
@@ -246,6 +282,11 @@ class ClipDataset(Dataset):
                 "format": self.format,
             },
         }
+        if feature:
+            sample[NET_HOMOGRAPHIES] = torch.from_numpy(
+                net_homographies(key_from_hist, params.net_from_orig).astype(np.float32)
+            )
+        return sample
 
 
 def _image_token(line: str) -> str:

@@ -11,6 +11,7 @@ from typing import Any
 from lightning import LightningDataModule
 from torch.utils.data import DataLoader
 
+from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
 from stamlane.data.synthetic import FORMAT_VERSION, SynthConfig, generate_dataset
@@ -41,6 +42,10 @@ class ClipDataModule(LightningDataModule):
         align: ``"fly"`` (default: the paper's ORB pre-alignment, estimated per clip and memoised),
             ``"cache"`` (``stamlane align`` output in ``cache_dir``), ``"none"`` (no alignment), or
             ``"true"`` (the synthetic generator's exact homographies, an oracle for experiments).
+        warp: where that alignment is applied: ``"image"`` (default: history frames warped onto the key frame
+            before the network, the paper's pre-alignment) or ``"feature"`` (frames unwarped, the homographies
+            in network pixels in the batch as ``key_from_hist_net``; `stamlane.module.StamLaneModule` then warps
+            the history FEATURES, as `stamlane.stream.StreamingPredictor` does: train with it for streaming).
         cache_dir: alignment cache folder for ``align="cache"``.
         batch_size: clips per batch.
         num_workers: DataLoader worker processes.
@@ -67,6 +72,7 @@ class ClipDataModule(LightningDataModule):
         stride: int = 1,
         image_size: tuple[int, int] = (128, 256),
         align: str = "fly",
+        warp: str = "image",
         cache_dir: str | None = None,
         batch_size: int = 4,
         num_workers: int = 0,
@@ -100,6 +106,8 @@ class ClipDataModule(LightningDataModule):
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
         if num_workers < 0:
             raise ValueError(f"num_workers must be >= 0, got {num_workers}")
+        if warp not in WARP_MODES:
+            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
         if align_strategy not in ("chain", "direct"):
             raise ValueError(f"align_strategy must be 'chain' or 'direct', got {align_strategy!r}")
         self.save_hyperparameters()
@@ -181,6 +189,7 @@ class ClipDataModule(LightningDataModule):
             "stride": hp.stride,
             "image_size": tuple(hp.image_size),
             "align": hp.align,
+            "warp": hp.warp,
             "cache_dir": hp.cache_dir,
             "transform": self.train_transform if split == "train" else self.eval_transform,
             "thickness": hp.thickness,

@@ -7,6 +7,9 @@ then the flip ``x_net -> W_net - 1 - x_net``. Each frame is warped ONCE with
 ``net_from_orig @ key_from_hist[t]``: the pre-alignment (in original pixels) and the resize are composed,
 so a history frame is interpolated a single time. Lanes map with the same matrix, and back with its
 inverse, so network-pixel predictions return to original pixels without drift.
+
+For feature-space alignment (``warp="feature"`` data, streaming) the frames are resized with the identity
+instead and the homographies go to the network with the frames, in network pixels (`net_homographies`).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["ClipParams", "ClipTransform"]
+__all__ = ["ClipParams", "ClipTransform", "net_homographies"]
 
 
 @dataclass(frozen=True)
@@ -160,6 +163,31 @@ class ClipTransform:
             hom = np.c_[lane, np.ones(len(lane))] @ np.asarray(matrix, dtype=np.float64).T
             out.append(hom[:, :2] / hom[:, 2:3])
         return out
+
+
+def net_homographies(key_from_hist: np.ndarray, net_from_orig: np.ndarray) -> np.ndarray:
+    """Express original-pixel homographies in network-input pixels: ``net_from_orig @ H @ inv(net_from_orig)``.
+
+    Args:
+        key_from_hist: ``(T, 3, 3)`` history -> key frame, ORIGINAL pixels (identity for the key frame).
+        net_from_orig: ``(3, 3)`` original -> network pixels of the clip's draw (`ClipParams.net_from_orig`).
+
+    Returns:
+        ``(T, 3, 3)`` float64 history -> key frame in NETWORK pixels, normalised so ``[2, 2] = 1``; an identity
+        (up to 1e-12, float rounding) becomes the exact identity, so the key frame and unaligned frames are not
+        resampled.
+    """
+    mats = np.asarray(key_from_hist, dtype=np.float64)
+    if mats.ndim != 3 or mats.shape[1:] != (3, 3):
+        raise ValueError(f"key_from_hist must be (T, 3, 3), got {mats.shape}")
+    net = np.asarray(net_from_orig, dtype=np.float64)
+    if net.shape != (3, 3):
+        raise ValueError(f"net_from_orig must be (3, 3), got {net.shape}")
+    out = net @ mats @ np.linalg.inv(net)
+    out /= out[:, 2:3, 2:3]
+    identity = (np.abs(mats / mats[:, 2:3, 2:3] - np.eye(3)) <= 1e-12).all(axis=(1, 2))
+    out[identity] = np.eye(3)
+    return out
 
 
 def _area_shrink(frame: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:

@@ -5,10 +5,10 @@ Usage::
     stamlane stream drive.mp4 --ckpt outputs/demo/stam4/run/checkpoints/last.ckpt [--out DIR]
     stamlane stream frames_dir/ --config configs/demo.yaml [--ckpt CKPT]
 
-``VIDEO`` is a video file or a folder of frames (sorted by name). The network comes from a checkpoint
-written by ``stamlane fit`` (``--ckpt``; T, the input size and the horizon row are read from it) or is built
-from a training config (``--config``, with the weights of ``--ckpt`` when given, else untrained). Writes under
-``--out`` (default ``outputs/stream/<VIDEO name>``):
+``VIDEO`` is a video file or a folder of frames (in name order, ``2.jpg`` before ``10.jpg``). The network
+comes from a checkpoint written by ``stamlane fit`` (``--ckpt``; T, the input size and the horizon row are read
+from it) or is built from a training config (``--config``, with the weights of ``--ckpt`` when given, else
+untrained). Writes under ``--out`` (default ``outputs/stream/<VIDEO name>``):
 
 - ``lanes.jsonl``: one line per frame, ``{"frame": i, "lanes": [[[x, y], ...], ...], "run_time": ms,
   "aligned": [ok per history slot]}``, points in original pixels;
@@ -32,8 +32,6 @@ import numpy as np
 
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
-
 
 class StreamError(Exception):
     """Bad input to ``stamlane stream`` (reported as one line, exit status 2)."""
@@ -41,7 +39,7 @@ class StreamError(Exception):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
-    parser.add_argument("video", help="a video file or a folder of frames (sorted by name)")
+    parser.add_argument("video", help="a video file or a folder of frames (in name order, numbers compared as numbers)")
     parser.add_argument("--ckpt", help="checkpoint written by `stamlane fit`")
     parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
     parser.add_argument("--out", help="output folder (default outputs/stream/<VIDEO name>)")
@@ -60,7 +58,11 @@ def build_parser() -> argparse.ArgumentParser:
 def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[np.ndarray], int | None, float | None]:
     """Frames of a video file or an image folder: ``(iterator of BGR uint8 images, count or None, fps or None)``."""
     if source.is_dir():
-        paths = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        from stamlane.data.clips import IMAGE_SUFFIXES, frame_order
+
+        paths = sorted(
+            (p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=lambda p: frame_order(p.name)
+        )
         if not paths:
             raise StreamError(f"{source} holds no image ({', '.join(IMAGE_SUFFIXES)})")
         paths = paths[:max_frames] if max_frames else paths

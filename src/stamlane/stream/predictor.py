@@ -26,7 +26,8 @@ result. Convolutions commute with translations by whole cells only; forward ego-
 the vanishing point, and the features of a zoomed image are not the zoomed (bilinearly interpolated 16-pixel
 cells of the) features; borders with no source are zero features instead of the features of black pixels.
 With identity alignment the two are the same computation. Weights trained on image-aligned clips lose some
-accuracy when run this way; fine-tuning with feature-space alignment recovers it (``benchmarks/stream.py``).
+accuracy when run this way; training or fine-tuning with feature-space alignment (``--data.warp feature``,
+`stamlane.models.forward_feature_aligned`) recovers it (``benchmarks/stream.py``).
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ from stamlane.align import AlignConfig, Alignment, check_plausible
 from stamlane.align.homography import FramePrep, check_image, estimate_prepared, resolve_horizon_row
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import LaneNet
+from stamlane.models.feature_aligned import fuse_feature_aligned
 from stamlane.postprocess import PostprocessConfig, decode_lanes
-from stamlane.stream.feature_warp import warp_features
 from stamlane.types import Lanes
 
 __all__ = ["StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]
@@ -86,48 +87,6 @@ class _Cached:
     prep: FramePrep | None = None  # for direct matching when a chain breaks
     key_from_hist: np.ndarray = field(default_factory=lambda: np.eye(3))  # to the newest frame, original px
     alignment: Alignment = field(default_factory=lambda: Alignment(np.eye(3), 0, 0, True, ""))
-
-
-def fuse_feature_aligned(
-    net: LaneNet,
-    key_feats: Sequence[Tensor],
-    hist_feats: Tensor,
-    key_from_hist: np.ndarray | Tensor | None,
-    stride: int,
-    net_from_orig: np.ndarray | None = None,
-) -> tuple[Tensor, Tensor]:
-    """Warp history features onto the key frame, fuse and decode.
-
-    Args:
-        net: the network (``fuse_and_decode`` is used).
-        key_feats: the key frames' per-stage features, shallow first, each ``(B, C_i, h_i, w_i)``.
-        hist_feats: deepest-stage features of the history frames, ``(B, T-1, C, h, w)``, oldest first.
-        key_from_hist: ``(B, T-1, 3, 3)`` homographies history -> key (network pixels, or original pixels with
-            ``net_from_orig``); ``None`` = no alignment. Exact identities are skipped (no resampling).
-        stride: stride of the deepest stage.
-        net_from_orig: ``(3, 3)`` original -> network pixels, or ``None``.
-
-    Returns:
-        ``(logits (B, 2, H, W), embedding (B, E, H, W))``.
-    """
-    if hist_feats.ndim != 5:
-        raise ValueError(f"expected hist_feats of shape (B, T-1, C, h, w), got {tuple(hist_feats.shape)}")
-    key_last = key_feats[-1]
-    batch, num_hist = hist_feats.shape[:2]
-    if key_from_hist is not None and num_hist:
-        mats = torch.as_tensor(np.asarray(key_from_hist) if isinstance(key_from_hist, np.ndarray) else key_from_hist)
-        mats = mats.to(torch.float64).reshape(batch * num_hist, 3, 3)
-        if tuple(mats.shape) != (batch * num_hist, 3, 3):
-            raise ValueError(f"expected key_from_hist of shape ({batch}, {num_hist}, 3, 3), got {tuple(mats.shape)}")
-        flat = hist_feats.flatten(0, 1)
-        moving = [i for i in range(len(mats)) if not torch.equal(mats[i], torch.eye(3, dtype=torch.float64))]
-        if moving:
-            warped = warp_features(flat[moving], mats[moving], stride, net_from_orig=net_from_orig)
-            flat = flat.clone()
-            flat[moving] = warped
-        hist_feats = flat.unflatten(0, (batch, num_hist))
-    last = torch.cat([hist_feats, key_last[:, None]], dim=1)
-    return net.fuse_and_decode(last, key_feats[:-1])
 
 
 class StreamingPredictor:
