@@ -55,13 +55,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from stamlane.data.clips import NET_HOMOGRAPHIES
+from stamlane.data.clips import frame_order
 from stamlane.data.collate import collate_clips
 from stamlane.data.transforms import net_homographies
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder, forward_feature_aligned
 from stamlane.postprocess import decode_lanes
 from stamlane.stream import StreamingPredictor, feature_homography, sampling_grid
 from stamlane.stream.export import export_all, export_clip
+from stamlane.types import NET_HOMOGRAPHIES
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -175,8 +176,9 @@ def measure_end_to_end(
     net: LaneNet, num_frames: int, size: tuple[int, int], frames_dir: Path, horizon_row: int | None, bf16: bool
 ) -> dict:
     """Per-frame breakdown of `StreamingPredictor` on real frames, and the image-space extra on the same alignment."""
-    paths = sorted(p for p in frames_dir.iterdir() if p.suffix.lower() in (".jpg", ".png"))
-    paths = sorted(paths, key=lambda p: (len(p.stem), p.stem))
+    paths = sorted(
+        (p for p in frames_dir.iterdir() if p.suffix.lower() in (".jpg", ".png")), key=lambda p: frame_order(p.name)
+    )
     images = [cv2.imread(str(p)) for p in paths]
     predictor = StreamingPredictor(net, num_frames, size, horizon_row=horizon_row, bf16=bf16)
     transform = predictor.transform
