@@ -6,7 +6,7 @@ from typing import Any
 
 import torch
 
-from stamlane.data.clips import NET_HOMOGRAPHIES
+from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = ["collate_clips"]
 
