@@ -2,11 +2,16 @@
 
     stamlane align DATA_ROOT --cache CACHE_DIR [--num-frames 5] [--stride 1] [--key-frames last|all]
                    [--horizon-row 0.45] [--strategy chain|direct] [--workers 1] [--visualize DIR]
+                   [--write-frames OUT]
 
 Walks ``DATA_ROOT`` for clip folders (any folder with numbered frames ``<n>.jpg``/``<n>.png``), and for each
 key frame estimates the homography of its ``num_frames - 1`` previous frames (every ``stride``-th). Writes
 one JSON per clip folder (layout in ``stamlane.align.cache``); clip folders whose JSON already covers the
 request are skipped, so an interrupted run resumes. numpy/OpenCV only: no torch import.
+
+``--write-frames OUT`` also writes the aligned frames of every requested key frame (``--key-frames last``:
+the last frame of each folder, TuSimple's labelled ``20.jpg``; ``all``: every frame, e.g. CULane / VIL-100,
+whose frames are all labelled) under ``OUT/<clip folder relative to root>/`` (see ``stamlane.align.export``).
 """
 
 from __future__ import annotations
@@ -16,16 +21,25 @@ import sys
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stamlane.align.cache import alignment_to_json, cache_file, find_clip_dirs, list_frames, read_cache, write_cache
+from stamlane.align.cache import (
+    alignment_to_json,
+    cache_file,
+    find_clip_dirs,
+    list_frames,
+    read_cache,
+    write_cache,
+)
+from stamlane.align.export import MANIFEST_NAME, mirror, missing_outputs, write_aligned_frames
 from stamlane.align.homography import DEFAULT_HORIZON_FRACTION, AlignConfig, Alignment, FramePrep, estimate_prepared
 from stamlane.align.warp import alignments_to_key
 
-__all__ = ["AlignJob", "main", "process_clip"]
+__all__ = ["AlignJob", "ClipResult", "main", "process_clip"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +54,22 @@ class AlignJob:
     horizon: float = DEFAULT_HORIZON_FRACTION
     strategy: str = "chain"
     visualize_dir: Path | None = None
+    frames_dir: Path | None = None
+
+
+class ClipResult(NamedTuple):
+    """What ``process_clip`` did to one clip folder."""
+
+    status: str
+    """``"done"`` (cache computed) or ``"skipped"`` (the cache already covered the request)."""
+    pairs: int
+    """frame pairs estimated."""
+    ok: int
+    """of which succeeded."""
+    written: int = 0
+    """files written under ``--write-frames`` (key frame copies included)."""
+    unaligned: int = 0
+    """of which history frames written UNWARPED because their alignment failed."""
 
 
 def horizon_for(horizon: float, height: int) -> int:
@@ -103,39 +133,45 @@ class _Clip:
         return self.preps[(i, row)]
 
 
-def process_clip(clip_dir: Path, job: AlignJob) -> tuple[str, int, int]:
-    """Compute and write one clip folder's cache; returns ``(status, pairs, ok pairs)``, status ``done|skipped``."""
+def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
+    """Compute and write one clip folder's cache (and its aligned frames with ``job.frames_dir``)."""
     frames = list_frames(clip_dir)
     pairs = requested_pairs(len(frames), job)
     path = cache_file(job.cache_dir, job.root, clip_dir)
     existing = read_cache(path)
-    if _covered(existing, frames, pairs):
-        return "skipped", 0, 0
+    covered = _covered(existing, frames, pairs)
+    out_dir = mirror(job.frames_dir, job.root, clip_dir) if job.frames_dir is not None else None
+    if covered and (out_dir is None or not missing_outputs(out_dir, frames, pairs)):
+        return ClipResult("skipped", 0, 0)
     cv2.setNumThreads(1)
     cfg = AlignConfig()
     clip = _Clip(frames, job, cfg)
     n_pairs = n_ok = 0
-    for k, hist in pairs.items():
-        seq = [*hist, k]  # oldest first, key last
-        key = clip.image(k)
-        shape = key.shape[:2] if key is not None else (720, 1280)  # only for checks; every pair fails then
-        alignments = alignments_to_key(
-            len(seq),
-            lambda a, b, seq=seq: clip.estimate(seq[a], seq[b]),
-            shape,
-            horizon_for(job.horizon, shape[0]),
-            cfg,
-            job.strategy,
-        )
-        entry = existing.setdefault(frames[k].name, {})
-        for i, alignment in zip(hist, alignments, strict=True):
-            entry[frames[i].name] = alignment_to_json(alignment)
-            n_pairs += 1
-            n_ok += bool(alignment.ok)
-    write_cache(path, existing)
-    if job.visualize_dir is not None:
-        _visualize(clip, clip_dir, pairs, job)
-    return "done", n_pairs, n_ok
+    if not covered:
+        for k, hist in pairs.items():
+            seq = [*hist, k]  # oldest first, key last
+            key = clip.image(k)
+            shape = key.shape[:2] if key is not None else (720, 1280)  # only for checks; every pair fails then
+            alignments = alignments_to_key(
+                len(seq),
+                lambda a, b, seq=seq: clip.estimate(seq[a], seq[b]),
+                shape,
+                horizon_for(job.horizon, shape[0]),
+                cfg,
+                job.strategy,
+            )
+            entry = existing.setdefault(frames[k].name, {})
+            for i, alignment in zip(hist, alignments, strict=True):
+                entry[frames[i].name] = alignment_to_json(alignment)
+                n_pairs += 1
+                n_ok += bool(alignment.ok)
+        write_cache(path, existing)
+        if job.visualize_dir is not None:
+            _visualize(clip, clip_dir, pairs, job)
+    written = unaligned = 0
+    if out_dir is not None:
+        written, unaligned = write_aligned_frames(out_dir, frames, pairs, existing, clip.image)
+    return ClipResult("skipped" if covered else "done", n_pairs, n_ok, written, unaligned)
 
 
 def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: AlignJob) -> None:
@@ -156,7 +192,7 @@ def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: Al
     cv2.imwrite(str(job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"), picture)
 
 
-def _run_one(task: tuple[Path, AlignJob]) -> tuple[str, int, int]:
+def _run_one(task: tuple[Path, AlignJob]) -> ClipResult:
     return process_clip(*task)
 
 
@@ -186,6 +222,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     p.add_argument("--visualize", type=Path, default=None, metavar="DIR", help="write a picture per clip here")
+    p.add_argument(
+        "--write-frames",
+        type=Path,
+        default=None,
+        metavar="OUT",
+        help="also write each key frame's history frames warped onto it under OUT/<clip folder>/ "
+        "as <key>_back<n>.jpg, with aligned.json saying which alignments failed (written unwarped)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -202,6 +246,10 @@ def main(argv: list[str]) -> int:
         (args.workers < 1, f"--workers must be >= 1, got {args.workers}"),
         (not 0 <= args.horizon_row, f"--horizon-row must be >= 0, got {args.horizon_row}"),
         (not args.root.is_dir(), f"dataset root {args.root} is not a folder"),
+        (
+            args.write_frames is not None and args.write_frames.exists() and not args.write_frames.is_dir(),
+            f"--write-frames {args.write_frames} is not a folder",
+        ),
     ]
     for bad, message in problems:
         if bad:
@@ -222,10 +270,17 @@ def main(argv: list[str]) -> int:
         args.horizon_row,
         args.strategy,
         args.visualize,
+        args.write_frames,
     )
+    if args.write_frames is not None:
+        try:
+            args.write_frames.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            print(f"stamlane align: cannot create --write-frames {args.write_frames}: {err}", file=sys.stderr)
+            return 2
     tasks = [(clip, job) for clip in clips]
     bar = tqdm(total=len(tasks), desc="align", unit="clip", disable=args.quiet)
-    done = skipped = pairs = ok = 0
+    done = skipped = pairs = ok = written = unaligned = 0
     if args.workers == 1:
         results = map(_run_one, tasks)
         pool = None
@@ -233,11 +288,17 @@ def main(argv: list[str]) -> int:
         pool = get_context("spawn").Pool(args.workers)
         results = pool.imap_unordered(_run_one, tasks, chunksize=1)
     try:
-        for status, n, n_ok in results:
-            done += status == "done"
-            skipped += status == "skipped"
-            pairs, ok = pairs + n, ok + n_ok
+        for result in results:
+            done += result.status == "done"
+            skipped += result.status == "skipped"
+            pairs, ok = pairs + result.pairs, ok + result.ok
+            written, unaligned = written + result.written, unaligned + result.unaligned
             bar.update(1)
+    except OSError as err:  # e.g. a full disk under --write-frames
+        if pool is not None:
+            pool.terminate()
+        print(f"stamlane align: {err}", file=sys.stderr)
+        return 2
     finally:
         bar.close()
         if pool is not None:
@@ -245,6 +306,11 @@ def main(argv: list[str]) -> int:
             pool.join()
     rate = f", {100 * ok / pairs:.1f} % ok" if pairs else ""
     print(f"aligned {done} clip folders ({skipped} already cached), {pairs} frame pairs{rate}; cache: {cache_dir}")
+    if args.write_frames is not None:
+        print(
+            f"wrote {written} frames to {args.write_frames}; {unaligned} history frames written UNWARPED "
+            f"(alignment failed: ok=false in each folder's {MANIFEST_NAME})"
+        )
     return 0
 
 
