@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -27,3 +28,18 @@ def shared_dir() -> Path:
 def plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
     """``sys.argv`` set to ``["stamlane"]``: LightningCLI warns when given args while it holds pytest's own."""
     monkeypatch.setattr(sys, "argv", ["stamlane"])
+
+
+@pytest.fixture(scope="session")
+def tiny_synthetic(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Path]:
+    """``tiny_synthetic(width, height, num_frames, train=, val=, test=, challenging=, seed=0)``: a small synthetic
+    set in the TuSimple layout (``stamlane synth``), written to a fresh temporary folder, without a progress bar."""
+    from stamlane.data.synthetic import SynthConfig, generate_dataset
+
+    def make(width: int, height: int, num_frames: int, *, seed: int = 0, **splits: int) -> Path:
+        root = tmp_path_factory.mktemp("synthetic")
+        config = SynthConfig(width=width, height=height, num_frames=num_frames)
+        generate_dataset(root, **splits, seed=seed, config=config, progress=False)
+        return root
+
+    return make

@@ -6,12 +6,12 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 import torch
 
-from stamlane.data import SynthConfig, generate_dataset
 from stamlane.experiments import ablate
 from stamlane.experiments.report import robustness_markdown, table_markdown
 from stamlane.experiments.results import summarize
@@ -39,12 +39,9 @@ pytestmark = pytest.mark.usefixtures("plain_argv")  # LightningCLI warns when sy
 
 
 @pytest.fixture(scope="module")
-def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def tiny_set(tiny_synthetic: Callable[..., Path]) -> Path:
     """2 train, 1 val, 2 test and 2 challenging clips of 4 frames at 128x72."""
-    root = tmp_path_factory.mktemp("synth")
-    cfg = SynthConfig(width=128, height=72, num_frames=4)
-    generate_dataset(root, train=2, val=1, test=2, challenging=2, seed=0, config=cfg, progress=False)
-    return root
+    return tiny_synthetic(128, 72, 4, train=2, val=1, test=2, challenging=2)
 
 
 @pytest.fixture

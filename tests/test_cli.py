@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -16,7 +17,6 @@ import torch
 from stamlane_eval.cli import main as eval_main
 
 from stamlane.cli import main
-from stamlane.data import SynthConfig, generate_dataset
 from stamlane.lightning_cli import StamLaneCLI
 
 REPO = Path(__file__).resolve().parents[1]
@@ -28,12 +28,9 @@ pytestmark = pytest.mark.usefixtures("plain_argv")  # LightningCLI warns when sy
 
 
 @pytest.fixture(scope="module")
-def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def tiny_set(tiny_synthetic: Callable[..., Path]) -> Path:
     """4 train, 2 val, 2 test clips of 4 frames at 256x144 (a few seconds to write)."""
-    root = tmp_path_factory.mktemp("synth")
-    cfg = SynthConfig(width=256, height=144, num_frames=4)
-    generate_dataset(root, train=4, val=2, test=2, challenging=0, seed=0, config=cfg, progress=False)
-    return root
+    return tiny_synthetic(256, 144, 4, train=4, val=2, test=2, challenging=0)
 
 
 def _args(root: Path, out: Path, *extra: str) -> list[str]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -18,7 +19,6 @@ import stamlane.module
 from stamlane.cli import main as cli_main
 from stamlane.data import NET_HOMOGRAPHIES, TuSimpleClips, collate_clips, net_homographies
 from stamlane.data.datamodule import ClipDataModule
-from stamlane.data.synthetic import SynthConfig, generate_dataset
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_feature_aligned
 from stamlane.module import StamLaneModule
@@ -32,12 +32,9 @@ CLIPS = {"num_frames": T, "stride": 2, "image_size": SIZE, "align": "true"}  # e
 
 
 @pytest.fixture(scope="module")
-def root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def root(tiny_synthetic: Callable[..., Path]) -> Path:
     """A tiny synthetic set (160x96, 8 frames a clip): 3 train, 1 val, 1 test clip."""
-    path = tmp_path_factory.mktemp("synthetic")
-    config = SynthConfig(width=160, height=96, num_frames=8)
-    generate_dataset(path, train=3, val=1, test=1, challenging=0, seed=3, config=config, progress=False)
-    return path
+    return tiny_synthetic(160, 96, 8, train=3, val=1, test=1, challenging=0, seed=3)
 
 
 def _module(fusion: object = None, **kwargs: object) -> StamLaneModule:
