@@ -56,9 +56,8 @@ def fuse_feature_aligned(
             raise ValueError(f"expected key_from_hist of shape ({batch}, {num_hist}, 3, 3), got {tuple(mats.shape)}")
         mats = mats.reshape(batch * num_hist, 3, 3)
         flat = hist_feats.flatten(0, 1)
-        eye = torch.eye(3, dtype=torch.float64)
-        moving = [i for i in range(len(mats)) if not torch.equal(mats[i], eye)]
-        if moving:
+        moving = torch.nonzero(~(mats == torch.eye(3, dtype=torch.float64)).all(dim=(1, 2))).flatten()
+        if len(moving):
             warped = warp_features(flat[moving], mats[moving], stride, net_from_orig=net_from_orig)
             flat = flat.clone()
             flat[moving] = warped
