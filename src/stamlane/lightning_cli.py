@@ -9,6 +9,7 @@ from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.data.datamodule import ClipDataModule
+from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.module import StamLaneModule
 from stamlane.predict import FramesDataModule, LanePredictionWriter
 from stamlane.resume import ExactResume
@@ -51,6 +52,7 @@ class StamLaneCLI(LightningCLI):
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:
         trainer = super().instantiate_trainer(**kwargs)
         trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
+        trainer.callbacks.append(FinalCheckpoint())  # last.ckpt = the weights training ended with
         return trainer
 
     def before_fit(self) -> None:

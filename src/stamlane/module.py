@@ -25,7 +25,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -34,6 +34,7 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from stamlane.hardware import resolve_bf16
 from stamlane.losses import LaneLoss
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.postprocess import PostprocessConfig, decode_lanes
@@ -99,8 +100,9 @@ class StamLaneModule(LightningModule):
         num_frames: T, frames per clip the network expects (linked from the data); checked on every batch.
         image_size: ``(H, W)`` of the network input (linked from the data); must be multiples of the
             encoder's stride; sets ``example_input_array``.
-        bf16: run the network under ``torch.autocast(dtype=bfloat16)`` (fast on CPUs with AMX / AVX512-BF16);
-            losses and decoding stay float32.
+        bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
+            ``"auto"`` (default): where the CPU runs bf16 natively (AMX / AVX512-BF16, ~3x faster than
+            float32), float32 elsewhere (emulated bf16 is ~15x slower); see `stamlane.hardware`.
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
@@ -121,7 +123,7 @@ class StamLaneModule(LightningModule):
         postprocess: PostprocessConfig | None = None,
         num_frames: int | None = None,
         image_size: tuple[int, int] | None = None,
-        bf16: bool = False,
+        bf16: bool | Literal["auto"] = "auto",
         channels_last: bool = False,
         report_run_time: bool = True,
         init_weights: str | None = None,
@@ -143,7 +145,7 @@ class StamLaneModule(LightningModule):
         self.scheduler_factory = scheduler
         self.postprocess = postprocess if postprocess is not None else PostprocessConfig()
         self.num_frames = num_frames
-        self.bf16 = bf16
+        self.bf16 = resolve_bf16(bf16)
         self.channels_last = channels_last
         self.report_run_time = report_run_time
         self.init_weights = init_weights

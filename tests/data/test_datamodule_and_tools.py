@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import warnings
 from pathlib import Path
 
@@ -12,7 +13,7 @@ import pytest
 import torch
 
 from stamlane.data import collate_clips
-from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
 from stamlane.data.labels import history_name
 from stamlane.data.show_cli import main as show_main
 from stamlane.data.synth_cli import main as synth_main
@@ -26,8 +27,14 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
     monkeypatch.chdir(tmp_path)
     dm = ClipDataModule(image_size=(32, 64), batch_size=2, align="true", **TINY_SYNTH)
     dm.prepare_data()
-    assert (tmp_path / "data/synthetic/dataset.json").is_file()
-    assert (tmp_path / "data/synthetic/train.json").is_file()
+    assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").is_file()
+    # 20-frame clips: train key frames 8..20 (key step 1), the other splits 8, 11, 14, 17, 20 (key step 3)
+    train_keys = (tmp_path / DEFAULT_SYNTHETIC_ROOT / "train.json").read_text().splitlines()
+    assert len(train_keys) == 2 * 13 and json.loads(train_keys[0])["raw_file"] == "clips/train-0000/8.jpg"
+    val_keys = [
+        json.loads(r)["raw_file"] for r in (tmp_path / DEFAULT_SYNTHETIC_ROOT / "val.json").read_text().splitlines()
+    ]
+    assert val_keys == [f"clips/val-0000/{k}.jpg" for k in (8, 11, 14, 17, 20)]
     dm.setup("fit")
     batch = next(iter(dm.train_dataloader()))
     assert batch["frames"].shape == (2, 4, 3, 32, 64)
@@ -36,20 +43,20 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
     assert len(batch["lanes"]) == 2 and len(batch["meta"]) == 2
     assert batch["binary"].sum() > 0
     val = next(iter(dm.val_dataloader()))
-    assert val["frames"].shape[0] == 1
+    assert val["frames"].shape[0] == 2
     # the eval transform only resizes: net_from_orig is a pure scale of 64/96 x 32/64
     m = np.asarray(val["meta"][0]["net_from_orig"])
     assert abs(float(m[0, 0]) - 64 / 96) < 1e-9 and abs(float(m[1, 1]) - 32 / 64) < 1e-9
     assert next(iter(dm.predict_dataloader()))["frames"].shape[1] == 4
     # a second module finds the set and does not regenerate it
-    before = (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns
+    before = (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # same settings: found silently
         ClipDataModule(**TINY_SYNTH).prepare_data()
-    assert (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns == before
+    assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
     with pytest.warns(UserWarning, match="other settings"):  # another size: kept, with a warning
         ClipDataModule(**dict(TINY_SYNTH, synth_size=(128, 64))).prepare_data()
-    assert (tmp_path / "data/synthetic/dataset.json").stat().st_mtime_ns == before
+    assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
 
 
 def test_datamodule_on_a_given_root(synthetic_root: Path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import warnings
 from dataclasses import asdict
 from pathlib import Path
@@ -19,8 +20,9 @@ from stamlane.data.transforms import ClipTransform
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule"]
 
-DEFAULT_SYNTHETIC_ROOT = "data/synthetic"
-"""Where ``root=None`` points (relative to the working directory); generated there when missing."""
+DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
+"""Where ``root=None`` points (relative to the working directory); generated there when missing. Named by the
+generator's format version, so a newer generator never reuses (or overwrites) an older set."""
 
 FORMATS = ("tusimple", "culane", "apollo", "vil100")
 
@@ -60,6 +62,8 @@ class ClipDataModule(LightningDataModule):
         horizon_row: first ground row for ``align="fly"`` (None: ``stamlane.align``'s default).
         align_strategy: ``"chain"`` (default) or ``"direct"`` matching for ``align="fly"``.
         synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
+        synth_train_key_step, synth_eval_key_step: labelled key frames per clip of the train split and of the
+            others (``stamlane.data.synthetic.key_frames``: 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         synth_seed: seed of a generated set.
         synth_size: ``(W, H)`` frame size of a generated set.
     """
@@ -94,8 +98,10 @@ class ClipDataModule(LightningDataModule):
         align_strategy: str = "chain",
         synth_train: int = 120,
         synth_val: int = 20,
-        synth_test: int = 30,
-        synth_challenging: int = 30,
+        synth_test: int = 100,
+        synth_challenging: int = 100,
+        synth_train_key_step: int = 1,
+        synth_eval_key_step: int = 3,
         synth_seed: int = 0,
         synth_size: tuple[int, int] = (640, 360),
     ) -> None:
@@ -139,8 +145,16 @@ class ClipDataModule(LightningDataModule):
         info_path = self.root / "dataset.json"
         if info_path.is_file():
             info = json.loads(info_path.read_text())
-            wanted = asdict(self._synth_config())
-            if info.get("format_version") != FORMAT_VERSION or info.get("config") != json.loads(json.dumps(wanted)):
+            hp = self.hparams
+            wanted = json.loads(json.dumps(asdict(self._synth_config())))
+            counts = {"train": hp.synth_train, "val": hp.synth_val, "test": hp.synth_test}
+            counts["challenging"] = hp.synth_challenging
+            if (
+                info.get("format_version") != FORMAT_VERSION
+                or info.get("config") != wanted
+                or info.get("splits") != counts
+                or info.get("seed") != hp.synth_seed
+            ):
                 warnings.warn(
                     f"the synthetic set in {self.root} was generated with other settings or another generator "
                     f"version; using it as it is (delete the folder to regenerate)",
@@ -166,6 +180,9 @@ class ClipDataModule(LightningDataModule):
             challenging=hp.synth_challenging,
             seed=hp.synth_seed,
             config=self._synth_config(),
+            train_key_step=hp.synth_train_key_step,
+            eval_key_step=hp.synth_eval_key_step,
+            workers=max(1, min(4, os.cpu_count() or 1)),
         )
 
     def _synth_config(self) -> SynthConfig:

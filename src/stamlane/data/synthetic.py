@@ -19,7 +19,9 @@ What each effect tests (see the README):
 Layout written by ``generate_dataset`` (``<id>`` like ``train-0007``)::
 
     <root>/clips/<id>/1.jpg .. <T>.jpg          frames, oldest first; the key frame is <T>.jpg
-    <root>/{train,val,test,challenging}.json    TuSimple label json-lines of each clip's last frame
+    <root>/{train,val,test,challenging}.json    TuSimple label json-lines of each clip's KEY frames: the last
+                                                frame and every ``key_step``-th frame before it, down to frame
+                                                ``FIRST_KEY + 1`` (so every key frame has >= 7 history frames)
     <root>/frame_labels/<id>.json               TuSimple-style labels of EVERY frame (+ "occluded" flags)
     <root>/homographies/<id>.json               true geometry: image_from_ground per frame, and
                                                 last_from_frame / next_from_frame (= key_from_hist)
@@ -29,6 +31,7 @@ Layout written by ``generate_dataset`` (``<id>`` like ``train-0007``)::
 from __future__ import annotations
 
 import json
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -41,11 +44,15 @@ from stamlane.data.synth_render import GrainLayer, GroundRenderer
 from stamlane.data.synth_road import Road, render_texture, sample_road
 from stamlane.data.synth_vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
-__all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_dataset", "write_clip"]
+__all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_dataset", "key_frames", "write_clip"]
 
 SPLITS = ("train", "val", "test", "challenging")
-FORMAT_VERSION = 2
-"""2: 20 fps, asphalt grain near the camera, along-road prefiltering, vehicles 4-35 m ahead (1: 10 fps, 3-30 m)."""
+FORMAT_VERSION = 3
+"""3: several labelled key frames per clip (``key_step``); 2: 20 fps, asphalt grain near the camera, along-road
+prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
+FIRST_KEY = 7
+"""0-based index of the earliest frame that may be a key frame: every key frame has >= 7 history frames, enough
+for the paper's longest clips (5 frames) and the 8-frame ones some video detectors use."""
 FAR_M = 120.0
 """Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
 HAZE_PX = 0.04
@@ -337,11 +344,28 @@ def _draw_ridge(frame: np.ndarray, ridge: np.ndarray, horizon: float, pose: Pose
     band[sel] = (band[sel] * 0.35).astype(np.uint8)
 
 
-def write_clip(clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92) -> dict:
+def key_frames(num_frames: int, key_step: int = 0) -> list[int]:
+    """0-based indices of a clip's labelled key frames, oldest first.
+
+    Args:
+        num_frames: frames in the clip.
+        key_step: 0: the last frame only; k >= 1: the last frame and every k-th frame before it, not before
+            ``FIRST_KEY`` (a clip of at most ``FIRST_KEY + 1`` frames has only its last frame as key).
+    """
+    if key_step < 0:
+        raise ValueError(f"key_step must be >= 0, got {key_step}")
+    last = num_frames - 1
+    if key_step == 0:
+        return [last]
+    return list(range(last, min(FIRST_KEY, last) - 1, -key_step))[::-1]
+
+
+def write_clip(clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92, key_step: int = 0) -> list[dict]:
     """Write a clip's frames, per-frame labels and homographies under ``root``.
 
     Returns:
-        the TuSimple label record of the key (last) frame: ``raw_file``, ``lanes``, ``h_samples``.
+        the TuSimple label records (``raw_file``, ``lanes``, ``h_samples``) of the clip's key frames
+        (`key_frames` with ``key_step``), oldest first.
     """
     folder = root / "clips" / clip_id
     folder.mkdir(parents=True, exist_ok=True)
@@ -367,7 +391,10 @@ def write_clip(clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92
     }
     (root / "homographies").mkdir(exist_ok=True)
     (root / "homographies" / f"{clip_id}.json").write_text(json.dumps(geometry))
-    return {"raw_file": raw[-1], "lanes": clip.labels[-1], "h_samples": clip.h_samples}
+    return [
+        {"raw_file": raw[k], "lanes": clip.labels[k], "h_samples": clip.h_samples}
+        for k in key_frames(len(names), key_step)
+    ]
 
 
 def clip_statistics(clip: SynthClip, num_frames: int = 4, stride: int = 1) -> dict[str, float]:
@@ -413,6 +440,16 @@ def clip_statistics(clip: SynthClip, num_frames: int = 4, stride: int = 1) -> di
     return {"key_points": points, "hidden": hidden, "revealed": revealed, "unaligned_shift": shift / max(count, 1)}
 
 
+def _make_clip(job: tuple[Path, str, SynthConfig, int, int, int, int]) -> tuple[list[dict], dict[str, float]]:
+    """Render and write clip ``index`` of split ``split`` (a worker of `generate_dataset`): its key-frame
+    records and `clip_statistics`."""
+    root, split, cfg, seed, code, index, key_step = job
+    cv2.setNumThreads(1)  # the pool already runs one clip per core
+    clip = generate_clip(cfg, np.random.default_rng([seed, code, index]))
+    records = write_clip(clip, root, f"{split}-{index:04d}", cfg.jpeg_quality, key_step)
+    return records, clip_statistics(clip)
+
+
 def generate_dataset(
     root: str | Path,
     *,
@@ -423,6 +460,9 @@ def generate_dataset(
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
+    train_key_step: int = 0,
+    eval_key_step: int = 0,
+    workers: int = 1,
 ) -> dict:
     """Write a synthetic clip set (layout in the module docstring).
 
@@ -433,9 +473,14 @@ def generate_dataset(
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``).
         progress: show a tqdm progress bar.
+        train_key_step: key frames of the train clips (`key_frames`: 0 = the last frame only, 1 = every frame
+            from ``FIRST_KEY`` on).
+        eval_key_step: key frames of the val, test and challenging clips (e.g. 3: frames 8, 11, 14, 17, 20 of
+            20-frame clips, five fairly different views of each clip).
+        workers: processes rendering clips in parallel (the files do not depend on it).
 
     Returns:
-        the content of ``dataset.json``: settings, counts and statistics per split.
+        the content of ``dataset.json``: settings, counts, key frames and statistics per split.
     """
     root = Path(root)
     cfg = config or SynthConfig()
@@ -451,28 +496,38 @@ def generate_dataset(
     for name, n in counts.items():
         if n < 0:
             raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    steps = {split: train_key_step if split == "train" else eval_key_step for split in SPLITS}
+    keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
     root.mkdir(parents=True, exist_ok=True)
     stats: dict[str, dict[str, float]] = {}
     bar = tqdm(total=sum(counts.values()), desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
-    for code, split in enumerate(SPLITS):
-        split_cfg = hard if split == "challenging" else cfg
-        records, totals = [], {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-        for i in range(counts[split]):
-            rng = np.random.default_rng([seed, code, i])
-            clip = generate_clip(split_cfg, rng)
-            records.append(write_clip(clip, root, f"{split}-{i:04d}", split_cfg.jpeg_quality))
-            for k, v in clip_statistics(clip).items():
-                totals[k] += v
-            bar.update(1)
-        (root / f"{split}.json").write_text("".join(json.dumps(r) + "\n" for r in records))
-        n = max(counts[split], 1)
-        stats[split] = {
-            "clips": counts[split],
-            "hidden_fraction": totals["hidden"] / max(totals["key_points"], 1),
-            "revealed_fraction_of_hidden": totals["revealed"] / max(totals["hidden"], 1),
-            "unaligned_shift_px": totals["unaligned_shift"] / n,
-        }
-    bar.close()
+    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    try:
+        for code, split in enumerate(SPLITS):
+            split_cfg = hard if split == "challenging" else cfg
+            jobs = [(root, split, split_cfg, seed, code, i, steps[split]) for i in range(counts[split])]
+            records: list[dict] = []
+            totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
+            for clip_records, clip_stats in pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs):
+                records += clip_records
+                for k, v in clip_stats.items():
+                    totals[k] += v
+                bar.update(1)
+            (root / f"{split}.json").write_text("".join(json.dumps(r) + "\n" for r in records))
+            n = max(counts[split], 1)
+            stats[split] = {
+                "clips": counts[split],
+                "key_frames": len(records),
+                "hidden_fraction": totals["hidden"] / max(totals["key_points"], 1),
+                "revealed_fraction_of_hidden": totals["revealed"] / max(totals["hidden"], 1),
+                "unaligned_shift_px": totals["unaligned_shift"] / n,
+            }
+    finally:
+        if pool:
+            pool.shutdown()
+        bar.close()
     info = {
         "generator": "stamlane.data.synthetic",
         "format_version": FORMAT_VERSION,
@@ -480,6 +535,7 @@ def generate_dataset(
         "config": asdict(cfg),
         "challenging_config": asdict(hard),
         "splits": counts,
+        "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS},
         "statistics": stats,
     }
     (root / "dataset.json").write_text(json.dumps(info, indent=2))
