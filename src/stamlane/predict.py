@@ -185,6 +185,7 @@ class FramesDataModule(pl.LightningDataModule):
         num_frames: frames per clip T, key frame last.
         stride: distance between clip frames, in positions of the sorted listing.
         image_size: network input ``(H, W)``.
+        crop_top: fraction of the frame height cut off at the top, as the model was trained (``ClipTransform``).
         align: ``"fly"`` (the paper's pre-alignment) or ``"none"``.
         warp: ``"image"`` (history frames warped before the network) or ``"feature"`` (unwarped frames and
             ``key_from_hist_net``, for a model trained with ``warp="feature"``; see `stamlane.data.clips`).
@@ -200,6 +201,7 @@ class FramesDataModule(pl.LightningDataModule):
         num_frames: int = 4,
         stride: int = 1,
         image_size: tuple[int, int] = (128, 256),
+        crop_top: float = 0.0,
         align: str = "fly",
         warp: str = "image",
         batch_size: int = 4,
@@ -228,6 +230,7 @@ class FramesDataModule(pl.LightningDataModule):
             "warp": warp,
             "horizon_row": horizon_row,
         }
+        self.crop_top = crop_top
         self.batch_size = batch_size
         self.num_workers = num_workers
         self.dataset: FolderClips | None = None
@@ -239,7 +242,8 @@ class FramesDataModule(pl.LightningDataModule):
     def setup(self, stage: str | None = None) -> None:
         if self.dataset is None:
             size = self.options["image_size"]
-            self.dataset = FolderClips(self.root, transform=ClipTransform(size), **self.options)
+            transform = ClipTransform(size, crop_top=self.crop_top)
+            self.dataset = FolderClips(self.root, transform=transform, **self.options)
 
     def predict_dataloader(self) -> DataLoader:
         self.setup("predict")

@@ -125,8 +125,30 @@ def test_transform_rejects_bad_options():
         ({"flip_prob": 2.0}, "flip_prob"),
         ({"brightness": 1.5}, "brightness"),
         ({"hue": 0.7}, "hue"),
+        ({"crop_top": 0.95}, "crop_top"),
+        ({"crop_top": -0.1}, "crop_top"),
     ]:
         with pytest.raises(ValueError, match=match):
             ClipTransform((32, 32), **kwargs)
     with pytest.raises(ValueError, match="image_size"):
         ClipTransform((4, 32))
+
+
+@pytest.mark.parametrize("crop_scale", [(1.0, 1.0), (0.7, 0.9)])
+def test_crop_top_cuts_the_sky_before_any_other_crop(crop_scale: tuple[float, float]) -> None:
+    """Rows above ``crop_top * H0`` never reach the network; the rest maps through ``net_from_orig``."""
+    h, w = 90, 160
+    frame = np.full((h, w, 3), 200, np.uint8)
+    frame[:36] = 0  # "sky": the top 40 %
+    t = ClipTransform((32, 64), crop_top=0.4, crop_scale=crop_scale)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        p = t.draw((w, h), rng)
+        out = t.apply_frames([frame], np.eye(3)[None], p)[0]
+        assert out.min() > 0.5, "a sky pixel reached the network input"
+        top_net = p.net_from_orig @ np.array([0.0, 36.0 - 0.5, 1.0])  # the top edge of row 36
+        assert top_net[1] <= -0.5 + 1e-9
+    full = ClipTransform((32, 64), crop_top=0.4).draw((w, h))
+    # no random crop: the kept band [36, 90) fills the network rows exactly (pixel edges -0.5 .. 31.5)
+    edges = full.net_from_orig @ np.array([[0, 35.5, 1], [0, 89.5, 1]]).T
+    np.testing.assert_allclose(edges[1], [-0.5, 31.5])

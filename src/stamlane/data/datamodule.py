@@ -41,6 +41,9 @@ class ClipDataModule(LightningDataModule):
         num_frames: frames per clip T (the paper: 4 on TuSimple, 2 on ApolloScape).
         stride: distance between clip frames (frame numbers; 30 for CULane's stored frames).
         image_size: network input ``(H, W)``.
+        crop_top: fraction of the frame height cut off at the top (sky) before resizing to ``image_size``, in
+            every split (see ``ClipTransform``); prediction from a folder or a video and ``stamlane stream`` read
+            it from the run's config or checkpoint.
         align: ``"fly"`` (default: the paper's ORB pre-alignment, estimated per clip and memoised),
             ``"cache"`` (``stamlane align`` output in ``cache_dir``), ``"none"`` (no alignment), or
             ``"true"`` (the synthetic generator's exact homographies, an oracle for experiments).
@@ -75,6 +78,7 @@ class ClipDataModule(LightningDataModule):
         num_frames: int = 4,
         stride: int = 1,
         image_size: tuple[int, int] = (128, 256),
+        crop_top: float = 0.0,
         align: str = "fly",
         warp: str = "image",
         cache_dir: str | None = None,
@@ -125,6 +129,7 @@ class ClipDataModule(LightningDataModule):
         # checked now, so a bad option fails at construction, not in the first epoch
         self.train_transform = ClipTransform(
             image_size,
+            crop_top=crop_top,
             crop_scale=crop_scale,
             flip_prob=flip_prob,
             brightness=brightness,
@@ -132,7 +137,7 @@ class ClipDataModule(LightningDataModule):
             saturation=saturation,
             hue=hue,
         )
-        self.eval_transform = ClipTransform(image_size)
+        self.eval_transform = ClipTransform(image_size, crop_top=crop_top)
 
     def prepare_data(self) -> None:
         """Generate the default synthetic set when ``root`` is None and it is missing.

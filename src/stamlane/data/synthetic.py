@@ -48,7 +48,7 @@ __all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_data
 
 SPLITS = ("train", "val", "test", "challenging")
 FORMAT_VERSION = 3
-"""3: several labelled key frames per clip (``key_step``); 2: 20 fps, asphalt grain near the camera, along-road
+"""3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
 prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
 FIRST_KEY = 7
 """0-based index of the earliest frame that may be a key frame: every key frame has >= 7 history frames, enough
@@ -63,7 +63,12 @@ HAZE_PX = 0.04
 class SynthConfig:
     """Settings of the generator; every field is a plain value so the config is saved with the data.
 
-    Distances in metres, angles in degrees, speeds in m/s.
+    Distances in metres, angles in degrees, speeds in m/s. The defaults make the CLEAN splits (train, val,
+    test): light traffic (half the clips have 1-3 vehicles, 8-60 m ahead), so that a detector of the visible
+    paint can score: on 150 such key frames, lanes fitted to the visible labelled points (and continued to the
+    image's common far end) reach TuSimple F1 0.991, against 0.815 with the format-2 defaults (85 % of clips
+    with 2-5 vehicles 4-35 m ahead; 43 % of the lanes more than 15 % hidden). Heavy traffic is the
+    challenging split's (`challenging`).
     """
 
     width: int = 640
@@ -80,12 +85,12 @@ class SynthConfig:
     pitch_jitter_deg: float = 0.25
     curved_prob: float = 0.5
     max_kappa: float = 1 / 350
-    occluder_prob: float = 0.85
-    vehicles: tuple[int, int] = (2, 5)
+    occluder_prob: float = 0.5
+    vehicles: tuple[int, int] = (1, 3)
     oncoming_prob: float = 0.6
     truck_prob: float = 0.2
     vehicle_lane_change_prob: float = 0.35
-    vehicle_ahead: tuple[float, float] = (4.0, 35.0)
+    vehicle_ahead: tuple[float, float] = (8.0, 60.0)
     """Distance (metres) of a vehicle's rear ahead of the camera at the key frame."""
     static_shadows: tuple[int, int] = (0, 5)
     shadow_depth: float = 0.5

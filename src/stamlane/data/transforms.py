@@ -39,6 +39,8 @@ class ClipTransform:
 
     Args:
         image_size: network input ``(H, W)``.
+        crop_top: fraction of the image height cut off at the top before anything else (sky and horizon
+            carry no lane; lane detectors' "cut height"); the network sees rows ``[crop_top * H0, H0)``.
         crop_scale: range of the crop side as a fraction of the original side (same for both axes, so the
             aspect ratio is kept); ``(1, 1)`` = no crop.
         flip_prob: probability of a horizontal flip.
@@ -52,6 +54,7 @@ class ClipTransform:
         self,
         image_size: tuple[int, int],
         *,
+        crop_top: float = 0.0,
         crop_scale: tuple[float, float] = (1.0, 1.0),
         flip_prob: float = 0.0,
         brightness: float = 0.0,
@@ -61,6 +64,8 @@ class ClipTransform:
     ) -> None:
         if len(image_size) != 2 or min(image_size) < 8:
             raise ValueError(f"image_size must be (H, W) with sides >= 8, got {image_size}")
+        if not 0.0 <= crop_top < 0.9:
+            raise ValueError(f"crop_top must be in [0, 0.9), got {crop_top}")
         lo, hi = crop_scale
         if not 0 < lo <= hi <= 1:
             raise ValueError(f"crop_scale must satisfy 0 < lo <= hi <= 1, got {crop_scale}")
@@ -72,6 +77,7 @@ class ClipTransform:
         if not 0 <= hue <= 0.5:
             raise ValueError(f"hue must be in [0, 0.5], got {hue}")
         self.image_size = (int(image_size[0]), int(image_size[1]))
+        self.crop_top = float(crop_top)
         self.crop_scale = (float(lo), float(hi))
         self.flip_prob = float(flip_prob)
         self.brightness, self.contrast, self.saturation, self.hue = brightness, contrast, saturation, hue
@@ -96,9 +102,10 @@ class ClipTransform:
         net_h, net_w = self.image_size
         rng = rng if rng is not None else np.random.default_rng(0)
         frac = float(rng.uniform(*self.crop_scale)) if self.crop_scale != (1.0, 1.0) else 1.0
-        cw, ch = w0 * frac, h0 * frac
+        top = self.crop_top * h0
+        cw, ch = w0 * frac, (h0 - top) * frac
         x0 = float(rng.uniform(0, w0 - cw)) if frac < 1 else 0.0
-        y0 = float(rng.uniform(0, h0 - ch)) if frac < 1 else 0.0
+        y0 = top + (float(rng.uniform(0, h0 - top - ch)) if frac < 1 else 0.0)
         sx, sy = net_w / cw, net_h / ch
         m = np.array([[sx, 0, (0.5 - x0) * sx - 0.5], [0, sy, (0.5 - y0) * sy - 0.5], [0, 0, 1.0]])
         flip = bool(rng.random() < self.flip_prob) if self.flip_prob > 0 else False

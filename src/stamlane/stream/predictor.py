@@ -104,6 +104,7 @@ class StreamingPredictor:
         y_samples: original rows to sample lanes at (e.g. TuSimple ``h_samples``); ``None``: every
             ``postprocess.y_step`` px.
         bf16: run the network under ``torch.autocast(bfloat16)`` (as a model trained with ``bf16: true``).
+        crop_top: fraction of the frame height cut off at the top, as the model was trained (``ClipTransform``).
 
     Use ``predictor(image)`` per frame, in order; `reset` before a new video.
     """
@@ -120,6 +121,7 @@ class StreamingPredictor:
         postprocess: PostprocessConfig | None = None,
         y_samples: Sequence[float] | None = None,
         bf16: bool = False,
+        crop_top: float = 0.0,
     ) -> None:
         if not isinstance(num_frames, int) or isinstance(num_frames, bool) or num_frames < 1:
             raise ValueError(f"num_frames must be an int >= 1, got {num_frames!r}")
@@ -138,7 +140,7 @@ class StreamingPredictor:
         self.postprocess = postprocess or PostprocessConfig()
         self.y_samples = None if y_samples is None else list(y_samples)
         self.bf16 = bf16
-        self.transform = ClipTransform(self.image_size)
+        self.transform = ClipTransform(self.image_size, crop_top=crop_top)
         self.reset()
 
     @classmethod
