@@ -194,3 +194,13 @@ def test_ddp_validate_equals_single_process(tiny_set: Path, tmp_path: Path) -> N
         if key != "val/loss":  # the mean of per-rank batch means: equal here (1 image a batch) up to rounding
             assert double[key] == pytest.approx(value, abs=1e-9), key
     assert double["val/loss"] == pytest.approx(single["val/loss"], rel=1e-5)
+
+
+def test_the_sky_cut_travels_from_the_data_to_the_model_and_the_streaming_predictor() -> None:
+    from stamlane.stream import StreamingPredictor
+
+    cli = StamLaneCLI(args=["--config", str(REPO / "configs" / "demo.yaml"), "--data.crop_top=0.3"], run=False)
+    assert cli.datamodule.hparams.crop_top == 0.3 and cli.model.crop_top == 0.3
+    assert cli.model.hparams["crop_top"] == 0.3  # in every checkpoint
+    predictor = StreamingPredictor.from_module(cli.model)
+    assert predictor.transform.crop_top == 0.3

@@ -9,8 +9,12 @@ from stamlane import cli
 
 def test_usage_and_unknown_command(capsys):
     assert cli.main([]) == 2
+    assert "usage: stamlane" in capsys.readouterr().err
     assert cli.main(["--help"]) == 0
-    assert "fit" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    for command in (*cli.LIGHTNING_COMMANDS, *cli.TOOLS):  # every command listed with its line
+        assert f"  {command} " in out and cli.SUMMARIES[command] in out
+    assert set(cli.SUMMARIES) == {*cli.LIGHTNING_COMMANDS, *cli.TOOLS}
     assert cli.main(["nonsense"]) == 2
     assert "unknown command 'nonsense'" in capsys.readouterr().err
 
@@ -31,3 +35,16 @@ def test_predict_stream_runs_the_stream_tool(tmp_path, capsys):
     assert cli.main(["predict", "--stream", str(missing), "--config", "configs/demo.yaml"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("stamlane stream") and "missing.mp4" in err[0], err
+
+
+def test_versions_come_from_the_package_metadata(capsys):
+    from importlib.metadata import version
+
+    from stamlane_eval import cli as eval_cli
+
+    assert cli.main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"stamlane {version('stamlane')}"
+    with pytest.raises(SystemExit) as exit_info:
+        eval_cli.main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"stamlane-eval {version('stamlane-eval')}"

@@ -22,7 +22,12 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
     models = {m["name"]: m for m in summary["models"]}
     assert list(models) == ["stam4", "single"]  # --quick leaves the no-alignment ablation out
     assert [models[n]["frames"] for n in models] == [4, 1]
-    assert summary["steps"] == 3 and summary["seeds"] == [0]
+    assert summary["steps"] == 3 + 2 and summary["seeds"] == [0]
+    # stage 2 starts from the final weights of stage 1
+    assert (
+        "init_weights: " + str(out / "pretrain-s0" / "run" / "checkpoints" / "last.ckpt")
+        in (out / "stam4-s0" / "run" / "config.yaml").read_text()
+    )
     for entry in models.values():
         (run,) = entry["runs"]
         assert Path(run["last_ckpt"]).is_file()
@@ -55,9 +60,9 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--minutes-per-model", "0"], "--minutes-per-model must be > 0, got 0.0"),
+        (["--pretrain-steps", "0"], "--pretrain-steps must be >= 1, got 0"),
+        (["--finetune-steps", "-1"], "--finetune-steps must be >= 1, got -1"),
         (["--data", __file__], "is not a folder"),
-        (["--steps", "0"], "--steps must be >= 1, got 0"),
         (["--seeds", "0"], "--seeds must be >= 1, got 0"),
     ],
 )
@@ -71,3 +76,24 @@ def test_demo_needs_the_other_pieces(monkeypatch: pytest.MonkeyPatch, tmp_path: 
     monkeypatch.setitem(sys.modules, "stamlane.losses", None)  # as if the losses were not there yet
     assert main(["demo", "--quick", "--out", str(tmp_path)]) == 2
     assert "needs pieces that are not installed yet: stamlane.losses" in capsys.readouterr().err
+
+
+def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    first = json.loads((out / "stam4-s0" / "done.json").read_text())
+    capsys.readouterr()
+    assert main(["demo", "--quick", "--seeds", "2", "--out", str(out)]) == 0  # seed 0 reused, seed 1 trained
+    printed = capsys.readouterr().out
+    assert "seed 0, stage 1: done before, reused" in printed and "seed 1, stage 1: 1 frame" in printed
+    assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first  # not retrained
+    summary = json.loads((out / "summary.json").read_text())
+    runs = {m["name"]: m["runs"] for m in summary["models"]}
+    assert [r["seed"] for r in runs["stam4"]] == [0, 1]
+    assert runs["stam4"][0]["test"] == first["test"]
+    assert summary["models"][0]["test"]["f1_std"] is not None  # two seeds: a spread
+    # the same folder with another budget: one line, exit 2, nothing overwritten
+    assert main(["demo", "--out", str(out), "--data", str(out / "quick_data"), "--finetune-steps", "7"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "was made with other settings" in err and len(err.splitlines()) == 1
+    assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first

@@ -30,20 +30,60 @@ __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 # subcommand -> module whose ``main(argv) -> int`` runs it; imported only when asked for, so
 # ``stamlane synth`` does not pay for importing Lightning.
 TOOLS: dict[str, str] = {
-    "align": "stamlane.align.cli",  # precompute homographies for a dataset
-    "synth": "stamlane.data.synth_cli",  # write a synthetic clip set in the TuSimple layout
-    "show": "stamlane.data.show_cli",  # picture grid of clips with targets, for checking a conversion
-    "demo": "stamlane.demo",  # README command 1: synthetic data, train, evaluate, pictures
-    "ablate": "stamlane.experiments.ablate",  # the paper's ablation tables over seeds
-    "stream": "stamlane.stream.cli",  # per-frame streaming inference on a video, overlay video
+    "align": "stamlane.align.cli",
+    "synth": "stamlane.data.synth_cli",
+    "show": "stamlane.data.show_cli",
+    "demo": "stamlane.demo",
+    "ablate": "stamlane.experiments.ablate",
+    "stream": "stamlane.stream.cli",
 }
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
 
+SUMMARIES: dict[str, str] = {
+    "fit": "train a model from a config (LightningCLI; --help lists every option)",
+    "validate": "score a checkpoint on the validation split",
+    "test": "score a checkpoint on the test split",
+    "predict": "write lanes (TuSimple json / CULane text) and overlays for a split, a folder or a video",
+    "demo": "synthetic clips -> train 3 models -> scores with confidence intervals, pictures",
+    "synth": "write a synthetic clip set in the TuSimple layout",
+    "align": "estimate (and cache, or write out) the pre-alignment of a dataset",
+    "show": "picture grid of clips with their targets, to check a dataset",
+    "stream": "per-frame streaming inference on a video or a folder of frames",
+    "ablate": "the paper's ablation tables over seeds",
+}
+"""One line per command for ``stamlane --help``."""
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("stamlane")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
 
 def _usage() -> str:
     names = ", ".join([*LIGHTNING_COMMANDS, *TOOLS])
-    return f"usage: stamlane {{{names}}} ..."
+    return f"usage: stamlane {{{names}}} ... | --help | --version"
+
+
+def _help() -> str:
+    width = max(map(len, SUMMARIES))
+    lines = [
+        _usage(),
+        "",
+        "Lane detection with pre-aligned spatial-temporal attention (Chen & Xiang, Sensors 2022).",
+        "",
+    ]
+    lines += [f"  {name:<{width}}  {text}" for name, text in SUMMARIES.items()]
+    lines += [
+        "",
+        "stamlane COMMAND --help gives the command's options; evaluators: stamlane-eval --help.",
+        "Documentation: README.md and docs/ in the source repository.",
+    ]
+    return "\n".join(lines)
 
 
 def build_cli(args: list[str] | None = None, run: bool = True, **kwargs: Any) -> Any:
@@ -65,9 +105,15 @@ def _stream_args(rest: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help"):
-        print(_usage())
-        return 0 if argv else 2
+    if not argv:
+        print(_usage(), file=sys.stderr)
+        return 2
+    if argv[0] in ("-h", "--help"):
+        print(_help())
+        return 0
+    if argv[0] in ("-V", "--version"):
+        print(f"stamlane {_version()}")
+        return 0
     command, rest = argv[0], argv[1:]
     if command == "predict" and any(arg == "--stream" or arg.startswith("--stream=") for arg in rest):
         command, rest = "stream", _stream_args(rest)

@@ -1,21 +1,24 @@
 """``stamlane demo``: README command 1 — synthetic clips, train, evaluate with stamlane-eval, pictures.
 
-    stamlane demo [--out outputs/demo] [--minutes-per-model 8] [--no-noalign] [--quick]
+    stamlane demo [--out outputs/demo] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
+                  [--no-noalign] [--quick]
 
-1. generates the synthetic set at ``data/synthetic`` when missing (``stamlane.data``);
-2. trains the 4-frame pre-aligned STAM model (``configs/demo.yaml``), the single-frame baseline
-   (``configs/demo_single.yaml``) and the 4-frame model without alignment (``configs/demo_noalign.yaml``)
-   for the SAME number of steps (the paper compares at equal iterations): the number that fits the
-   4-frame model in ``--minutes-per-model`` (calibrated from a short timed run; ``--steps`` sets it);
-   the single-frame model, ~2-3x cheaper per step, takes less time;
-3. predicts the synthetic ``val`` and ``challenging`` splits with each model (TuSimple json-lines +
-   overlay pictures under ``<out>/predictions/<model>/<split>``) and scores them with
-   ``stamlane_eval.tusimple`` against the split's label file, as ``stamlane-eval tusimple`` would;
-4. writes ``<out>/val_f1.png`` (validation F1 over training, every model), ``<out>/comparison.jpg`` (the
-   same challenging key frames side by side, one column per model), ``<out>/summary.json``
-   (per model: frames, alignment, steps, minutes, accuracy / FP / FN / F1 per split) and prints a table.
+1. generates the synthetic set at ``data/synthetic-v<format>`` when missing (``stamlane.data``);
+2. trains in two stages (docs: the CPU recipe). Stage 1: the single-frame network (``configs/demo_single.yaml``)
+   from scratch for ``--pretrain-steps``. Stage 2: from those weights, each demo model for ``--finetune-steps``
+   more: the 4-frame pre-aligned STAM model (``configs/demo.yaml``), the single-frame baseline itself and the
+   4-frame model without alignment (``configs/demo_noalign.yaml``). Every model thus gets the SAME number of
+   steps on the same data (the paper compares at equal iterations); the 4-frame steps, 3x dearer, are spent
+   where the temporal part is learnt;
+3. predicts the ``test`` (clean) and ``challenging`` splits with each model's FINAL weights (TuSimple
+   json-lines, per-image results and overlay pictures under ``<out>/predictions/<model>-s<seed>/<split>``)
+   and scores them with ``stamlane_eval.tusimple`` as ``stamlane-eval tusimple`` would;
+4. writes ``<out>/val_f1.png`` (validation F1 over training), ``<out>/comparison.jpg`` (the same challenging
+   key frames side by side, one column per model), ``<out>/summary.json`` (per model and seed: steps, minutes,
+   checkpoints, accuracy / FP / FN / F1 per split; per model: F1 mean ± std over seeds and its 95 %
+   bootstrap interval; paired differences between models) and prints a table.
 
-``--quick`` is a seconds-long smoke run on a tiny generated set (used by the tests; 2 models, 3 steps);
+``--quick`` is a seconds-long smoke run on a tiny generated set (used by the tests; 2 models, 3 + 2 steps);
 its numbers mean nothing.
 """
 
@@ -33,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DemoModel", "main"]
+__all__ = ["MODELS", "SPLITS", "DemoModel", "main", "predict_split", "score_split"]
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 
@@ -47,6 +50,8 @@ class DemoModel:
     label: str
 
 
+PRETRAIN = DemoModel("pretrain", "demo_single.yaml", "1 frame, stage 1 (every model starts here)")
+"""Stage 1: the single-frame network trained from scratch; its final weights start every model of stage 2."""
 MODELS = (
     DemoModel("stam4", "demo.yaml", "4 frames, pre-aligned, STAM"),
     DemoModel("single", "demo_single.yaml", "1 frame (baseline)"),
@@ -74,8 +79,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--data", type=Path, default=None, help="synthetic set (default data/synthetic; made if missing)"
     )
-    parser.add_argument("--minutes-per-model", type=float, default=8.0, help="training budget of the 4-frame model")
-    parser.add_argument("--steps", type=int, default=None, help="training steps of every model (default: calibrated)")
+    parser.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
+    parser.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
     parser.add_argument("--seeds", type=int, default=1, help="training seeds per model (F1 as mean ± std)")
     parser.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
     parser.add_argument("--quick", action="store_true", help="seconds-long smoke run on a tiny set (tests)")
@@ -114,24 +119,6 @@ def _make_data(root: Path | None, out: Path, quick: bool) -> Path:
     return root
 
 
-def _step_timer() -> Any:
-    """A Lightning callback recording the wall time of each training step (batch start to batch end)."""
-    import lightning.pytorch as pl
-
-    class StepTimer(pl.Callback):
-        def __init__(self) -> None:
-            self.times: list[float] = []
-            self._start = 0.0
-
-        def on_train_batch_start(self, *args: Any) -> None:
-            self._start = time.perf_counter()
-
-        def on_train_batch_end(self, *args: Any) -> None:
-            self.times.append(time.perf_counter() - self._start)
-
-    return StepTimer()
-
-
 def _cli(args: list[str], **kwargs: Any) -> Any:
     from stamlane.lightning_cli import StamLaneCLI
 
@@ -152,35 +139,15 @@ def _common(model: DemoModel, root: Path, out: Path, quick: bool) -> list[str]:
     ]
 
 
-def _calibrate(model: DemoModel, root: Path, out: Path, quick: bool) -> float:
-    """Median seconds per training step of ``model`` (a short timed run, thrown away)."""
-    timer = _step_timer()
-    steps = 3 if quick else 12
-    args = [
-        "fit",
-        *_common(model, root, out, quick),
-        f"--trainer.max_steps={steps}",
-        "--trainer.limit_val_batches=0",
-        "--trainer.logger=false",
-        "--trainer.enable_checkpointing=false",
-        "--trainer.callbacks=[]",
-        "--trainer.enable_model_summary=false",
-        "--trainer.enable_progress_bar=false",
-        f"--trainer.default_root_dir={out / 'calibration'}",
-    ]
-    _cli(args, trainer_defaults={"callbacks": [timer]})
-    times = sorted(timer.times[2:] or timer.times)  # the first steps pay for warm-up and alignment
-    return times[len(times) // 2]
-
-
-def _train(model: DemoModel, root: Path, out: Path, steps: int, quick: bool, seed: int) -> Path:
-    """Fit ``model`` for ``steps`` steps with ``seed``; returns its run folder (config.yaml, metrics.csv,
-    checkpoints: ``last.ckpt`` holds the final weights)."""
-    val_every = max(1, steps // 6)
+def _train(model: DemoModel, root: Path, out: Path, steps: int, quick: bool, seed: int, init: Path | None) -> Path:
+    """Fit ``model`` for ``steps`` steps with ``seed``, from the weights of checkpoint ``init`` when given;
+    returns its run folder (config.yaml, metrics.csv, checkpoints: ``last.ckpt`` holds the final weights)."""
+    val_every = max(1, steps // (2 if init else 4))  # stage 2: twice (a 4-frame validation costs ~10 s)
     name = f"{model.name}-s{seed}"
     args = [
         "fit",
         *_common(model, root, out, quick),
+        *([f"--model.init_weights={init}"] if init else []),
         f"--seed_everything={seed}",
         f"--trainer.max_steps={steps}",
         f"--trainer.val_check_interval={val_every}",
@@ -194,15 +161,25 @@ def _train(model: DemoModel, root: Path, out: Path, steps: int, quick: bool, see
     return Path(cli.trainer.logger.log_dir)
 
 
-def _predict(name: str, run: Path, out: Path, split: str, max_overlays: int) -> Path:
+def predict_split(name: str, run: Path, out: Path, split: str, max_overlays: int, root: Path | None = None) -> Path:
     """Predict ``split`` with the FINAL weights (``last.ckpt``) of run ``name`` (model and seed); returns the
-    predictions folder ``<out>/predictions/<name>/<split>``."""
+    predictions folder ``<out>/predictions/<name>/<split>``.
+
+    Args:
+        name: the run's name (``stam4-s0``).
+        run: its folder (``config.yaml``, ``checkpoints/last.ckpt``).
+        out: where ``predictions/`` goes.
+        split: the label file ``<split>.json`` of the data root.
+        max_overlays: overlay pictures to write.
+        root: another data root than the run's (e.g. a set generated with another seed).
+    """
     pred_dir = out / "predictions" / name / split
     args = [
         "predict",
         "--config",
         str(run / "config.yaml"),
         f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
+        *([f"--data.root={root}"] if root is not None else []),
         f"--data.predict_labels=[{split}.json]",
         "--trainer.logger=false",
         "--trainer.callbacks=[]",
@@ -214,7 +191,7 @@ def _predict(name: str, run: Path, out: Path, split: str, max_overlays: int) -> 
     return pred_dir
 
 
-def _score(pred_dir: Path, labels: Path) -> tuple[dict, np.ndarray, list[str]]:
+def score_split(pred_dir: Path, labels: Path) -> tuple[dict, np.ndarray, list[str]]:
     """Score ``pred_dir/predictions.json`` against ``labels`` as ``stamlane-eval tusimple`` does and write
     ``pred_dir/per_image.jsonl``. Returns the numbers, the per-image ``(fp, fn)`` rates in LABEL order and
     each image's clip (the bootstrap's unit)."""
@@ -234,6 +211,30 @@ def _score(pred_dir: Path, labels: Path) -> tuple[dict, np.ndarray, list[str]]:
     return scores, rates, [row["clip"] for row in rows]
 
 
+DONE = "done.json"
+"""Written in a run's folder when it is trained and scored: a later ``stamlane demo`` with the same ``--out`` and
+settings reuses it (more seeds, or a run that was killed midway continues where it stopped)."""
+
+
+def _finished(folder: Path, settings: dict) -> dict | None:
+    """The record of a finished run in ``folder`` made with ``settings``, or None when it has not finished."""
+    path = folder / DONE
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    if {k: record.get(k) for k in settings} != settings:
+        raise DemoError(
+            f"{folder} was made with other settings ({ {k: record.get(k) for k in settings} }); use another --out"
+        )
+    return record
+
+
+def _read_rates(pred_dir: Path) -> tuple[np.ndarray, list[str]]:
+    """Per-image ``(fp, fn)`` rates and clips of a scored split (its ``per_image.jsonl``, in label order)."""
+    rows = [json.loads(line) for line in (pred_dir / "per_image.jsonl").read_text().splitlines()]
+    return np.array([[r["fp"], r["fn"]] for r in rows], dtype=np.float64), [r["clip"] for r in rows]
+
+
 def _clip_of(raw_file: str) -> str:
     """The clip of a key frame: its folder (``clips/test-0007/20.jpg`` -> ``clips/test-0007``)."""
     return raw_file.rsplit("/", 1)[0]
@@ -250,7 +251,7 @@ def _val_curve(run: Path) -> list[tuple[int, float]]:
     return [(int(r["step"]) + 1, float(r["val/tusimple_f1"])) for r in rows if r.get("val/tusimple_f1")]
 
 
-def _plot(curves: dict[str, list[tuple[int, float]]], labels: dict[str, str], path: Path) -> None:
+def _plot(curves: dict[str, list[tuple[int, float]]], labels: dict[str, str], path: Path, stage2: int) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -261,7 +262,8 @@ def _plot(curves: dict[str, list[tuple[int, float]]], labels: dict[str, str], pa
         if points:
             steps, f1 = zip(*points)
             ax.plot(steps, f1, marker="o", label=labels[name])
-    ax.set_xlabel("training step")
+    ax.axvline(stage2, color="grey", linestyle=":", linewidth=1)
+    ax.set_xlabel("training step (stage 2 right of the dotted line)")
     ax.set_ylabel("validation F1 (TuSimple, paper's)")
     ax.set_title("synthetic clips, same number of steps per model")
     ax.grid(alpha=0.3)
@@ -372,52 +374,75 @@ def run(args: argparse.Namespace) -> dict:
     root = _make_data(args.data, out, args.quick)
     skip_noalign = args.no_noalign or args.quick  # the quick run checks the machinery, not the ablation
     models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
+    pre_steps, ft_steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     seeds = list(range(args.seeds))
-    summary: dict[str, Any] = {"data": str(root), "minutes_per_model": args.minutes_per_model, "seeds": seeds}
-    summary["models"] = []
-    curves, curve_labels = {}, {}
-    steps, sec = (3, 0.0) if args.quick else (args.steps, 0.0)
-    if steps is None:
-        sec = _calibrate(models[0], root, out, args.quick)
-        steps = max(50, int(args.minutes_per_model * 60 / sec))
-        print(f"[demo] {models[0].name}: {sec:.2f} s/step -> {steps} steps for every model", flush=True)
-    summary["steps"] = steps
-    summary["calibrated_seconds_per_step"] = round(sec, 3) if sec else None
-    rates: dict[str, dict[str, list[np.ndarray]]] = {}
+    summary: dict[str, Any] = {
+        "data": str(root),
+        "seeds": seeds,
+        "pretrain_steps": pre_steps,
+        "finetune_steps": ft_steps,
+        "steps": pre_steps + ft_steps,
+        "models": [],
+    }
+    curves: dict[str, list[tuple[int, float]]] = {}
+    curve_labels: dict[str, str] = {}
+    rates: dict[str, dict[str, list[np.ndarray]]] = {m.name: {split: [] for split in SPLITS} for m in models}
     clips: dict[str, list[str]] = {}
-    for model in models:
-        entry: dict[str, Any] = {
-            "name": model.name,
-            "label": model.label,
-            "config": f"configs/{model.config}",
-            "steps": steps,
-            "runs": [],
-        }
-        rates[model.name] = {split: [] for split in SPLITS}
-        for seed in seeds:
-            name = f"{model.name}-s{seed}"
-            print(f"[demo] {name}: {model.label}, seed {seed}, {steps} steps", flush=True)
+    entries = {m.name: {"name": m.name, "label": m.label, "config": f"configs/{m.config}", "runs": []} for m in models}
+    start_all = time.perf_counter()
+    settings = {"data": str(root.resolve()), "pretrain_steps": pre_steps, "finetune_steps": ft_steps}
+    for seed in seeds:
+        base_dir = out / f"pretrain-s{seed}"
+        done = _finished(base_dir, settings)
+        if done is None:
+            print(f"[demo] seed {seed}, stage 1: {PRETRAIN.label}, {pre_steps} steps", flush=True)
             start = time.perf_counter()
-            run_dir = _train(model, root, out, steps, args.quick, seed)
-            record: dict[str, Any] = {
-                "seed": seed,
-                "train_minutes": round((time.perf_counter() - start) / 60, 2),
-                "run": str(run_dir),
-                "last_ckpt": str(run_dir / "checkpoints" / "last.ckpt"),
-            }
-            config = (run_dir / "config.yaml").read_text()
-            entry["frames"] = int(next(line.split(":")[1] for line in config.splitlines() if "num_frames:" in line))
+            _train(PRETRAIN, root, out, pre_steps, args.quick, seed, init=None)
+            done = settings | {"train_minutes": round((time.perf_counter() - start) / 60, 2)}
+            _write_atomic(base_dir / DONE, json.dumps(done, indent=2))
+        else:
+            print(f"[demo] seed {seed}, stage 1: done before, reused ({base_dir})", flush=True)
+        base = base_dir / "run"
+        init = base / "checkpoints" / "last.ckpt"
+        curves[f"pretrain-s{seed}"] = _val_curve(base)
+        curve_labels[f"pretrain-s{seed}"] = f"stage 1 (1 frame), seed {seed}"
+        for model in models:
+            name = f"{model.name}-s{seed}"
+            record = _finished(out / name, settings)
+            if record is None:
+                print(f"[demo] seed {seed}, stage 2: {model.label}, {ft_steps} steps", flush=True)
+                start = time.perf_counter()
+                run_dir = _train(model, root, out, ft_steps, args.quick, seed, init=init)
+                record = settings | {
+                    "seed": seed,
+                    "train_minutes": round(done["train_minutes"] + (time.perf_counter() - start) / 60, 2),
+                    "run": str(run_dir),
+                    "last_ckpt": str(run_dir / "checkpoints" / "last.ckpt"),
+                }
+                config = (run_dir / "config.yaml").read_text()
+                record["frames"] = int(next(ln.split(":")[1] for ln in config.splitlines() if "num_frames:" in ln))
+                for split in SPLITS:
+                    pred_dir = predict_split(name, run_dir, out, split, args.max_overlays)
+                    record[split], _, _ = score_split(pred_dir, root / f"{split}.json")
+                _write_atomic(out / name / DONE, json.dumps(record, indent=2))
+            else:
+                print(f"[demo] seed {seed}, stage 2: {model.label}: done before, reused", flush=True)
             for split in SPLITS:
-                pred_dir = _predict(name, run_dir, out, split, args.max_overlays)
-                record[split], split_rates, clips[split] = _score(pred_dir, root / f"{split}.json")
+                split_rates, clips[split] = _read_rates(out / "predictions" / name / split)
                 rates[model.name][split].append(split_rates)
-            entry["runs"].append(record)
-            curves[name], curve_labels[name] = _val_curve(run_dir), f"{model.label}, seed {seed}"
-            _write_atomic(out / "summary.json", json.dumps(summary | {"partial": entry}, indent=2))
+            entries[model.name]["frames"] = record["frames"]
+            entries[model.name]["runs"].append({k: v for k, v in record.items() if k not in settings})
+            curves[name] = [(pre_steps + step, f1) for step, f1 in _val_curve(Path(record["run"]))]
+            curve_labels[name] = f"{model.label}, seed {seed}"
+            _write_atomic(out / "summary.json", json.dumps(summary | {"partial": entries}, indent=2))
+    for model in models:
+        entry = entries[model.name]
+        entry["steps"] = pre_steps + ft_steps
         _aggregate(entry, rates[model.name], clips)
         summary["models"].append(entry)
     summary["comparisons"] = _compare(summary, rates, clips)
-    _plot(curves, curve_labels, out / "val_f1.png")
+    summary["minutes"] = round((time.perf_counter() - start_all) / 60, 2)
+    _plot(curves, curve_labels, out / "val_f1.png", pre_steps)
     summary["val_f1_plot"] = str(out / "val_f1.png")
     comparison = _comparison(out, [f"{m.name}-s0" for m in models], [m.label for m in models])
     summary["comparison"] = str(comparison) if comparison else None
@@ -425,22 +450,18 @@ def run(args: argparse.Namespace) -> dict:
     print(_table(summary))
     print(
         f"[demo] wrote {out / 'summary.json'}, {out / 'val_f1.png'}, predictions, per-image results and overlays "
-        f"under {out / 'predictions'}; final weights: {out}/<model>-s<seed>/run/checkpoints/last.ckpt"
+        f"under {out / 'predictions'}; final weights of each model: {out}/<model>-s<seed>/run/checkpoints/last.ckpt"
     )
     return summary
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    if args.minutes_per_model <= 0:
-        print(f"stamlane demo: --minutes-per-model must be > 0, got {args.minutes_per_model}", file=sys.stderr)
-        return 2
-    if args.seeds < 1:
-        print(f"stamlane demo: --seeds must be >= 1, got {args.seeds}", file=sys.stderr)
-        return 2
-    if args.steps is not None and args.steps < 1:
-        print(f"stamlane demo: --steps must be >= 1, got {args.steps}", file=sys.stderr)
-        return 2
+    for option in ("seeds", "pretrain_steps", "finetune_steps"):
+        if getattr(args, option) < 1:
+            flag = "--" + option.replace("_", "-")
+            print(f"stamlane demo: {flag} must be >= 1, got {getattr(args, option)}", file=sys.stderr)
+            return 2
     try:
         run(args)
     except DemoError as err:

@@ -35,6 +35,7 @@ class StamLaneCLI(LightningCLI):
         # the data section is the one place these numbers are written
         parser.link_arguments("data.num_frames", "model.num_frames")
         parser.link_arguments("data.image_size", "model.image_size")
+        parser.link_arguments("data.crop_top", "model.crop_top")
         parser.add_lightning_class_args(LaneEvalCallback, "eval")
         parser.add_lightning_class_args(LanePredictionWriter, "predictions")
         parser.add_argument(

@@ -1,4 +1,4 @@
-"""Losses of the two decoder branches (paper 3.2, METHOD §4).
+"""Losses of the two decoder branches (paper 3.2, docs/method.md §4).
 
 Binary branch: cross-entropy with bounded inverse class weights ``w_c = 1 / ln(1.02 + p_c)``, ``p_c`` the
 frequency of class c among the pixels of the CURRENT BATCH (computed per batch, not per dataset; a class

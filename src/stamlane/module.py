@@ -100,6 +100,8 @@ class StamLaneModule(LightningModule):
         num_frames: T, frames per clip the network expects (linked from the data); checked on every batch.
         image_size: ``(H, W)`` of the network input (linked from the data); must be multiples of the
             encoder's stride; sets ``example_input_array``.
+        crop_top: fraction of the frame height cut off above the network input (linked from ``data.crop_top``);
+            recorded so that streaming and export feed the network as it was trained.
         bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
             ``"auto"`` (default): where the CPU runs bf16 natively (AMX / AVX512-BF16, ~3x faster than
             float32), float32 elsewhere (emulated bf16 is ~15x slower); see `stamlane.hardware`.
@@ -123,6 +125,7 @@ class StamLaneModule(LightningModule):
         postprocess: PostprocessConfig | None = None,
         num_frames: int | None = None,
         image_size: tuple[int, int] | None = None,
+        crop_top: float = 0.0,
         bf16: bool | Literal["auto"] = "auto",
         channels_last: bool = False,
         report_run_time: bool = True,
@@ -145,6 +148,7 @@ class StamLaneModule(LightningModule):
         self.scheduler_factory = scheduler
         self.postprocess = postprocess if postprocess is not None else PostprocessConfig()
         self.num_frames = num_frames
+        self.crop_top = float(crop_top)
         self.bf16 = resolve_bf16(bf16)
         self.channels_last = channels_last
         self.report_run_time = report_run_time

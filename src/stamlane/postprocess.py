@@ -1,6 +1,6 @@
 """Decode the two network heads into lanes: DBSCAN on pixel embeddings, then a robust curve per cluster.
 
-METHOD §5 (paper 3.4). numpy in, numpy out; called from ``StamLaneModule`` steps, never inside a
+docs/method.md §5 (paper 3.4). numpy in, numpy out; called from ``StamLaneModule`` steps, never inside a
 ``forward``. Steps, per image:
 
 1. lane pixels = pixels whose lane probability > ``prob_thresh`` (paper: 0.5);

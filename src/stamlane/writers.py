@@ -1,10 +1,10 @@
 """Write predicted lanes in the benchmarks' own formats, so ``stamlane-eval`` scores them unconverted.
 
-TuSimple (METHOD §6-7): one json object per line, ``{"raw_file", "lanes", "h_samples", "run_time"}``;
+TuSimple (docs/method.md §6-7): one json object per line, ``{"raw_file", "lanes", "h_samples", "run_time"}``;
 ``lanes`` holds one list of x per lane, one x per row of ``h_samples``, ``-2`` where the lane is absent;
 ``run_time`` is in milliseconds (the official script gives an image zero accuracy above 200 ms).
 
-CULane / ApolloScape (METHOD §6, §8): one ``<image stem>.lines.txt`` per image, mirroring the image's
+CULane / ApolloScape (docs/method.md §6, §8): one ``<image stem>.lines.txt`` per image, mirroring the image's
 relative path under the output folder, one lane a line: ``x1 y1 x2 y2 ...`` in original pixels.
 """
 

@@ -157,7 +157,7 @@ def test_lanes_to_xs() -> None:
 
 
 def _straight_bench(pred: list, gt: list, ys: list, run_time: float, lr: object) -> tuple[float, float, float]:
-    """METHOD.md §7 written as plain per-image loops (an independent check of the vectorised code)."""
+    """docs/method.md §7 written as plain per-image loops (an independent check of the vectorised code)."""
     if run_time > 200 or len(gt) + 2 < len(pred):
         return 0.0, 0.0, 1.0
     best, matched, fn = [], 0, 0.0

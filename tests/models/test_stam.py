@@ -1,4 +1,4 @@
-"""STAM against the formulas of METHOD §3, written out frame by frame."""
+"""STAM against the formulas of docs/method.md §3, written out frame by frame."""
 
 from __future__ import annotations
 
@@ -111,7 +111,7 @@ def test_normalize_divides_by_clip_length(clip: torch.Tensor, history: str) -> N
 
 
 def test_history_content_reaches_output_only_in_features_variant() -> None:
-    """The caution of METHOD §3: a lane hidden in the key frame (zero features there) cannot come back
+    """The caution of docs/method.md §3: a lane hidden in the key frame (zero features there) cannot come back
     from history in the literal mixed mode, and does in the variant."""
     torch.manual_seed(4)
     clip = torch.rand(1, 3, C, 8, 8) + 0.1

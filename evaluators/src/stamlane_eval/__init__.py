@@ -4,4 +4,9 @@ The core (``tusimple``, ``culane``, ``io``, ``cli``) needs numpy/scipy/opencv on
 and the Lightning callback live in ``stamlane_eval.integrations`` and are imported only on request.
 """
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("stamlane-eval")  # written once, in evaluators/pyproject.toml
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "unknown"

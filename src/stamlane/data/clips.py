@@ -1,4 +1,4 @@
-"""Clip datasets for the TuSimple, ApolloScape, CULane and VIL-100 layouts (METHOD.md section 6).
+"""Clip datasets for the TuSimple, ApolloScape, CULane and VIL-100 layouts (docs/method.md §6).
 
 Every dataset indexes its label/list files once, finds each key frame's history frames (by frame
 number, or by order within the folder), and returns samples as ``stamlane.types`` describes:

@@ -15,7 +15,7 @@ from torch.utils.data import DataLoader
 from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
-from stamlane.data.synthetic import FORMAT_VERSION, SynthConfig, generate_dataset
+from stamlane.data.synthetic import EVAL_KEY_STEP, FORMAT_VERSION, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 from stamlane.data.transforms import ClipTransform
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule"]
@@ -104,8 +104,8 @@ class ClipDataModule(LightningDataModule):
         synth_val: int = 20,
         synth_test: int = 100,
         synth_challenging: int = 100,
-        synth_train_key_step: int = 1,
-        synth_eval_key_step: int = 3,
+        synth_train_key_step: int = TRAIN_KEY_STEP,
+        synth_eval_key_step: int = EVAL_KEY_STEP,
         synth_seed: int = 0,
         synth_size: tuple[int, int] = (640, 360),
     ) -> None:

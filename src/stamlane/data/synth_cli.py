@@ -7,7 +7,7 @@ import sys
 import time
 
 from stamlane.data.cli_parser import OneLineParser, parse_or_status
-from stamlane.data.synthetic import SynthConfig, generate_dataset
+from stamlane.data.synthetic import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
 __all__ = ["main"]
 
@@ -35,6 +35,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=_size, default=(640, 360), help="frame size WxH (default 640x360)")
     p.add_argument("--frames", type=int, default=20, help="frames per clip (default 20)")
     p.add_argument("--fps", type=float, default=SynthConfig.fps, help="frame rate of the simulated camera")
+    p.add_argument(
+        "--train-key-step", type=int, default=TRAIN_KEY_STEP, help="labelled key frames of train clips (0: the last)"
+    )
+    p.add_argument(
+        "--eval-key-step", type=int, default=EVAL_KEY_STEP, help="labelled key frames of the other splits (0: the last)"
+    )
+    p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -58,6 +65,13 @@ def main(argv: list[str] | None = None) -> int:
     if challenging < 0:
         print(f"stamlane synth: --challenging-clips must be >= 0, got {challenging}", file=sys.stderr)
         return 2
+    for flag in ("train_key_step", "eval_key_step"):
+        if getattr(args, flag) < 0:
+            print(f"stamlane synth: --{flag.replace('_', '-')} must be >= 0, got {getattr(args, flag)}", file=sys.stderr)
+            return 2
+    if args.workers < 1:
+        print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
+        return 2
     try:
         cfg = SynthConfig(width=args.size[0], height=args.size[1], num_frames=args.frames, fps=args.fps)
     except ValueError as err:
@@ -75,6 +89,9 @@ def main(argv: list[str] | None = None) -> int:
             seed=args.seed,
             config=cfg,
             progress=not args.quiet,
+            train_key_step=args.train_key_step,
+            eval_key_step=args.eval_key_step,
+            workers=args.workers,
         )
     except OSError as err:
         print(f"stamlane synth: cannot write {args.out}: {err}", file=sys.stderr)

@@ -50,6 +50,10 @@ SPLITS = ("train", "val", "test", "challenging")
 FORMAT_VERSION = 3
 """3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
 prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
+TRAIN_KEY_STEP = 1
+"""Default key frames of the train split: every frame from ``FIRST_KEY`` on (13 of a 20-frame clip)."""
+EVAL_KEY_STEP = 3
+"""Default key frames of the val, test and challenging splits: frames 8, 11, 14, 17, 20 of a 20-frame clip."""
 FIRST_KEY = 7
 """0-based index of the earliest frame that may be a key frame: every key frame has >= 7 history frames, enough
 for the paper's longest clips (5 frames) and the 8-frame ones some video detectors use."""
@@ -465,8 +469,8 @@ def generate_dataset(
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
-    train_key_step: int = 0,
-    eval_key_step: int = 0,
+    train_key_step: int = TRAIN_KEY_STEP,
+    eval_key_step: int = EVAL_KEY_STEP,
     workers: int = 1,
 ) -> dict:
     """Write a synthetic clip set (layout in the module docstring).

@@ -1,4 +1,4 @@
-"""Temporal aggregators of the paper's Table 4 and the single-frame baseline (METHOD §3, last paragraph).
+"""Temporal aggregators of the paper's Table 4 and the single-frame baseline (docs/method.md §3, last paragraph).
 
 Every aggregator has STAM's interface: ``Module(channels)``, ``forward(feats: (B, T, C, h, w)) -> (B, C, h, w)``
 with the key frame last, so a config swaps them freely. Interpretations where the paper gives no detail are

@@ -1,4 +1,4 @@
-"""CBAM channel and spatial attention blocks (Woo et al., ECCV 2018), as METHOD §3 defines them.
+"""CBAM channel and spatial attention blocks (Woo et al., ECCV 2018), as docs/method.md §3 defines them.
 
 Both blocks return the attention map only (not the gated features), because STAM applies a map
 computed on one frame to the features of another.

@@ -1,6 +1,6 @@
 """STAM: spatial-temporal attention that fuses aligned history features into the key frame (paper 3.3).
 
-Notation (METHOD §3): K = key-frame features, H_1 .. H_{T-1} the aligned history features (oldest first),
+Notation (docs/method.md §3): K = key-frame features, H_1 .. H_{T-1} the aligned history features (oldest first),
 CA / SA the CBAM channel / spatial attention maps (`stamlane.models.attention`), ``x`` a broadcast multiply.
 One CA and one SA block are shared by every frame, so one module serves any clip length T.
 
@@ -17,12 +17,12 @@ The sum runs over the key frame too, so with T = 1 serial and mixed modes are CB
 frame reaches the output only through attention maps applied to K — in serial and mixed modes only as C
 channel gains — so it cannot fill in a lane the key frame does not show (occlusion, dash gaps).
 
-``history="features"`` — the documented variant (METHOD §3) in which the aligned history features
+``history="features"`` — the documented variant (docs/method.md §3) in which the aligned history features
 themselves, gated by their own attention, are added to the key frame:
 
 - parallel: ``out = K + sum_{S in history} [CA(S) x S + SA(S) x S]``.
 - mixed C-S: ``out = K + sum_{S in history} SA(Y_S) x Y_S, Y_S = CA(S) x S`` (the prototype's row of the
-  METHOD §3 table: pixel F1 0.960 vs 0.888 for literal mixed C-S and 0.915 for the key frame only);
+  docs/method.md §3 table: pixel F1 0.960 vs 0.888 for literal mixed C-S and 0.915 for the key frame only);
   mixed S-C: ``Y_S = SA(S) x S, Z_S = CA(Y_S) x Y_S``.
 - serial: the gated history is carried forward and added frame by frame,
   ``A = H_1; for G in (H_2, ..., H_{T-1}, K): A = G + att(A)`` with ``att(A) = SA(Y) x Y, Y = CA(A) x A``
@@ -30,7 +30,7 @@ themselves, gated by their own attention, are added to the key frame:
 
 With T = 1 every ``"features"`` mode returns K unchanged (no history to add). The default is
 ``mode="mixed", order="cs", history="features"``: the paper's best mode (its Table 3) in the variant
-that lets history content reach the output. Evidence: METHOD §3's prototype (pixel F1 0.960 vs 0.888 for the
+that lets history content reach the output. Evidence: docs/method.md §3's prototype (pixel F1 0.960 vs 0.888 for the
 literal mixed C-S, 0.915 for the key frame only); a unit test (a region the key frame lacks stays exactly 0
 under literal mixed C-S and is filled from history by the variant); and the reduced synthetic ablation in the
 README (800 steps, 3 seeds, TuSimple F1 on the test clips): features 52.7 ± 8.5 %, literal 49.8 ± 10.0 %,

@@ -144,7 +144,7 @@ def load_predictor(args: argparse.Namespace) -> Any:
     if num_frames is None or image_size is None:
         raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
     horizon_row = args.horizon_row if args.horizon_row is not None else data.get("horizon_row")
-    overrides["crop_top"] = float(data.get("crop_top") or 0.0)
+    overrides["crop_top"] = float(module.hparams.get("crop_top") or data.get("crop_top") or 0.0)
     return StreamingPredictor.from_module(
         module, num_frames=int(num_frames), image_size=tuple(image_size), horizon_row=horizon_row, **overrides
     )

@@ -145,7 +145,7 @@ class StreamingPredictor:
 
     @classmethod
     def from_module(cls, module: Any, **kwargs: Any) -> StreamingPredictor:
-        """A predictor for a ``StamLaneModule``: its net, ``num_frames``, ``image_size``, decoding and bf16.
+        """A predictor for a ``StamLaneModule``: its net, ``num_frames``, ``image_size``, ``crop_top``, decoding, bf16.
 
         Keyword arguments override (e.g. ``num_frames``, ``image_size`` when the module lacks them).
         """
@@ -155,6 +155,7 @@ class StreamingPredictor:
             "image_size": hparams.get("image_size"),
             "postprocess": getattr(module, "postprocess", None),
             "bf16": bool(getattr(module, "bf16", False)),
+            "crop_top": float(getattr(module, "crop_top", 0.0)),
         }
         options.update(kwargs)
         missing = [k for k in ("num_frames", "image_size") if options.get(k) is None]
