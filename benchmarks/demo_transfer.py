@@ -77,9 +77,7 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
 
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
-    import torch
-
-    from stamlane.module import StamLaneModule
+    from stamlane.checkpoints import load_module, read_checkpoint
     from stamlane.overlay import draw_lanes
     from stamlane.stream import StreamingPredictor
 
@@ -87,8 +85,8 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     predictors = []
     for name, runs in _runs(demo).items():
         ckpt = runs[0] / "checkpoints" / "last.ckpt"
-        module = StamLaneModule.load_from_checkpoint(ckpt, map_location="cpu").eval()
-        data = torch.load(ckpt, map_location="cpu", weights_only=True).get("datamodule_hyper_parameters") or {}
+        module = load_module(ckpt)
+        data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
         crop_top = module.hparams.get("crop_top") or data.get("crop_top") or 0.0  # older runs: the data's
         predictor = StreamingPredictor.from_module(module, crop_top=float(crop_top))
         predictors.append((name, predictor))

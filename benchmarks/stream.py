@@ -211,10 +211,10 @@ def measure_end_to_end(
 
 def _load(ckpt: Path) -> tuple[torch.nn.Module, dict]:
     """The StamLaneModule of a checkpoint (eval mode) and its data options."""
-    from stamlane.module import StamLaneModule
+    from stamlane.checkpoints import load_module, read_checkpoint
 
-    module = StamLaneModule.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
-    data = torch.load(str(ckpt), map_location="cpu", weights_only=True).get("datamodule_hyper_parameters") or {}
+    module = load_module(ckpt)
+    data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
     return module, data
 
 

@@ -103,6 +103,21 @@ def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: 
     assert main(["predict", *args, f"--source={video}"]) == 0
     assert len(list((out / "lines").iterdir())) == 4 and len(list((out / "overlays").iterdir())) == 4
 
+    # the checkpoint alone rebuilds the network (only stamlane's classes and torch.optim are built from it)
+    from stamlane.checkpoints import load_module
+
+    module = load_module(ckpt)
+    assert module.num_frames == 2 and not module.training
+
+    # --ckpt_path last finds the run's last checkpoint instead of silently starting at step 0
+    capsys.readouterr()
+    resume = _args(tiny_set, tmp_path, "--trainer.max_steps=6", "--trainer.val_check_interval=2", "--ckpt_path=last")
+    assert main(["fit", *resume]) == 0
+    resumed = tmp_path / "stam4" / "version_1" / "checkpoints" / "last.ckpt"
+    assert torch.load(resumed, weights_only=True)["global_step"] == 6
+    rows = list(csv.DictReader((tmp_path / "stam4" / "version_1" / "metrics.csv").open()))
+    assert min(int(r["step"]) for r in rows) >= 4  # it went on from step 4
+
 
 def test_bad_data_root_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     args = _args(tmp_path / "missing", tmp_path, "--ckpt_path=null")
@@ -204,3 +219,18 @@ def test_the_sky_cut_travels_from_the_data_to_the_model_and_the_streaming_predic
     assert cli.model.hparams["crop_top"] == 0.3  # in every checkpoint
     predictor = StreamingPredictor.from_module(cli.model)
     assert predictor.transform.crop_top == 0.3
+
+
+def test_ckpt_path_last_without_a_run_is_one_line(tiny_set: Path, tmp_path: Path, capsys) -> None:
+    assert main(["fit", *_args(tiny_set, tmp_path / "fresh", "--ckpt_path=last")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--ckpt_path last: no last.ckpt under" in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("content", [b"", b"not a checkpoint\n", b"PK\x03\x04truncated"])
+def test_a_bad_checkpoint_is_one_line(content: bytes, tiny_set: Path, tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(content)
+    assert main(["validate", *_args(tiny_set, tmp_path, f"--ckpt_path={bad}")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"checkpoint {bad}" in err and len(err.splitlines()) == 1 and "Traceback" not in err

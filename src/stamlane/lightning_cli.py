@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from lightning.pytorch import Trainer
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
+from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule
 from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.module import StamLaneModule
@@ -75,6 +77,22 @@ class StamLaneCLI(LightningCLI):
         # would default to False); a foreign, trusted checkpoint may need --weights_only false
         if self.config_init[subcommand].get("weights_only") is None:
             self.config_init[subcommand]["weights_only"] = True
+        path = self.config_init[subcommand].get("ckpt_path")
+        if path == "last":  # Lightning looks only where THIS run would save, and silently starts from step 0
+            path = self.config_init[subcommand]["ckpt_path"] = str(self._last_checkpoint())
+        if path is not None and path not in ("best", "hpc", "registry"):
+            read_checkpoint(path)  # a missing, truncated or foreign file: one line (CheckpointError), not a traceback
+
+    def _last_checkpoint(self) -> Path:
+        """The newest ``last.ckpt`` under the run's logger folder (``save_dir/name``), else ``default_root_dir``."""
+        logger = self.trainer.logger
+        folder = Path(self.trainer.default_root_dir)
+        if logger is not None and getattr(logger, "save_dir", None):
+            folder = Path(logger.save_dir) / (logger.name or "")
+        found = sorted(folder.rglob("last*.ckpt"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
+        if not found:
+            raise CheckpointError(f"--ckpt_path last: no last.ckpt under {folder} (nothing to resume)")
+        return found[-1]
 
     def before_predict(self) -> None:
         self._safe_load("predict")

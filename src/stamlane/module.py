@@ -24,7 +24,6 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -167,15 +166,12 @@ class StamLaneModule(LightningModule):
     def setup(self, stage: str) -> None:
         """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""
         if stage == "fit" and self.init_weights:
-            if not Path(self.init_weights).is_file():
-                raise FileNotFoundError(f"init_weights: checkpoint {self.init_weights!r} does not exist")
+            from stamlane.checkpoints import CheckpointError, read_checkpoint
+
             try:
-                ckpt = torch.load(self.init_weights, map_location="cpu", weights_only=True)
-            except (OSError, RuntimeError) as err:
-                raise ValueError(f"init_weights: cannot read checkpoint {self.init_weights!r}: {err}") from err
-            state = ckpt.get("state_dict") if isinstance(ckpt, dict) else None
-            if state is None:
-                raise ValueError(f"init_weights: {self.init_weights!r} holds no state_dict (not a stamlane checkpoint)")
+                state = read_checkpoint(self.init_weights)["state_dict"]
+            except CheckpointError as err:
+                raise ValueError(f"init_weights: {err}") from None
             try:
                 self.load_state_dict(state)
             except RuntimeError as err:  # other architecture: missing / unexpected keys, other shapes

@@ -163,6 +163,31 @@ def test_culane_bad_setup(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
         assert len(err.strip().splitlines()) == 1 and words in err and "Traceback" not in err, (argv, err)
 
 
+def test_list_entries_never_leave_the_folders(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    pred, gt = _culane_tree(tmp_path, "10 500 20 400\n")
+    (tmp_path / "secret.lines.txt").write_text("10 500 20 400\n")  # beside, not inside, the annotation folder
+    for entry in ("../secret.jpg", "/d/../../secret.jpg", "d/..\\..\\secret.jpg"):
+        (tmp_path / "list.txt").write_text(f"/d/0.jpg\n{entry}\n")
+        code, out, err = _run(capsys, "culane", pred, gt, "--list", tmp_path / "list.txt")
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, entry
+        assert "leaves the folder" in err and "Traceback" not in err
+
+
+def test_outputs_never_overwrite_inputs(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    gt = tmp_path / "gt.json"
+    shutil.copy(TS_GT, gt)
+    before = gt.read_bytes()
+    link = tmp_path / "link.json"
+    link.symlink_to(gt)
+    for target in (gt, link):
+        code, out, err = _run(capsys, "tusimple", TS_PRED, gt, "--per-image", target)
+        assert code == 2 and "would overwrite or write into the input" in err and len(err.strip().splitlines()) == 1
+    assert gt.read_bytes() == before
+    pred, anno = _culane_tree(tmp_path / "cu", "10 500 20 400\n")
+    code, _, err = _run(capsys, "culane", pred, anno, "--per-image", pred / "d" / "per_image.jsonl")
+    assert code == 2 and "write into the input" in err
+
+
 def test_console_script_runs() -> None:
     exe = Path(sys.executable).with_name("stamlane-eval")
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "stamlane_eval.cli"]

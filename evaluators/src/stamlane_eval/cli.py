@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -125,12 +126,27 @@ def _table(rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines)
 
 
+def _check_output(path: Path, inputs: Sequence[Path | None]) -> None:
+    """Refuse an output file that IS one of the inputs, or lies inside an input folder (symlinks resolved)."""
+    target = path.resolve()
+    for source in inputs:
+        if source is None:
+            continue
+        src = source.resolve()
+        if target == src or (src.is_dir() and target.is_relative_to(src)):
+            raise LaneFileError(f"{path}: the output would overwrite or write into the input {source}")
+
+
 def _write_jsonl(path: Path, records: Sequence[dict]) -> None:
+    """Write json-lines atomically: a temporary file beside ``path``, then renamed over it."""
+    tmp = path.with_name(f".{path.name}.tmp")
     try:
-        with open(path, "w", encoding="utf-8") as f:
+        with open(tmp, "w", encoding="utf-8") as f:
             for rec in records:
                 f.write(json.dumps(rec) + "\n")
+        os.replace(tmp, path)
     except OSError as e:
+        tmp.unlink(missing_ok=True)
         raise LaneFileError(f"{path}: cannot write: {e}") from None
 
 
@@ -302,6 +318,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 ok, 2 bad input)."""
     try:
         args = _build_parser().parse_args(argv)
+        for option in ("per_image", "per_sequence"):
+            if getattr(args, option, None) is not None:
+                _check_output(getattr(args, option), [args.pred, args.gt, getattr(args, "list", None)])
         if args.command == "tusimple":
             return _run_tusimple(args)
         if args.command in ("culane", "apollo"):

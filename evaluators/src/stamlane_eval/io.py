@@ -10,7 +10,7 @@ import json
 import math
 import os
 from collections.abc import Iterator
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
@@ -119,8 +119,16 @@ def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[
 
 
 def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
-    """The ``.lines.txt`` of a list entry: ``/driver_x/y.MP4/00000.jpg`` -> ``root/driver_x/y.MP4/00000.lines.txt``."""
-    rel = entry.strip().lstrip("/")
+    """The ``.lines.txt`` of a list entry: ``/driver_x/y.MP4/00000.jpg`` -> ``root/driver_x/y.MP4/00000.lines.txt``.
+
+    Raises:
+        LaneFileError: an entry that would leave ``root`` (``..`` components, a drive); a list file is data and
+            never names a file outside the folder it indexes.
+    """
+    rel = entry.strip().lstrip("/")  # CULane lists write paths from the dataset root with a leading slash
+    parts = PurePosixPath(rel.replace("\\", "/")).parts
+    if ".." in parts or PureWindowsPath(rel).drive or not parts:
+        raise LaneFileError(f"list entry {entry.strip()!r} leaves the folder {root} (no '..', no drive, not empty)")
     stem = rel[: rel.rfind(".")] if "." in Path(rel).name else rel
     if stem.endswith(".lines"):
         stem = stem[: -len(".lines")]

@@ -102,9 +102,7 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
 
 def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     """The LightningModule and the data options (num_frames, image_size, horizon_row) it was trained with."""
-    import torch
-
-    from stamlane.module import StamLaneModule
+    from stamlane.checkpoints import CheckpointError, load_module, read_checkpoint
 
     data: dict[str, Any] = {}
     if args.config:
@@ -116,17 +114,23 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
         module = cli.model
         data = dict(vars(cli.config["data"])) if hasattr(cli.config["data"], "__dict__") else dict(cli.config["data"])
         if args.ckpt:
-            checkpoint = torch.load(args.ckpt, map_location="cpu", weights_only=True)
-            module.load_state_dict(checkpoint["state_dict"])
+            try:
+                module.load_state_dict(read_checkpoint(args.ckpt)["state_dict"])
+            except CheckpointError as err:
+                raise StreamError(str(err)) from None
+            except RuntimeError as err:  # another network: missing / unexpected keys, other shapes
+                first = str(err).strip().splitlines()[0]
+                raise StreamError(
+                    f"checkpoint {args.ckpt} does not fit the network of {args.config}: {first}"
+                ) from None
         return module, data
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
     try:
-        module = StamLaneModule.load_from_checkpoint(args.ckpt, map_location="cpu")
-    except (KeyError, TypeError) as err:
-        raise StreamError(f"{args.ckpt} cannot be rebuilt from its hyper-parameters ({err}); add --config") from None
-    checkpoint = torch.load(args.ckpt, map_location="cpu", weights_only=True)
-    data = dict(checkpoint.get("datamodule_hyper_parameters") or {})
+        module = load_module(args.ckpt)  # only stamlane's classes and torch.optim may be built from it
+        data = dict(read_checkpoint(args.ckpt).get("datamodule_hyper_parameters") or {})
+    except CheckpointError as err:
+        raise StreamError(str(err)) from None
     return module, data
 
 

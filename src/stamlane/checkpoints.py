@@ -1,0 +1,122 @@
+"""Reading checkpoints safely: weights only, only known classes, one-line errors.
+
+A checkpoint is data, and data must not run code. ``torch.load(weights_only=True)`` never unpickles code, but
+Lightning's ``load_from_checkpoint`` then BUILDS the network from the hyperparameters stored in the file:
+their ``class_path`` entries (and ``_instantiator``) name Python objects that get imported and called. A
+crafted checkpoint could name any module. `load_module` therefore checks every name against `ALLOWED_CLASSES`
+(stamlane's own classes and torch's optimisers and schedulers) before anything is built.
+
+Every problem — a missing, empty, truncated or text file, a file without weights, a foreign class, another
+network's weights — is a `CheckpointError` (a ``ValueError``) naming the file and the problem in one line;
+the command-line tools print it and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import pickle
+import struct
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import torch
+
+__all__ = ["ALLOWED_CLASSES", "INSTANTIATOR", "CheckpointError", "check_classes", "load_module", "read_checkpoint"]
+
+ALLOWED_CLASSES = ("stamlane.", "torch.optim.")
+"""Prefixes of the ``class_path`` names a checkpoint may ask to build (``torch.optim.lr_scheduler`` included)."""
+INSTANTIATOR = "lightning.pytorch.cli.instantiate_module"
+"""The only ``_instantiator`` accepted: what LightningCLI writes into the checkpoints of ``stamlane fit``."""
+
+
+_UNREADABLE = (
+    RuntimeError,
+    EOFError,
+    OSError,
+    pickle.UnpicklingError,
+    zipfile.BadZipFile,
+    ValueError,
+    KeyError,
+    IndexError,
+    TypeError,
+    AttributeError,
+    struct.error,
+)
+"""What ``torch.load`` raises on bytes that are no checkpoint (empty, text, truncated, a legacy pickle gone wrong)."""
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be used; the message names the file and the problem, in one line."""
+
+
+def read_checkpoint(path: str | Path) -> dict[str, Any]:
+    """The checkpoint's content, loaded with ``weights_only=True``.
+
+    Raises:
+        CheckpointError: missing, unreadable, not a torch checkpoint (empty, truncated, text), not a dict, or
+            without a ``state_dict``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path} does not exist")
+    try:
+        content = torch.load(path, map_location="cpu", weights_only=True)
+    except _UNREADABLE as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise CheckpointError(
+            f"checkpoint {path} is not a readable torch checkpoint (empty, truncated or another kind of file): "
+            f"{first[:200]}"
+        ) from None
+    if not isinstance(content, dict) or not isinstance(content.get("state_dict"), dict):
+        raise CheckpointError(f"checkpoint {path} holds no state_dict (not a Lightning checkpoint of stamlane)")
+    return content
+
+
+def _class_paths(value: Any) -> Iterator[str]:
+    if isinstance(value, dict):
+        if isinstance(value.get("class_path"), str):
+            yield value["class_path"]
+        for item in value.values():
+            yield from _class_paths(item)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _class_paths(item)
+
+
+def check_classes(hparams: dict[str, Any], source: str | Path) -> None:
+    """Refuse hyperparameters that would import anything but `ALLOWED_CLASSES` (and `INSTANTIATOR`).
+
+    Raises:
+        CheckpointError: naming the first foreign name.
+    """
+    instantiator = hparams.get("_instantiator")
+    if instantiator is not None and instantiator != INSTANTIATOR:
+        raise CheckpointError(f"checkpoint {source} asks for instantiator {instantiator!r}; only {INSTANTIATOR!r}")
+    for name in _class_paths(hparams):
+        if not name.startswith(ALLOWED_CLASSES) or ".." in name:
+            raise CheckpointError(
+                f"checkpoint {source} asks to build {name!r}; only stamlane's classes and torch.optim may be built"
+            )
+
+
+def load_module(path: str | Path) -> Any:
+    """The `stamlane.module.StamLaneModule` stored in a checkpoint, on the CPU, in eval mode.
+
+    Raises:
+        CheckpointError: see `read_checkpoint` and `check_classes`; also for hyperparameters that build no
+            stamlane network and for weights of another network (missing keys, other shapes).
+    """
+    from stamlane.module import StamLaneModule
+
+    content = read_checkpoint(path)
+    hparams = content.get("hyper_parameters")
+    if not isinstance(hparams, dict):
+        raise CheckpointError(f"checkpoint {path} records no hyper_parameters: build the network from its config")
+    check_classes(hparams, path)
+    try:
+        module = StamLaneModule.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+    except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, ImportError) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise CheckpointError(f"checkpoint {path} does not fit a stamlane network: {first[:200]}") from None
+    return module.eval()
