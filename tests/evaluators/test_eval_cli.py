@@ -195,3 +195,33 @@ def test_console_script_runs() -> None:
     assert ok.returncode == 0 and "accuracy" in json.loads(ok.stdout)
     bad = subprocess.run([*cmd, "tusimple", str(TS_PRED), "/nonexistent.json"], capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
+
+
+def test_documented_limits_are_one_line_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    from stamlane_eval.io import MAX_IMAGE_SIDE, MAX_LANE_POINTS, MAX_LANE_WIDTH, MAX_LANES
+
+    long_lane = " ".join(f"{i % 1000} {i % 500}" for i in range(MAX_LANE_POINTS + 1)) + "\n"
+    many_lanes = "10 500 20 400\n" * (MAX_LANES + 1)
+    nested = tmp_path / "nested.json"
+    nested.write_text("[" * 100000 + "]" * 100000 + "\n")
+    cases = [
+        (lambda: _culane_tree(tmp_path / "a", long_lane), [], "more than the limit"),
+        (lambda: _culane_tree(tmp_path / "b", many_lanes), [], f"more than {MAX_LANES} lanes"),
+        (lambda: _culane_tree(tmp_path / "c", "10 500 20 400\n"), ["--width", str(MAX_LANE_WIDTH + 1)], "lane width"),
+        (lambda: _culane_tree(tmp_path / "d", "10 500 20 400\n"), ["--size", f"{MAX_IMAGE_SIDE + 1}x10"], "sides in"),
+    ]
+    for make, extra, words in cases:
+        pred, gt = make()
+        code, out, err = _run(capsys, "culane", pred, gt, *extra)
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and words in err, (words, err)
+    code, _, err = _run(capsys, "tusimple", nested, TS_GT)
+    assert code == 2 and "nested too deeply" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_vil100_frame_of_absurd_size_is_refused(tmp_path: Path) -> None:
+    from stamlane_eval.io import LaneFileError, read_vil100_json
+
+    path = tmp_path / "0.jpg.json"
+    path.write_text(json.dumps({"info": {"width": 200000, "height": 200000}, "annotations": {"lane": []}}))
+    with pytest.raises(LaneFileError, match="outside 1..16384"):
+        read_vil100_json(path)

@@ -24,6 +24,8 @@ import numpy as np
 
 from stamlane_eval import __version__, culane, tusimple, video
 from stamlane_eval.io import (
+    MAX_IMAGE_SIDE,
+    MAX_LANE_WIDTH,
     LaneFileError,
     culane_entries,
     culane_lines_path,
@@ -52,9 +54,16 @@ def _size(text: str) -> tuple[int, int]:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WxH such as 1640x590, got {text!r}") from None
-    if w <= 0 or h <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive WxH, got {text!r}")
+    if not (0 < w <= MAX_IMAGE_SIDE and 0 < h <= MAX_IMAGE_SIDE):
+        raise argparse.ArgumentTypeError(f"expected WxH with sides in 1..{MAX_IMAGE_SIDE}, got {text!r}")
     return w, h
+
+
+def _lane_width(text: str) -> int:
+    width = _positive_int(text)
+    if width > MAX_LANE_WIDTH:
+        raise argparse.ArgumentTypeError(f"expected a lane width of at most {MAX_LANE_WIDTH} px, got {text!r}")
+    return width
 
 
 def _iou(text: str) -> float:
@@ -96,7 +105,7 @@ def _build_parser() -> _Parser:
         cu.add_argument("gt", type=Path, help="folder of annotated .lines.txt (or a TuSimple json-lines file)")
         cu.add_argument("--list", type=Path, help="image list (CULane style); default: every .lines.txt in GT")
         cu.add_argument("--iou", type=_iou, nargs="+", default=list(culane.IOU_THRESHOLDS), help="IoU thresholds")
-        cu.add_argument("--width", type=_positive_int, default=culane.LANE_WIDTH, help="lane line width in pixels")
+        cu.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
         cu.add_argument("--size", type=_size, default=None, help=f"image WxH (default {size[0]}x{size[1]})")
         cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
         cu.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
@@ -110,7 +119,7 @@ def _build_parser() -> _Parser:
     )
     vd.add_argument("--iou", type=_iou, nargs="+", default=list(video.VIDEO_IOU_THRESHOLDS), help="F thresholds")
     vd.add_argument("--match-iou", type=_iou, default=video.MATCH_IOU, help="IoU of a match for switches/flicker")
-    vd.add_argument("--width", type=_positive_int, default=culane.LANE_WIDTH, help="lane line width in pixels")
+    vd.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
     vd.add_argument("--size", type=_size, default=None, help="image WxH (default: VIL-100 json info)")
     vd.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")

@@ -15,6 +15,10 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 import numpy as np
 
 __all__ = [
+    "MAX_IMAGE_SIDE",
+    "MAX_LANES",
+    "MAX_LANE_POINTS",
+    "MAX_LANE_WIDTH",
     "LaneFileError",
     "culane_entries",
     "culane_lines_path",
@@ -23,6 +27,17 @@ __all__ = [
     "read_vil100_json",
     "video_frames",
 ]
+
+
+MAX_IMAGE_SIDE = 16384
+"""Largest image side (px) accepted from a label file or ``--size``: the CULane metric draws every lane into a mask of
+the image's size, so a declared 200000x200000 frame would ask for tens of GiB."""
+MAX_LANES = 64
+"""Most lanes in one image: the CULane matching grows with the cube of the lane count (1,500 lanes: a minute)."""
+MAX_LANE_POINTS = 10000
+"""Most points in one lane (a CULane lane of 1M points took 3.4 GB to rasterise)."""
+MAX_LANE_WIDTH = 1024
+"""Widest lane line (px) the CULane metric may draw."""
 
 
 class LaneFileError(ValueError):
@@ -61,7 +76,7 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
         records = json.loads("[" + body.replace("\n", ",") + "]", parse_constant=_reject_constant)
         if len(records) == body.count("\n") + 1 and all(type(r) is dict for r in records):
             return records
-    except ValueError:
+    except (ValueError, RecursionError):  # RecursionError: nesting too deep; the slow path names the line
         pass
     lines = text.splitlines()
     out = []
@@ -72,6 +87,8 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
             rec = json.loads(line, parse_constant=_reject_constant)
         except ValueError as e:
             raise LaneFileError(f"{p}: line {i}: invalid JSON ({e})") from None
+        except RecursionError:
+            raise LaneFileError(f"{p}: line {i}: JSON nested too deeply") from None
         if not isinstance(rec, dict):
             raise LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
         out.append(rec)
@@ -114,7 +131,11 @@ def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[
             raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
         if not all(math.isfinite(v) for v in vals):
             raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
+        if len(vals) // 2 > MAX_LANE_POINTS:
+            raise LaneFileError(f"{p}: line {i}: {len(vals) // 2} points, more than the limit of {MAX_LANE_POINTS}")
         lanes.append(np.array(vals, dtype=np.float64).reshape(-1, 2))
+        if len(lanes) > MAX_LANES:
+            raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image")
     return lanes
 
 
@@ -182,6 +203,8 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
         raise LaneFileError(f"{p}: cannot read: {e}") from None
     except ValueError as e:
         raise LaneFileError(f"{p}: invalid JSON ({e})") from None
+    except RecursionError:
+        raise LaneFileError(f"{p}: JSON nested too deeply") from None
     try:
         entries = data["annotations"]["lane"]
         info = data.get("info", {})
@@ -208,6 +231,10 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
             size = (int(info["width"]), int(info["height"]))
         except (TypeError, ValueError):
             raise LaneFileError(f"{p}: info.width/height must be integers") from None
+        if not (0 < size[0] <= MAX_IMAGE_SIDE and 0 < size[1] <= MAX_IMAGE_SIDE):
+            raise LaneFileError(f"{p}: image size {size[0]}x{size[1]} outside 1..{MAX_IMAGE_SIDE} px per side")
+    if len(lanes) > MAX_LANES or any(len(lane) > MAX_LANE_POINTS for lane in lanes):
+        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes or {MAX_LANE_POINTS} points in a lane")
     return lanes, ids, size
 
 
