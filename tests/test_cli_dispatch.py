@@ -44,7 +44,5 @@ def test_versions_come_from_the_package_metadata(capsys):
 
     assert cli.main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"stamlane {version('stamlane')}"
-    with pytest.raises(SystemExit) as exit_info:
-        eval_cli.main(["--version"])
-    assert exit_info.value.code == 0
+    assert eval_cli.main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"stamlane-eval {version('stamlane-eval')}"

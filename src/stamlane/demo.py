@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 __all__ = ["MODELS", "SPLITS", "DemoModel", "main", "predict_split", "score_split"]
 
@@ -74,7 +75,7 @@ class DemoError(Exception):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="stamlane demo", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder")
     parser.add_argument(
         "--data", type=Path, default=None, help="synthetic set (default data/synthetic; made if missing)"
@@ -456,7 +457,9 @@ def run(args: argparse.Namespace) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args = parse_or_status(_parser(), argv)
+    if isinstance(args, int):
+        return args
     for option in ("seeds", "pretrain_steps", "finetune_steps"):
         if getattr(args, option) < 1:
             flag = "--" + option.replace("_", "-")

@@ -193,6 +193,22 @@ def test_synth_tool_bad_input_is_one_line_and_status_2(argv: list[str], capsys: 
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
+def test_synth_never_writes_over_a_set_and_show_never_into_the_data(
+    synthetic_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    before = (synthetic_root / "train.json").read_bytes()
+    assert synth_main(["--out", str(synthetic_root), "--clips", "3", "--quiet"]) == 2
+    assert "already holds a set" in capsys.readouterr().err
+    assert (synthetic_root / "train.json").read_bytes() == before
+    frame = synthetic_root / "clips" / "train-0000" / "1.jpg"
+    picture = frame.read_bytes()
+    argv = ["--root", str(synthetic_root), "--labels", "train.json", "--out", str(frame), "--size", "48x80"]
+    assert show_main(argv) == 2
+    err = capsys.readouterr().err
+    assert "would overwrite or write into the input" in err and err.count("\n") == 1
+    assert frame.read_bytes() == picture
+
+
 def test_show_tool_writes_a_grid(synthetic_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture):
     out = tmp_path / "grid.png"
     assert (

@@ -180,7 +180,7 @@ def test_outputs_never_overwrite_inputs(capsys: pytest.CaptureFixture[str], tmp_
     link = tmp_path / "link.json"
     link.symlink_to(gt)
     for target in (gt, link):
-        code, out, err = _run(capsys, "tusimple", TS_PRED, gt, "--per-image", target)
+        code, _, err = _run(capsys, "tusimple", TS_PRED, gt, "--per-image", target)
         assert code == 2 and "would overwrite or write into the input" in err and len(err.strip().splitlines()) == 1
     assert gt.read_bytes() == before
     pred, anno = _culane_tree(tmp_path / "cu", "10 500 20 400\n")
@@ -223,5 +223,5 @@ def test_a_vil100_frame_of_absurd_size_is_refused(tmp_path: Path) -> None:
 
     path = tmp_path / "0.jpg.json"
     path.write_text(json.dumps({"info": {"width": 200000, "height": 200000}, "annotations": {"lane": []}}))
-    with pytest.raises(LaneFileError, match="outside 1..16384"):
+    with pytest.raises(LaneFileError, match=r"outside 1\.\.16384"):
         read_vil100_json(path)

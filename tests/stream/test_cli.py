@@ -95,6 +95,9 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
         (["{frames}", "--ckpt", "nowhere.ckpt"], "checkpoint nowhere.ckpt does not exist"),
         (["{empty}", "--ckpt", "x.ckpt"], "holds no image"),
         (["{frames}", "--ckpt", "x.ckpt", "--max-frames", "0"], "--max-frames must be >= 1"),
+        (["{frames}", "--ckpt", "x.ckpt", "--fps", "-5"], "--fps must be > 0, got -5.0"),
+        (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}"], "would overwrite or write into the input"),
+        (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}/out"], "would overwrite or write into the input"),
     ],
 )
 def test_bad_input_is_one_line_and_status_2(
@@ -114,3 +117,15 @@ def test_a_folder_of_frames_plays_in_number_order(tmp_path: Path) -> None:
     frames, count, _ = iter_frames(tmp_path)
     assert count == 12
     assert [int(image[0, 0, 0]) for image in frames] == list(range(1, 13))
+
+
+def test_a_failed_run_keeps_the_previous_results(checkpoint: Path, frames_dir: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main([str(frames_dir), "--ckpt", str(checkpoint), "--out", str(out), "--no-video"]) == 0
+    before = (out / "lanes.jsonl").read_bytes()
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(b"truncated")
+    assert main([str(frames_dir), "--ckpt", str(bad), "--out", str(out), "--no-video"]) == 2
+    assert "not a readable torch checkpoint" in capsys.readouterr().err
+    assert (out / "lanes.jsonl").read_bytes() == before
+    assert sorted(p.name for p in out.iterdir()) == ["lanes.jsonl"]  # no temporary file left behind

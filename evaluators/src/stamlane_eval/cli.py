@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from stamlane_eval import __version__, culane, tusimple, video
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
@@ -38,15 +39,6 @@ from stamlane_eval.io import (
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
-
-
-class _UsageError(Exception):
-    """A usage problem: reported as one line, exit status 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line instead of usage + message
-        raise _UsageError(f"{self.prog}: {message} (see --help)")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -86,10 +78,12 @@ def _positive_int(text: str) -> int:
     return v
 
 
-def _build_parser() -> _Parser:
-    parser = _Parser(prog="stamlane-eval", description="Lane metrics equal to the official tools, number for number.")
+def _build_parser() -> OneLineParser:
+    parser = OneLineParser(
+        prog="stamlane-eval", description="Lane metrics equal to the official tools, number for number."
+    )
     parser.add_argument("--version", action="version", version=f"stamlane-eval {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
 
     ts = sub.add_parser("tusimple", help="TuSimple accuracy / FP / FN (official lane.py) and the paper's F1")
     ts.add_argument("pred", type=Path, help="predictions, json-lines: raw_file, lanes, run_time")
@@ -133,17 +127,6 @@ def _table(rows: Sequence[Sequence[object]]) -> str:
     lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
-
-
-def _check_output(path: Path, inputs: Sequence[Path | None]) -> None:
-    """Refuse an output file that IS one of the inputs, or lies inside an input folder (symlinks resolved)."""
-    target = path.resolve()
-    for source in inputs:
-        if source is None:
-            continue
-        src = source.resolve()
-        if target == src or (src.is_dir() and target.is_relative_to(src)):
-            raise LaneFileError(f"{path}: the output would overwrite or write into the input {source}")
 
 
 def _write_jsonl(path: Path, records: Sequence[dict]) -> None:
@@ -325,19 +308,19 @@ def _run_video(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 ok, 2 bad input)."""
+    args = parse_or_status(_build_parser(), argv)
+    if isinstance(args, int):  # --help, --version, or a usage error already printed in one line
+        return args
     try:
-        args = _build_parser().parse_args(argv)
         for option in ("per_image", "per_sequence"):
             if getattr(args, option, None) is not None:
-                _check_output(getattr(args, option), [args.pred, args.gt, getattr(args, "list", None)])
+                check_output(getattr(args, option), [args.pred, args.gt, getattr(args, "list", None)])
         if args.command == "tusimple":
             return _run_tusimple(args)
         if args.command in ("culane", "apollo"):
             return _run_culane(args)
-        if args.command == "video":
-            return _run_video(args)
-        raise _UsageError(f"unknown command {args.command!r}")
-    except (_UsageError, LaneFileError) as e:
+        return _run_video(args)
+    except (OutputError, LaneFileError) as e:
         print(f"stamlane-eval: error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
 

@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from tqdm import tqdm
 
 from stamlane.align.cache import (
@@ -196,14 +197,8 @@ def _run_one(task: tuple[Path, AlignJob]) -> ClipResult:
     return process_clip(*task)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit status 2, no usage dump
-        print(f"stamlane align: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(
+    p = OneLineParser(
         prog="stamlane align", description="Precompute key_from_hist for every clip of a dataset into a JSON cache."
     )
     p.add_argument("root", type=Path, help="dataset root to walk for clip folders")
@@ -236,10 +231,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str]) -> int:
     """Run ``stamlane align``; returns the exit status (2 on bad input)."""
-    try:
-        args = _parser().parse_args(argv)
-    except SystemExit as exit_:
-        return int(exit_.code or 0)
+    args = parse_or_status(_parser(), argv)
+    if isinstance(args, int):
+        return args
     problems = [
         (args.num_frames < 2, f"--num-frames must be >= 2, got {args.num_frames}"),
         (args.stride < 1, f"--stride must be >= 1, got {args.stride}"),

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from stamlane.data.alignment import ALIGN_MODES
-from stamlane.data.cli_parser import OneLineParser, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform
@@ -77,6 +77,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.n < 1:
         print(f"stamlane show: --n must be >= 1, got {args.n}", file=sys.stderr)
+        return 2
+    try:
+        check_output(args.out, [args.root])  # a picture never replaces a frame or a label of the data
+    except OutputError as err:
+        print(f"stamlane show: {err}", file=sys.stderr)
         return 2
     common = {
         "num_frames": args.num_frames,

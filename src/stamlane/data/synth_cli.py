@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from stamlane.data.cli_parser import OneLineParser, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from stamlane.data.synthetic import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
 __all__ = ["main"]
@@ -64,6 +65,10 @@ def main(argv: list[str] | None = None) -> int:
     challenging = args.challenging_clips if args.challenging_clips is not None else args.clips // 10
     if challenging < 0:
         print(f"stamlane synth: --challenging-clips must be >= 0, got {challenging}", file=sys.stderr)
+        return 2
+    existing = [name for name in ("dataset.json", "train.json", "val.json", "test.json") if (Path(args.out) / name).exists()]
+    if existing:
+        print(f"stamlane synth: {args.out} already holds a set ({existing[0]}); give another --out", file=sys.stderr)
         return 2
     for flag in ("train_key_step", "eval_key_step"):
         if getattr(args, flag) < 0:

@@ -26,7 +26,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from stamlane.data.cli_parser import OneLineParser, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+
 from stamlane.experiments.report import plot_table, robustness_markdown, table_markdown, write_csv
 from stamlane.experiments.results import load_result, result_path, run_dir, save_result, summarize
 from stamlane.experiments.runner import RunSpec, run

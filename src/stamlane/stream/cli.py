@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Iterator
@@ -29,6 +30,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from stamlane_eval.cli_tools import OneLineParser, check_output, parse_or_status
 
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
@@ -38,7 +40,7 @@ class StreamError(Exception):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
+    parser = OneLineParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
     parser.add_argument("video", help="a video file or a folder of frames (in name order, numbers compared as numbers)")
     parser.add_argument("--ckpt", help="checkpoint written by `stamlane fit`")
     parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
@@ -159,24 +161,58 @@ def _lanes_json(lanes: list[np.ndarray]) -> list[list[list[float]]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import torch
-    from tqdm import tqdm
-
-    from stamlane.overlay import draw_lanes
-
     source = Path(args.video)
     if not source.exists():
         raise StreamError(f"{source} does not exist")
     if args.max_frames is not None and args.max_frames < 1:
         raise StreamError(f"--max-frames must be >= 1, got {args.max_frames}")
+    if args.fps is not None and not args.fps > 0:
+        raise StreamError(f"--fps must be > 0, got {args.fps}")
+    out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
+    check_output(out_dir, [source])
     frames, count, fps = iter_frames(source, args.max_frames)
     predictor = load_predictor(args)
-    out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
     out_dir.mkdir(parents=True, exist_ok=True)
+    # written under temporary names and renamed at the end: a failed run leaves the previous results whole
+    lanes_tmp, video_tmp = out_dir / ".lanes.jsonl.tmp", out_dir / ".overlay.tmp.mp4"
+    finished = False
+    try:
+        written, seconds = _stream(args, source, frames, count, fps, predictor, lanes_tmp, video_tmp)
+        os.replace(lanes_tmp, out_dir / "lanes.jsonl")
+        if not args.no_video:
+            os.replace(video_tmp, out_dir / "overlay.mp4")
+        finished = True
+    finally:
+        if not finished:  # interrupted or failed: drop the partial files, keep what was there
+            lanes_tmp.unlink(missing_ok=True)
+            video_tmp.unlink(missing_ok=True)
+    print(
+        f"stamlane stream: {written} frames in {seconds:.1f} s ({written / max(seconds, 1e-9):.1f} frames/s); "
+        f"wrote {out_dir / 'lanes.jsonl'}" + ("" if args.no_video else f" and {out_dir / 'overlay.mp4'}")
+    )
+    return 0
+
+
+def _stream(
+    args: argparse.Namespace,
+    source: Path,
+    frames: Iterator[np.ndarray],
+    count: int | None,
+    fps: float | None,
+    predictor: Any,
+    lanes_path: Path,
+    video_path: Path,
+) -> tuple[int, float]:
+    """Run the predictor over the frames, writing lanes (json-lines) and the overlay video; (frames, seconds)."""
+    import torch
+    from tqdm import tqdm
+
+    from stamlane.overlay import draw_lanes
+
     writer = None
     written = 0
     start = time.perf_counter()
-    with torch.inference_mode(), open(out_dir / "lanes.jsonl", "w") as jsonl:
+    with torch.inference_mode(), open(lanes_path, "w") as jsonl:
         bar = tqdm(frames, total=count, desc=f"stream {source.name}", unit="frame")
         for image in bar:
             t0 = time.perf_counter()
@@ -193,25 +229,23 @@ def run(args: argparse.Namespace) -> int:
                 if writer is None:
                     size = (image.shape[1], image.shape[0])
                     writer = cv2.VideoWriter(
-                        str(out_dir / "overlay.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, size
+                        str(video_path), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, size
                     )
                 writer.write(draw_lanes(image, out.lanes))
             written += 1
         bar.close()
     if writer is not None:
         writer.release()
-    seconds = time.perf_counter() - start
-    print(
-        f"stamlane stream: {written} frames in {seconds:.1f} s ({written / max(seconds, 1e-9):.1f} frames/s); "
-        f"wrote {out_dir / 'lanes.jsonl'}" + ("" if args.no_video else f" and {out_dir / 'overlay.mp4'}")
-    )
-    return 0
+    if not args.no_video and not video_path.is_file():
+        raise StreamError(f"the overlay video could not be written ({video_path.suffix} with the mp4v codec)")
+    return written, time.perf_counter() - start
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stamlane stream``; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    args = parse_or_status(build_parser(), sys.argv[1:] if argv is None else argv)
+    if isinstance(args, int):
+        return args
     try:
         return run(args)
     except (StreamError, FileNotFoundError, ValueError) as err:
