@@ -68,6 +68,11 @@ def test_config_loads(config: Path, capsys: pytest.CaptureFixture) -> None:
 def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["fit", *_args(tiny_set, tmp_path, "--trainer.max_steps=4", "--trainer.val_check_interval=2")]) == 0
     version = tmp_path / "stam4" / "version_0"
+    said = capsys.readouterr().out  # where the model went and how good it is
+    assert "stamlane fit: done after 4 steps" in said
+    assert "best val/tusimple_f1 " in said and f"{version / 'checkpoints'}/best-step=" in said
+    assert f"last (final weights): {version / 'checkpoints' / 'last.ckpt'}" in said
+    assert f"logs and config: {version}" in said
     rows = list(csv.DictReader((version / "metrics.csv").open()))
     logged = {k for row in rows for k, v in row.items() if v}
     assert {"val/tusimple_f1", "val/tusimple_accuracy", "val/culane_f1@0.5", "val/loss"} <= logged

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
 from lightning.pytorch import Trainer
+from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
@@ -17,6 +19,12 @@ from stamlane.predict import FramesDataModule, LanePredictionWriter
 from stamlane.resume import ExactResume
 
 __all__ = ["StamLaneCLI"]
+
+
+def _step_of(path: str) -> int | None:
+    """The step in a checkpoint name such as ``best-step=1199.ckpt`` (None when it has none)."""
+    match = re.search(r"step=(\d+)", Path(path).name)
+    return int(match.group(1)) if match else None
 
 
 class StamLaneCLI(LightningCLI):
@@ -60,6 +68,25 @@ class StamLaneCLI(LightningCLI):
 
     def before_fit(self) -> None:
         self._check("fit")
+
+    def after_fit(self) -> None:
+        """Say where the model went and how good it is: best validation F1 and its step, checkpoints, logs."""
+        if self.trainer.global_rank != 0:
+            return
+        lines = [f"stamlane fit: done after {self.trainer.global_step} steps"]
+        for cb in self.trainer.checkpoint_callbacks:
+            if isinstance(cb, ModelCheckpoint) and cb.monitor and cb.best_model_path:
+                score = float(cb.best_model_score) if cb.best_model_score is not None else float("nan")
+                step = _step_of(cb.best_model_path)
+                lines.append(
+                    f"  best {cb.monitor} {score:.4f}{f' at step {step}' if step else ''}: {cb.best_model_path}"
+                )
+        last = next((cb.last_model_path for cb in self.trainer.checkpoint_callbacks if cb.last_model_path), None)
+        if last:
+            lines.append(f"  last (final weights): {last}")
+        if self.trainer.logger is not None and self.trainer.logger.log_dir:
+            lines.append(f"  logs and config: {self.trainer.logger.log_dir}")
+        print("\n".join(lines), flush=True)
 
     def before_validate(self) -> None:
         self._check("validate")

@@ -27,7 +27,7 @@ def test_tusimple_table_json_and_per_image(capsys: pytest.CaptureFixture[str], t
     exp = json.loads((GOLDEN / "tusimple_expected.json").read_text())
     code, out, err = _run(capsys, "tusimple", TS_PRED, TS_GT)
     assert code == 0 and err == ""
-    assert "accuracy" in out and f"{exp['totals']['accuracy']:.4f}" in out
+    assert "accuracy %" in out and f"{100 * exp['totals']['accuracy']:.2f}" in out  # percent, like the papers
     code, out, _ = _run(capsys, "tusimple", TS_PRED, TS_GT, "--json", "--per-image", tmp_path / "per.jsonl")
     res = json.loads(out)
     assert code == 0
@@ -161,6 +161,25 @@ def test_culane_bad_setup(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
         code, out, err = _run(capsys, *argv)
         assert code == 2 and out == "", argv
         assert len(err.strip().splitlines()) == 1 and words in err and "Traceback" not in err, (argv, err)
+
+
+def test_official_format_is_what_the_official_tools_print(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--format official``: lane.py's JSON line byte for byte; the C++ tool's -o text per IoU threshold."""
+    shared = Path(__file__).resolve().parents[3] / "shared" / "fixtures" / "evaluators"
+    if not shared.is_dir():
+        pytest.skip(f"the official tools' outputs are not here ({shared} is absent)")
+    expected = json.loads((shared / "tusimple" / "expected.json").read_text())
+    code, out, _ = _run(
+        capsys, "tusimple", shared / "tusimple" / "pred.json", shared / "tusimple" / "gt.json", "--format", "official"
+    )
+    assert code == 0 and out == expected["official_output"] + "\n"
+    cu = shared / "culane"
+    cpp = json.loads((cu / "expected.json").read_text())["cpp_output_file"]
+    code, out, _ = _run(capsys, "culane", cu / "pred", cu / "anno", "--list", cu / "list.txt", "--format", "official")
+    want = "\n".join(cpp[t].split("\n", 1)[1].rstrip("\n") + "\n" for t in ("0.3", "0.5"))  # without "file:"
+    assert code == 0 and out == want
+    code, _, err = _run(capsys, "video", cu / "pred", cu / "anno", "--format", "official")
+    assert code == 2 and "invalid choice" in err
 
 
 def test_list_entries_never_leave_the_folders(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

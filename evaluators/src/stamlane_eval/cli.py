@@ -78,6 +78,35 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _output_format(parser: argparse.ArgumentParser, official: str | None) -> None:
+    """``--format table|json[|official]`` and its alias ``--json``."""
+    choices = ("table", "json", "official") if official else ("table", "json")
+    what = f"; official: {official}" if official else ""
+    parser.add_argument(
+        "--format", choices=choices, default="table", help=f"table: percent, as papers report; json: one object{what}"
+    )
+    parser.add_argument("--json", dest="format", action="store_const", const="json", help="the same as --format json")
+
+
+def _lane_py_line(res: tusimple.TuSimpleResult) -> str:
+    """Exactly what the official ``lane.py`` prints: ujson's compact dump of its three-entry list."""
+    entries = [
+        {"name": "Accuracy", "value": res.accuracy, "order": "desc"},
+        {"name": "FP", "value": res.fp, "order": "asc"},
+        {"name": "FN", "value": res.fn, "order": "asc"},
+    ]
+    return json.dumps(entries, separators=(",", ":"))
+
+
+def _cpp_tool_text(counts: culane.CULaneCounts) -> str:
+    """What the official C++ tool writes per threshold (its -o file without the ``file:`` line; iostream's default
+    6 significant digits)."""
+    return (
+        f"tp: {counts.tp} fp: {counts.fp} fn: {counts.fn}\n"
+        f"precision: {counts.precision:.6g}\nrecall: {counts.recall:.6g}\nFmeasure: {counts.f1:.6g}\n"
+    )
+
+
 def _build_parser() -> OneLineParser:
     parser = OneLineParser(
         prog="stamlane-eval", description="Lane metrics equal to the official tools, number for number."
@@ -88,7 +117,7 @@ def _build_parser() -> OneLineParser:
     ts = sub.add_parser("tusimple", help="TuSimple accuracy / FP / FN (official lane.py) and the paper's F1")
     ts.add_argument("pred", type=Path, help="predictions, json-lines: raw_file, lanes, run_time")
     ts.add_argument("gt", type=Path, help="ground truth, json-lines: raw_file, lanes, h_samples")
-    ts.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    _output_format(ts, official="the JSON line lane.py prints")
     ts.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
 
     for name, size in (("culane", culane.CULANE_SIZE), ("apollo", culane.APOLLO_SIZE)):
@@ -102,7 +131,7 @@ def _build_parser() -> OneLineParser:
         cu.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
         cu.add_argument("--size", type=_size, default=None, help=f"image WxH (default {size[0]}x{size[1]})")
         cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
-        cu.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+        _output_format(cu, official="what the C++ tool writes to its -o file, per IoU threshold")
         cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
         cu.set_defaults(default_size=size)
 
@@ -115,7 +144,7 @@ def _build_parser() -> OneLineParser:
     vd.add_argument("--match-iou", type=_iou, default=video.MATCH_IOU, help="IoU of a match for switches/flicker")
     vd.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
     vd.add_argument("--size", type=_size, default=None, help="image WxH (default: VIL-100 json info)")
-    vd.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    _output_format(vd, official=None)
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
 
     return parser
@@ -171,20 +200,17 @@ def _run_tusimple(args: argparse.Namespace) -> int:
                 for p, r in zip(preds, res.per_image, strict=True)
             ],
         )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(res.as_dict()))
+    elif args.format == "official":
+        print(_lane_py_line(res))
     else:
-        print(
-            _table(
-                [
-                    ["images", "accuracy", "FP", "FN", "F1 (paper)"],
-                    [res.images, res.accuracy, res.fp, res.fn, res.f1],
-                ]
-            )
-        )
+        pct = [f"{100 * v:.2f}" for v in (res.accuracy, res.fp, res.fn, res.f1)]
+        print(_table([["images", "accuracy %", "FP %", "FN %", "F1 % (paper)"], [res.images, *pct]]))
         print(
             f"lane counts (not the paper's F1): TP {res.lane_tp}  FP {res.lane_fp}  FN {res.lane_fn}  "
-            f"precision {res.lane_precision:.4f}  recall {res.lane_recall:.4f}  F1 {res.lane_f1:.4f}"
+            f"precision {100 * res.lane_precision:.2f} %  recall {100 * res.lane_recall:.2f} %  "
+            f"F1 {100 * res.lane_f1:.2f} %"
         )
     return 0
 
@@ -255,12 +281,14 @@ def _run_culane(args: argparse.Namespace) -> int:
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)
         _write_jsonl(args.per_image, recs)
-    if args.json:
+    if args.format == "json":
         print(json.dumps(res.as_dict()))
+    elif args.format == "official":
+        print("\n".join(_cpp_tool_text(c) for c in res.totals.values()), end="")
     else:
-        rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision", "recall", "F1"]]
+        rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision %", "recall %", "F1 %"]]
         for t, c in res.totals.items():
-            rows.append([f"{t:g}", c.tp, c.fp, c.fn, c.precision, c.recall, c.f1])
+            rows.append([f"{t:g}", c.tp, c.fp, c.fn, *(f"{100 * v:.2f}" for v in (c.precision, c.recall, c.f1))])
         print(f"{args.command} ({args.variant}), {res.images} images, {size[0]}x{size[1]}, width {args.width}")
         print(_table(rows))
     return 0
@@ -291,7 +319,7 @@ def _run_video(args: argparse.Namespace) -> int:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
         _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
-    if args.json:
+    if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
         print(f"video, {res.sequences} sequences, {res.frames} frames, width {args.width}")

@@ -26,8 +26,6 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.interpolate import splev, splprep
-from scipy.optimize import linear_sum_assignment
 
 __all__ = [
     "APOLLO_SIZE",
@@ -179,6 +177,8 @@ def _points_lanedet(lane: np.ndarray, n: int = LANEDET_SAMPLES) -> np.ndarray:
     """lanedet ``interp(points, n=5)`` then ``astype(np.int32)`` (truncation toward zero)."""
     x = [float(v) for v in lane[:, 0]]
     y = [float(v) for v in lane[:, 1]]
+    from scipy.interpolate import splev, splprep  # imported here: `stamlane-eval tusimple` never pays for scipy
+
     try:
         # Same call as lanedet (its t=n is ignored by splprep for task=0; kept for identical behaviour).
         tck, u = splprep([x, y], s=0, t=n, k=min(3, len(x) - 1))
@@ -389,6 +389,8 @@ def evaluate_image(
                 "lanedet variant: a prediction and an annotation both lie outside the image (IoU 0/0); "
                 "lanedet's linear_sum_assignment raises here"
             )
+        from scipy.optimize import linear_sum_assignment  # only the lanedet variant needs it
+
         rows, cols = linear_sum_assignment(1 - ious)
         pairs = list(zip(rows.tolist(), cols.tolist(), strict=True))
     matched_iou = np.zeros(n_pred)
