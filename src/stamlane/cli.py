@@ -36,6 +36,7 @@ TOOLS: dict[str, str] = {
     "demo": "stamlane.demo",
     "ablate": "stamlane.experiments.ablate",
     "stream": "stamlane.stream.cli",
+    "export": "stamlane.stream.export_cli",
 }
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
@@ -50,6 +51,7 @@ SUMMARIES: dict[str, str] = {
     "align": "estimate (and cache, or write out) the pre-alignment of a dataset",
     "show": "picture grid of clips with their targets, to check a dataset",
     "stream": "per-frame streaming inference on a video or a folder of frames",
+    "export": "a checkpoint to ONNX, with the parity against PyTorch printed",
     "ablate": "the paper's ablation tables over seeds",
 }
 """One line per command for ``stamlane --help``."""

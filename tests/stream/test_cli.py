@@ -129,3 +129,44 @@ def test_a_failed_run_keeps_the_previous_results(checkpoint: Path, frames_dir: P
     assert "not a readable torch checkpoint" in capsys.readouterr().err
     assert (out / "lanes.jsonl").read_bytes() == before
     assert sorted(p.name for p in out.iterdir()) == ["lanes.jsonl"]  # no temporary file left behind
+
+
+def test_export_writes_onnx_and_prints_the_parity(checkpoint: Path, tmp_path: Path, capsys) -> None:
+    from stamlane.cli import main as stamlane
+
+    out = tmp_path / "model.onnx"
+    assert (
+        stamlane(["export", "--ckpt_path", str(checkpoint), "--output", str(out), "--streaming", str(tmp_path / "s")])
+        == 0
+    )
+    said = capsys.readouterr().out
+    assert (
+        out.is_file()
+        and (tmp_path / "s" / "encoder.onnx").is_file()
+        and (tmp_path / "s" / "fuse_decode.onnx").is_file()
+    )
+    assert "T=2, 64x128 HxW, opset 17" in said
+    logits = float(said.split("max |logits| diff ")[1].split(",")[0])
+    assert logits < 1e-4  # onnxruntime reproduces the PyTorch model
+    assert not list(tmp_path.glob(".*tmp*"))  # no temporary file left
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--opset", "9"], "--opset must be in 16..21"),
+        (["--output", "{ckpt}"], "would overwrite or write into the input"),
+        (["--output", "{tmp}/model.txt"], "must end in .onnx"),
+    ],
+)
+def test_export_bad_input_is_one_line(checkpoint: Path, tmp_path: Path, capsys, extra: list[str], match: str) -> None:
+    from stamlane.cli import main as stamlane
+
+    extra = [a.format(ckpt=checkpoint, tmp=tmp_path) for a in extra]
+    assert stamlane(["export", "--ckpt_path", str(checkpoint), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert match in err and len(err.splitlines()) == 1
+    bad = tmp_path / "bad.ckpt"
+    bad.write_text("text")
+    assert stamlane(["export", "--ckpt_path", str(bad)]) == 2
+    assert "not a readable torch checkpoint" in capsys.readouterr().err
