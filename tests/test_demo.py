@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+import cv2
 import pytest
 import torch
 from stamlane_eval.tusimple import paper_f1
@@ -51,8 +52,10 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
             assert agg["f1_ci95"][0] <= agg["f1_mean"] + 1e-9 and agg["f1_ci95"][1] >= agg["f1_mean"] - 1e-9
     pairs = {(c["a"], c["b"], c["split"]) for c in summary["comparisons"]}
     assert pairs == {("stam4", "single", "test"), ("stam4", "single", "challenging")}
-    assert (out / "val_f1.png").stat().st_size > 1000
-    assert (out / "comparison.jpg").stat().st_size > 1000
+    plot = cv2.imread(str(out / "val_f1.png"))
+    assert plot.shape == (480, 720, 3) and plot.std() > 10  # 6x4 in at 120 dpi, not a blank page
+    grid = cv2.imread(str(out / "comparison.jpg"))  # 2 challenging key frames (rows) x 2 models (columns)
+    assert grid.shape == (2 * 144, 2 * 256, 3) and grid.std() > 10
     table = capsys.readouterr().out
     assert "1 frame (baseline)" in table and "challenging F1 % [95% CI]" in table and "stam4 - single" in table
 

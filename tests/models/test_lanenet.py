@@ -104,7 +104,8 @@ def test_bf16_autocast_and_channels_last() -> None:
             bf16 = model(clip)
     torch.testing.assert_close(channels_last[0], reference[0], atol=1e-4, rtol=1e-4)
     assert bf16[0].dtype == torch.bfloat16 and torch.isfinite(bf16[0].float()).all()
-    assert (bf16[0].float() - reference[0]).abs().max() < 0.25 * reference[0].abs().max()
+    for low, full in zip(bf16, reference):  # bf16 keeps 8 mantissa bits (unit roundoff 0.39 %); measured: 0.22 %
+        assert float((low.float() - full).norm() / full.norm()) < 0.01
     model.train()
     with torch.autocast("cpu", dtype=torch.bfloat16):
         logits, embedding = model(clip)
