@@ -108,6 +108,22 @@ def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: 
     assert main(["predict", *args, f"--source={video}"]) == 0
     assert len(list((out / "lines").iterdir())) == 4 and len(list((out / "overlays").iterdir())) == 4
 
+    # predict from the checkpoint alone: the run's config travels inside it
+    alone = tmp_path / "alone"
+    assert main(["predict", f"--ckpt_path={ckpt}", "--trainer.logger=false", f"--predictions.output_dir={alone}"]) == 0
+
+    def lanes(path: Path) -> list:
+        return [(r["raw_file"], r["lanes"]) for r in map(json.loads, path.read_text().splitlines())]
+
+    assert lanes(alone / "predictions.json") == lanes(pred)  # the same model, the same lanes
+    lone = tmp_path / "lone.ckpt"  # a checkpoint without a config, far from its run folder
+    content = torch.load(ckpt, weights_only=True)
+    del content["stamlane_config"]
+    torch.save(content, lone)
+    capsys.readouterr()
+    assert main(["predict", f"--ckpt_path={lone}"]) == 2
+    assert "carries no config and none is beside it: give --config" in capsys.readouterr().err
+
     # the checkpoint alone rebuilds the network (only stamlane's classes and torch.optim are built from it)
     from stamlane.checkpoints import load_module
 

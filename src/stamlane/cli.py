@@ -23,6 +23,10 @@ from __future__ import annotations
 
 import importlib
 import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
@@ -105,6 +109,35 @@ def _stream_args(rest: list[str]) -> list[str]:
     return rest
 
 
+@contextmanager
+def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]]:
+    """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the config stored in the
+    checkpoint (written to a temporary file while the command runs), else the run's ``config.yaml`` beside
+    ``checkpoints/``. Yields the arguments to put in front (none when a config is given or nothing is needed)."""
+    given = any(a == "--config" or a.startswith("--config=") for a in rest)
+    ckpt = next((a.split("=", 1)[1] for a in rest if a.startswith("--ckpt_path=")), None)
+    if ckpt is None and "--ckpt_path" in rest[:-1]:
+        ckpt = rest[rest.index("--ckpt_path") + 1]
+    if command == "fit" or given or ckpt in (None, "last", "best"):
+        yield []
+        return
+    from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.lightning_cli import CONFIG_KEY
+
+    config = read_checkpoint(ckpt).get(CONFIG_KEY)
+    if isinstance(config, str):
+        with tempfile.TemporaryDirectory(prefix="stamlane-config-") as folder:
+            path = Path(folder) / "config.yaml"
+            path.write_text(config)
+            yield ["--config", str(path)]
+        return
+    beside = Path(ckpt).resolve().parent.parent / "config.yaml"
+    if beside.is_file():
+        yield ["--config", str(beside)]
+        return
+    raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -125,8 +158,9 @@ def main(argv: list[str] | None = None) -> int:
         from stamlane.data.labels import DataError
 
         try:
-            # args=None when they are sys.argv's own (LightningCLI warns when given both)
-            build_cli(None if argv == sys.argv[1:] else [command, *rest])
+            with _config_from_checkpoint(command, rest) as extra:
+                # args=None when they are sys.argv's own (LightningCLI warns when given both)
+                build_cli(None if argv == sys.argv[1:] and not extra else [command, *extra, *rest])
         except (DataError, FileNotFoundError, ValueError) as err:  # bad data, checkpoint or value: one line, status 2
             print(f"stamlane {command}: {err}", file=sys.stderr)
             return 2

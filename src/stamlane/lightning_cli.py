@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from lightning.pytorch import Trainer
+from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 from stamlane_eval.integrations.lightning import LaneEvalCallback
@@ -18,7 +18,21 @@ from stamlane.module import StamLaneModule
 from stamlane.predict import FramesDataModule, LanePredictionWriter
 from stamlane.resume import ExactResume
 
-__all__ = ["StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
+
+CONFIG_KEY = "stamlane_config"
+"""Checkpoint entry holding the YAML config of the run that wrote it."""
+
+
+class ConfigInCheckpoint(Callback):
+    """Store the run's YAML config in every checkpoint (``CONFIG_KEY``), so that ``stamlane predict``,
+    ``validate`` and ``test`` work from a checkpoint alone."""
+
+    def __init__(self, config: str) -> None:
+        self.config = config
+
+    def on_save_checkpoint(self, trainer: Trainer, pl_module: Any, checkpoint: dict[str, Any]) -> None:
+        checkpoint[CONFIG_KEY] = self.config
 
 
 def _step_of(path: str) -> int | None:
@@ -64,6 +78,9 @@ class StamLaneCLI(LightningCLI):
         trainer = super().instantiate_trainer(**kwargs)
         trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
         trainer.callbacks.append(FinalCheckpoint())  # last.ckpt = the weights training ended with
+        if self.subcommand == "fit":  # the run's config travels inside its checkpoints (predict from one alone)
+            config = self._parser(self.subcommand).dump(self.config[self.subcommand], skip_none=False)
+            trainer.callbacks.append(ConfigInCheckpoint(config))
         return trainer
 
     def before_fit(self) -> None:
