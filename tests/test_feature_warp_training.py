@@ -225,7 +225,7 @@ def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path) -> None:
     fresh.setup("fit")
     for (name, a), b in zip(fresh.state_dict().items(), trained.state_dict().values()):
         assert torch.equal(a, b), name
-    with pytest.raises(FileNotFoundError, match=r"missing\.ckpt"):
+    with pytest.raises(ValueError, match=r"init_weights: checkpoint .*missing\.ckpt does not exist"):
         _module(init_weights=str(tmp_path / "missing.ckpt")).setup("fit")
     other = _module(fusion=SimpleAdd, init_weights=str(path))  # no STAM parameters: does not fit
     with pytest.raises(ValueError, match="does not fit this network"):
