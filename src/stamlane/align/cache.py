@@ -12,9 +12,12 @@ a dataset root that is itself a clip folder is cached as ``<cache_dir>/__root__.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -31,6 +34,7 @@ __all__ = [
     "find_clip_dirs",
     "list_frames",
     "load_alignment",
+    "merge_cache",
     "read_cache",
     "write_cache",
 ]
@@ -126,6 +130,31 @@ def write_cache(path: str | os.PathLike, data: CacheDict) -> None:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+@contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """An exclusive lock on ``<path>.lock`` (POSIX ``flock``) while the block runs: one writer at a time."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def merge_cache(path: str | os.PathLike, entries: CacheDict) -> CacheDict:
+    """Add ``entries`` (``{key frame: {history frame: alignment json}}``) to a clip's cache file and return the
+    merged content. The read-merge-write runs under a file lock, so two ``stamlane align`` runs on one cache
+    keep each other's entries (a plain read-then-write lost those the other run wrote in between)."""
+    path = Path(path)
+    with _locked(path):
+        data = read_cache(path)
+        for key, hist in entries.items():
+            data.setdefault(key, {}).update(hist)
+        write_cache(path, data)
+    return data
 
 
 @lru_cache(maxsize=64)

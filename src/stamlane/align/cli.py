@@ -33,8 +33,8 @@ from stamlane.align.cache import (
     cache_file,
     find_clip_dirs,
     list_frames,
+    merge_cache,
     read_cache,
-    write_cache,
 )
 from stamlane.align.export import MANIFEST_NAME, mirror, missing_outputs, write_aligned_frames
 from stamlane.align.homography import DEFAULT_HORIZON_FRACTION, AlignConfig, Alignment, FramePrep, estimate_prepared
@@ -148,6 +148,7 @@ def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
     cfg = AlignConfig()
     clip = _Clip(frames, job, cfg)
     n_pairs = n_ok = 0
+    new: dict = {}
     if not covered:
         for k, hist in pairs.items():
             seq = [*hist, k]  # oldest first, key last
@@ -161,12 +162,12 @@ def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
                 cfg,
                 job.strategy,
             )
-            entry = existing.setdefault(frames[k].name, {})
+            entry = new.setdefault(frames[k].name, {})
             for i, alignment in zip(hist, alignments, strict=True):
                 entry[frames[i].name] = alignment_to_json(alignment)
                 n_pairs += 1
                 n_ok += bool(alignment.ok)
-        write_cache(path, existing)
+        existing = merge_cache(path, new)  # under a lock: a concurrent run's entries are kept
         if job.visualize_dir is not None:
             _visualize(clip, clip_dir, pairs, job)
     written = unaligned = 0
