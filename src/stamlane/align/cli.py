@@ -39,6 +39,7 @@ from stamlane.align.cache import (
 from stamlane.align.export import MANIFEST_NAME, mirror, missing_outputs, write_aligned_frames
 from stamlane.align.homography import DEFAULT_HORIZON_FRACTION, AlignConfig, Alignment, FramePrep, estimate_prepared
 from stamlane.align.warp import alignments_to_key
+from stamlane.imageio import read_image
 
 __all__ = ["AlignJob", "ClipResult", "main", "process_clip"]
 
@@ -71,6 +72,8 @@ class ClipResult(NamedTuple):
     """files written under ``--write-frames`` (key frame copies included)."""
     unaligned: int = 0
     """of which history frames written UNWARPED because their alignment failed."""
+    unreadable: tuple[str, ...] = ()
+    """frames that could not be read (missing, truncated, not an image): their pairs are cached as failed."""
 
 
 def horizon_for(horizon: float, height: int) -> int:
@@ -107,7 +110,7 @@ class _Clip:
 
     def image(self, i: int) -> np.ndarray | None:
         if i not in self.images:
-            self.images[i] = cv2.imread(str(self.frames[i]), cv2.IMREAD_COLOR)
+            self.images[i] = read_image(self.frames[i])  # None: missing, truncated or not an image
         return self.images[i]
 
     def estimate(self, i: int, k: int) -> Alignment:
@@ -173,7 +176,8 @@ def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
     written = unaligned = 0
     if out_dir is not None:
         written, unaligned = write_aligned_frames(out_dir, frames, pairs, existing, clip.image)
-    return ClipResult("skipped" if covered else "done", n_pairs, n_ok, written, unaligned)
+    unreadable = tuple(str(clip.frames[i]) for i, image in sorted(clip.images.items()) if image is None)
+    return ClipResult("skipped" if covered else "done", n_pairs, n_ok, written, unaligned, unreadable)
 
 
 def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: AlignJob) -> None:
@@ -276,6 +280,7 @@ def main(argv: list[str]) -> int:
     tasks = [(clip, job) for clip in clips]
     bar = tqdm(total=len(tasks), desc="align", unit="clip", disable=args.quiet)
     done = skipped = pairs = ok = written = unaligned = 0
+    unreadable: tuple[str, ...] = ()
     if args.workers == 1:
         results = map(_run_one, tasks)
         pool = None
@@ -288,6 +293,7 @@ def main(argv: list[str]) -> int:
             skipped += result.status == "skipped"
             pairs, ok = pairs + result.pairs, ok + result.ok
             written, unaligned = written + result.written, unaligned + result.unaligned
+            unreadable += result.unreadable
             bar.update(1)
     except OSError as err:  # e.g. a full disk under --write-frames
         if pool is not None:
@@ -306,6 +312,13 @@ def main(argv: list[str]) -> int:
             f"wrote {written} frames to {args.write_frames}; {unaligned} history frames written UNWARPED "
             f"(alignment failed: ok=false in each folder's {MANIFEST_NAME})"
         )
+    if unreadable:  # not a success: the data has frames nobody can use (their pairs are cached as failed)
+        more = f" and {len(unreadable) - 1} more" if len(unreadable) > 1 else ""
+        print(
+            f"stamlane align: cannot read frame {unreadable[0]}{more} (missing, truncated or not an image)",
+            file=sys.stderr,
+        )
+        return 2
     return 0
 
 

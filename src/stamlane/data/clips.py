@@ -43,6 +43,7 @@ from stamlane.data.labels import (
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
 from stamlane.types import NET_HOMOGRAPHIES
+from stamlane.imageio import read_image
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -241,9 +242,9 @@ class ClipDataset(Dataset):
         frames = []
         for p in entry.frame_paths:
             path = self.root / p
-            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            img = read_image(path)
             if img is None:
-                raise DataError(f"{entry.label_file}: cannot read image {path} (missing or not an image)")
+                raise DataError(f"{entry.label_file}: cannot read image {path} (missing, truncated or not an image)")
             if frames and img.shape != frames[0].shape:
                 raise DataError(
                     f"{entry.label_file}: {path} is {img.shape[1]}x{img.shape[0]}, other frames "

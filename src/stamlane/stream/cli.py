@@ -32,6 +32,8 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, check_output, parse_or_status
 
+from stamlane.imageio import read_image
+
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
 
@@ -71,7 +73,7 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
 
         def read_images() -> Iterator[np.ndarray]:
             for path in paths:
-                image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+                image = read_image(path)
                 if image is None:
                     raise StreamError(f"cannot read image {path}")
                 yield image
