@@ -2,7 +2,7 @@
 
 Speed: clips rendered in memory (texture once per clip, one warp per frame, vehicles, shadows, labels)
 and, separately, written as JPEG with labels and homographies, in frames per second on one process.
-Content per split (normal settings and ``SynthConfig.challenging``): the fraction of labelled key-frame
+Content per split (normal settings and each challenging factor, ``SynthConfig.with_factor``): the fraction of labelled key-frame
 lane points hidden by vehicles, the fraction of those visible in at least one ground-aligned history
 frame (T = 4 at stride 1, 2 and 3), and the mean lane shift between the oldest history frame and the key
 frame without alignment (what pre-alignment repairs). ``--set`` overrides ``SynthConfig`` fields (e.g.
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane.data.synthetic import SynthConfig, clip_statistics, generate_clip, write_clip
+from stamlane.data.synthetic import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synth_align import parse_overrides
@@ -52,7 +52,7 @@ def main() -> None:
     results: dict[str, dict] = {}
     splits = (
         ("normal", SynthConfig(width=w, height=h, **overrides)),
-        ("challenging", SynthConfig.challenging(width=w, height=h, **overrides)),
+        *((name, SynthConfig.with_factor(name, width=w, height=h, **overrides)) for name in FACTORS),
     )
     for code, (name, cfg) in enumerate(splits):
         start = time.perf_counter()

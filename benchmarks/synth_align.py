@@ -1,6 +1,6 @@
 """On-the-fly pre-alignment on the synthetic clips: how often ``estimate_clip`` recovers the true homography.
 
-For each of ``--clips`` default synthetic clips (normal split settings, or ``--challenging``), the frames
+For each of ``--clips`` default synthetic clips (normal split settings, or a challenging factor's with ``--factor``), the frames
 go through a JPEG round trip (as the data loader reads them), then ``stamlane.align.estimate_clip`` runs on
 windows of T = 4 frames at the given strides (key frames ``--keys``, 1-based frame numbers), with the
 ``chain`` and ``direct`` strategies. Each history frame 1-3 steps back is compared with the generator's
@@ -29,7 +29,7 @@ import numpy as np
 
 from stamlane.align import AlignConfig, estimate_clip
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.data.synthetic import SynthConfig, generate_clip
+from stamlane.data.synthetic import FACTORS, SynthConfig, generate_clip
 
 
 def corner_error(estimate: np.ndarray, truth: np.ndarray, shape: tuple[int, int], horizon_row: int) -> float:
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--clips", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--challenging", action="store_true", help="the challenging split's settings")
+    p.add_argument("--factor", choices=tuple(FACTORS), default=None, help="a challenging factor's settings")
     p.add_argument("--strides", type=int, nargs="+", default=[1])
     p.add_argument("--keys", type=int, nargs="+", default=[20], help="key frames (1-based) of the windows")
     p.add_argument("--strategies", nargs="+", default=["chain", "direct"])
@@ -96,8 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     align_cfg = AlignConfig(
         **{k: type(getattr(AlignConfig, k))(float(v)) for k, v in (item.split("=") for item in args.align_set)}
     )
-    cfg = SynthConfig.challenging(**overrides) if args.challenging else SynthConfig(**overrides)
-    code = 3 if args.challenging else 0
+    cfg = SynthConfig.with_factor(args.factor, **overrides) if args.factor else SynthConfig(**overrides)
+    code = 3 if args.factor else 0
     row = default_horizon_row(cfg.height)
     shape = (cfg.height, cfg.width)
     per: dict = collections.defaultdict(lambda: ([], []))

@@ -12,6 +12,7 @@ import torch
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
+from stamlane.data.synthetic import FACTORS
 
 torch.set_num_threads(1)
 
@@ -32,32 +33,45 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
     for entry in models.values():
         (run,) = entry["runs"]
         assert Path(run["last_ckpt"]).is_file()
-        for split in ("test", "challenging"):
+        for split, images in (("test", 2), ("challenging", 2 * len(FACTORS))):
             scores = run[split]
-            assert scores["images"] == 2
+            assert scores["images"] == images
             pred = out / "predictions" / f"{entry['name']}-s0" / split
-            assert len((pred / "predictions.json").read_text().splitlines()) == 2
-            assert len(list((pred / "overlays").rglob("*.jpg"))) == 2
+            assert len((pred / "predictions.json").read_text().splitlines()) == images
+            assert len(list((pred / "overlays").rglob("*.jpg"))) == min(images, 12)  # --max-overlays 12
             per_image = [json.loads(line) for line in (pred / "per_image.jsonl").read_text().splitlines()]
-            assert len(per_image) == 2 and {r["clip"] for r in per_image} == {
-                f"clips/{split}-0000",
-                f"clips/{split}-0001",
-            }
+            assert [r["clip"] for r in per_image] == [f"clips/{split}-{i:04d}" for i in range(images)]
             # the run's F1 is the paper's F1 of the per-image rates the file holds
-            fp = sum(r["fp"] for r in per_image) / 2
-            fn = sum(r["fn"] for r in per_image) / 2
+            fp = sum(r["fp"] for r in per_image) / images
+            fn = sum(r["fn"] for r in per_image) / images
             assert scores["f1"] == pytest.approx(paper_f1(fp, fn))
             agg = entry[split]
             assert agg["f1_mean"] == pytest.approx(scores["f1"]) and agg["f1_std"] is None
             assert agg["f1_ci95"][0] <= agg["f1_mean"] + 1e-9 and agg["f1_ci95"][1] >= agg["f1_mean"] - 1e-9
+        # per factor: the F1 of the factor's two clips, from the same per-image rates
+        per_image = [
+            json.loads(line)
+            for line in (out / "predictions" / f"{entry['name']}-s0" / "challenging" / "per_image.jsonl")
+            .read_text()
+            .splitlines()
+        ]
+        assert list(entry["factors"]) == list(FACTORS)
+        for k, factor in enumerate(FACTORS):
+            rows = [per_image[k], per_image[k + len(FACTORS)]]  # clip i has factor i % len(FACTORS)
+            fp, fn = (sum(r[key] for r in rows) / 2 for key in ("fp", "fn"))
+            found = entry["factors"][factor]
+            assert found["images"] == 2 and found["f1_mean"] == pytest.approx(paper_f1(fp, fn))
+            assert found["f1_ci95"] is not None
     pairs = {(c["a"], c["b"], c["split"]) for c in summary["comparisons"]}
-    assert pairs == {("stam4", "single", "test"), ("stam4", "single", "challenging")}
+    views = ["test", "challenging", *(f"challenging:{f}" for f in FACTORS)]
+    assert pairs == {("stam4", "single", view) for view in views}
     plot = cv2.imread(str(out / "val_f1.png"))
     assert plot.shape == (480, 720, 3) and plot.std() > 10  # 6x4 in at 120 dpi, not a blank page
     grid = cv2.imread(str(out / "comparison.jpg"))  # 2 challenging key frames (rows) x 2 models (columns)
-    assert grid.shape == (2 * 144, 2 * 256, 3) and grid.std() > 10
+    assert grid.shape == (3 * 144, 2 * 256, 3) and grid.std() > 10
     table = capsys.readouterr().out
     assert "1 frame (baseline)" in table and "challenging F1 % [95% CI]" in table and "stam4 - single" in table
+    assert "challenging split per factor" in table and all(f in table for f in FACTORS)
 
 
 @pytest.mark.parametrize(
@@ -100,3 +114,20 @@ def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, ca
     err = capsys.readouterr().err.strip()
     assert "was made with other settings" in err and len(err.splitlines()) == 1
     assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first
+
+
+def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    first = json.loads((out / "single-s0" / "done.json").read_text())
+    labels = out / "quick_data" / "challenging.json"
+    kept = labels.read_text().splitlines()[: len(FACTORS)]  # a newer generator wrote another split
+    labels.write_text("".join(line + "\n" for line in kept))
+    capsys.readouterr()
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "single-s0: the challenging labels changed, scoring them again" in printed
+    assert "test labels changed" not in printed
+    again = json.loads((out / "single-s0" / "done.json").read_text())
+    assert again["challenging"]["images"] == len(FACTORS) and again["test"] == first["test"]
+    assert again["labels"]["test"] == first["labels"]["test"] != again["labels"]["challenging"]

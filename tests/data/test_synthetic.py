@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from stamlane.data.synthetic import SynthConfig, clip_statistics, generate_clip, generate_dataset
+from stamlane.data.synth_effects import Windscreen
+from stamlane.data.synthetic import FACTORS, SynthConfig, clip_statistics, generate_clip, generate_dataset
 
 GEOM = SynthConfig(width=320, height=180, num_frames=6, occluder_prob=0.0)
 
@@ -103,17 +104,66 @@ def test_dataset_layout_and_determinism(tmp_path: Path, synthetic_root: Path):
     assert (other / "clips/train-0000/8.jpg").read_bytes() != (again / "clips/train-0000/8.jpg").read_bytes()
 
 
-def test_challenging_split_hides_more_lane_points():
+def test_traffic_factors_hide_more_lane_points_and_only_moving_traffic_is_revealed():
     cfg = SynthConfig(width=160, height=96, num_frames=6)
-    hard = SynthConfig.challenging(width=160, height=96, num_frames=6)
-    normal = [clip_statistics(generate_clip(cfg, np.random.default_rng([7, i]))) for i in range(6)]
-    heavy = [clip_statistics(generate_clip(hard, np.random.default_rng([7, i]))) for i in range(6)]
 
-    def hidden(stats):
-        return sum(s["hidden"] for s in stats) / max(sum(s["key_points"] for s in stats), 1)
+    def stats(config):
+        return [clip_statistics(generate_clip(config, np.random.default_rng([7, i]))) for i in range(6)]
 
-    assert hidden(heavy) > hidden(normal)
-    assert sum(s["revealed"] for s in normal + heavy) > 0  # some hidden paint is visible in an aligned history frame
+    def fraction(found, num, den):
+        return sum(s[num] for s in found) / max(sum(s[den] for s in found), 1)
+
+    normal = stats(cfg)
+    standing = stats(SynthConfig.with_factor("traffic_standing", width=160, height=96, num_frames=6))
+    oncoming = stats(SynthConfig.with_factor("traffic_oncoming", width=160, height=96, num_frames=6))
+    assert fraction(standing, "hidden", "key_points") > fraction(normal, "hidden", "key_points")
+    # a standing vehicle hides the same road in every frame; one driving towards the camera uncovers it
+    assert fraction(oncoming, "revealed", "hidden") > fraction(standing, "revealed", "hidden")
+
+
+def test_every_factor_is_a_labelled_split_of_the_challenging_clips(tmp_path: Path):
+    from tests.data.conftest import TINY
+
+    root = tmp_path / "set"
+    info = generate_dataset(
+        root, train=0, val=0, test=0, challenging=len(FACTORS) + 1, seed=1, config=TINY, progress=False
+    )
+    names = list(FACTORS)
+    assert info["clip_factors"] == {f"challenging-{i:04d}": names[i % len(names)] for i in range(len(names) + 1)}
+    every = [json.loads(line)["raw_file"] for line in (root / "challenging.json").read_text().splitlines()]
+    parts = []
+    for name in names:
+        files = [json.loads(line)["raw_file"] for line in (root / f"challenging-{name}.json").read_text().splitlines()]
+        assert files and all(info["clip_factors"][f.split("/")[1]] == name for f in files)
+        parts += files
+    assert sorted(parts) == sorted(every)
+    assert info["factors"]["night"]["overrides"] == {"night": True}
+
+
+def test_windscreen_dirt_stays_on_the_same_pixels_and_the_wiper_moves():
+    rng = np.random.default_rng(3)
+    screen = Windscreen.sample(rng, 160, 96)
+    masks = [screen.apply(np.full((96, 160, 3), 128, np.uint8), i) for i in range(8)]
+    common = np.logical_and.reduce([m > 0 for m in masks])
+    assert common.sum() > 20  # the dirt hides the same pixels in every frame
+    assert any((masks[0] != m).any() for m in masks[1:])  # the wiper does not
+    with pytest.raises(ValueError, match="windscreen made for"):
+        screen.apply(np.zeros((10, 10, 3), np.uint8), 0)
+
+
+def test_glare_and_night_change_the_frame_and_clean_clips_do_not_draw_for_them():
+    base = SynthConfig(width=160, height=96, num_frames=4)
+    clean = generate_clip(base, np.random.default_rng(5))
+    for factor in ("glare", "night"):
+        cfg = SynthConfig.with_factor(factor, width=160, height=96, num_frames=4)
+        clip = generate_clip(cfg, np.random.default_rng(5))
+        assert clip.labels == clean.labels  # the same road and drive: the effect is on the image only
+        diff = [float(np.abs(a.astype(int) - b.astype(int)).mean()) for a, b in zip(clip.frames, clean.frames)]
+        assert max(diff) > 10, (factor, diff)
+    dark = generate_clip(SynthConfig.with_factor("night", width=160, height=96, num_frames=4), np.random.default_rng(5))
+    assert np.mean(dark.frames[-1]) < 0.6 * np.mean(clean.frames[-1])
+    with pytest.raises(ValueError, match="factor must be one of"):
+        SynthConfig.with_factor("fog")
 
 
 def test_bad_settings_are_refused():

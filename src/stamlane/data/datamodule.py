@@ -103,7 +103,7 @@ class ClipDataModule(LightningDataModule):
         synth_train: int = 120,
         synth_val: int = 20,
         synth_test: int = 100,
-        synth_challenging: int = 100,
+        synth_challenging: int = 128,
         synth_train_key_step: int = TRAIN_KEY_STEP,
         synth_eval_key_step: int = EVAL_KEY_STEP,
         synth_seed: int = 0,

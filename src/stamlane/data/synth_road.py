@@ -115,8 +115,16 @@ def sample_road(
     curved_prob: float = 0.5,
     max_kappa: float = 1 / 350,
     worn_prob: float = 0.4,
+    worn_stretches: tuple[int, int] = (1, 3),
+    worn_strength: tuple[float, float] = (0.4, 0.9),
+    dash_gap: tuple[float, float] = (4.0, 8.0),
 ) -> tuple[Road, int]:
     """Draw a road of 2-5 lane marks.
+
+    Args:
+        worn_prob: chance of a mark to be worn in ``worn_stretches`` (inclusive range) stretches of 5-30 m
+            whose paint is ``worn_strength`` gone.
+        dash_gap: range of the metres between dashes (the dashes are 2-4 m).
 
     Returns:
         the road and the index of the ego lane (0 = between marks 0 and 1).
@@ -131,16 +139,16 @@ def sample_road(
     kappa = float(rng.uniform(-max_kappa, max_kappa)) if curved else 0.0
     dkappa = float(rng.uniform(-1, 1) * max_kappa / 200.0) if curved else 0.0
     marks = []
-    dash, gap = float(rng.uniform(2.0, 4.0)), float(rng.uniform(4.0, 8.0))
+    dash, gap = float(rng.uniform(2.0, 4.0)), float(rng.uniform(*dash_gap))
     for i, off in enumerate(offsets):
         outer = i in (0, n_marks - 1)
         dashed = (not outer) and rng.random() < 0.8
         colour = YELLOW if (i == 0 and rng.random() < 0.3) else WHITE
         worn = []
         if rng.random() < worn_prob:
-            for _ in range(int(rng.integers(1, 4))):
+            for _ in range(int(rng.integers(worn_stretches[0], worn_stretches[1] + 1))):
                 z0 = float(rng.uniform(*z_range))
-                worn.append((z0, z0 + float(rng.uniform(5, 30)), float(rng.uniform(0.4, 0.9))))
+                worn.append((z0, z0 + float(rng.uniform(5, 30)), float(rng.uniform(*worn_strength))))
         marks.append(
             LaneMark(
                 offset=float(off),

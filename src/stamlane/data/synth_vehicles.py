@@ -75,6 +75,7 @@ def sample_vehicles(
     truck_prob: float = 0.2,
     oncoming_prob: float = 0.4,
     ahead: tuple[float, float] = (3.0, 30.0),
+    speed_ratio: tuple[float, float] = (0.35, 1.25),
 ) -> list[Vehicle]:
     """Draw ``count`` vehicles spread over the lanes, near the camera's path.
 
@@ -82,6 +83,8 @@ def sample_vehicles(
         ego_track: the camera's ``(t, x, z)`` per frame, (T, 3); no vehicle comes within 5 m ahead of it
             (or beside it) in its own lane, and vehicles do not overlap at ``t = 0``.
         ahead: range (metres) of a vehicle's distance ahead of the camera's final position at the key frame.
+        speed_ratio: range of a vehicle's speed on the road as a multiple of ``ego_speed`` (negative: towards
+            the camera); oncoming lanes (``oncoming_prob``) override it.
     """
     offsets = np.array([m.offset for m in road.marks])
     lane_centres = (offsets[:-1] + offsets[1:]) / 2.0
@@ -97,7 +100,7 @@ def sample_vehicles(
         width, length, height = (
             (2.5, float(rng.uniform(8, 12)), 3.4) if truck else (1.8, 4.5, float(rng.uniform(1.4, 1.7)))
         )
-        speed = ego_speed * float(rng.uniform(0.35, 1.25))
+        speed = ego_speed * float(rng.uniform(*speed_ratio))
         if oncoming and lane_centres[lane] < ego_x - 0.5 * road.lane_width:
             speed = -float(rng.uniform(10, 25))
         # where it is when the key frame is taken: ``ahead`` metres ahead of the ego's final position

@@ -40,15 +40,27 @@ import numpy as np
 from tqdm import tqdm
 
 from stamlane.data.synth_camera import Camera, Pose
+from stamlane.data.synth_effects import NightLight, Windscreen, glare, night
 from stamlane.data.synth_render import GrainLayer, GroundRenderer
 from stamlane.data.synth_road import Road, render_texture, sample_road
 from stamlane.data.synth_vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
-__all__ = ["SPLITS", "SynthClip", "SynthConfig", "generate_clip", "generate_dataset", "key_frames", "write_clip"]
+__all__ = [
+    "FACTORS",
+    "SPLITS",
+    "Factor",
+    "SynthClip",
+    "SynthConfig",
+    "generate_clip",
+    "generate_dataset",
+    "key_frames",
+    "write_clip",
+]
 
 SPLITS = ("train", "val", "test", "challenging")
-FORMAT_VERSION = 3
-"""3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
+FORMAT_VERSION = 4
+"""4: the challenging split is made of labelled factors (`FACTORS`, one per clip; train, val and test are format
+3's, byte for byte); 3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
 prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
 TRAIN_KEY_STEP = 1
 """Default key frames of the train split: every frame from ``FIRST_KEY`` on (13 of a 20-frame clip)."""
@@ -61,6 +73,72 @@ FAR_M = 120.0
 """Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
 HAZE_PX = 0.04
 """Height of the haze band under the horizon, as a fraction of the image height."""
+
+
+@dataclass(frozen=True)
+class Factor:
+    """One challenging factor: what it does to the clean settings and what history frames can do about it."""
+
+    description: str
+    overrides: dict[str, object]
+    geometry: str
+    """What an aligned history frame shows where the key frame cannot see the paint, and an unaligned one."""
+
+
+_TRAFFIC = {
+    "occluder_prob": 1.0,
+    "vehicles": (4, 8),
+    "vehicle_ahead": (3.0, 30.0),
+    "truck_prob": 0.35,
+    "oncoming_prob": 0.0,
+    "vehicle_lane_change_prob": 0.0,
+}
+FACTORS: dict[str, Factor] = {
+    "traffic_standing": Factor(
+        "4-8 vehicles standing on the road (relative speed -1x the camera's)",
+        _TRAFFIC | {"vehicle_speed": (0.0, 0.05)},
+        "a standing vehicle hides the same road in every frame: aligned history cannot reveal it",
+    ),
+    "traffic_same_speed": Factor(
+        "4-8 vehicles at the camera's speed (relative speed ~0)",
+        _TRAFFIC | {"vehicle_speed": (0.9, 1.1)},
+        "the vehicle moves with the camera, so the road it hides now lay in front of it earlier: aligned "
+        "history reveals up to the camera's travel (~3 m in 3 frames)",
+    ),
+    "traffic_oncoming": Factor(
+        "4-8 vehicles driving towards the camera (relative speed ~2x the camera's)",
+        _TRAFFIC | {"vehicle_speed": (-1.1, -0.9)},
+        "the vehicle moves fast over the road: aligned history shows the road it hides now unoccluded",
+    ),
+    "windscreen": Factor(
+        "dirt and drops on the windscreen and a sweeping wiper (camera-fixed)",
+        {"windscreen": True},
+        "aligned history shows the road behind the dirt at other pixels; unaligned history shows the dirt again",
+    ),
+    "glare": Factor(
+        "frames spoilt one at a time by overexposure, a sun flare or motion blur (60 % of the frames)",
+        {"glare_prob": 0.6},
+        "a clean history frame shows the same paint: aligned it lands on the key frame's paint",
+    ),
+    "shadow": Factor(
+        "8-14 deep static shadows on the road",
+        {"static_shadows": (8, 14), "shadow_depth": 0.8},
+        "a static shadow lies on the road: aligned history shows it at the same place, no better lit",
+    ),
+    "worn_dashed": Factor(
+        "worn paint (3-7 stretches of 5-30 m per mark, 70-100 % gone) and dashes with 10-16 m gaps",
+        {"worn_prob": 1.0, "worn_stretches": (3, 7), "worn_strength": (0.7, 1.0), "dash_gap": (10.0, 16.0)},
+        "missing paint is missing on the road: aligned history cannot fill a gap (unaligned history slides "
+        "dashes into it, at the wrong place when the camera turns)",
+    ),
+    "night": Factor(
+        "night: headlights light the near road, the far road is dark and noisy",
+        {"night": True},
+        "every frame is as dark; aligned frames average the sensor noise away on the static paint",
+    ),
+}
+"""The factors of the challenging split: its clip ``i`` has factor ``i % len(FACTORS)`` (in this order) on top of
+the clean settings, one factor per clip; ``challenging-<factor>.json`` holds each factor's key frames."""
 
 
 @dataclass(frozen=True)
@@ -96,10 +174,24 @@ class SynthConfig:
     vehicle_lane_change_prob: float = 0.35
     vehicle_ahead: tuple[float, float] = (8.0, 60.0)
     """Distance (metres) of a vehicle's rear ahead of the camera at the key frame."""
+    vehicle_speed: tuple[float, float] = (0.35, 1.25)
+    """A vehicle's speed on the road as a multiple of the camera's (negative: towards it; 0: standing)."""
     static_shadows: tuple[int, int] = (0, 5)
     shadow_depth: float = 0.5
     moving_shadow_depth: float = 0.6
     worn_prob: float = 0.4
+    worn_stretches: tuple[int, int] = (1, 3)
+    """Worn stretches (5-30 m each) of a mark that is worn."""
+    worn_strength: tuple[float, float] = (0.4, 0.9)
+    """How much of the paint a worn stretch has lost (1: all)."""
+    dash_gap: tuple[float, float] = (4.0, 8.0)
+    """Metres between two dashes of a dashed mark (the dashes are 2-4 m)."""
+    windscreen: bool = False
+    """Dirt and drops on the windscreen and a sweeping wiper (camera-fixed occluders, ``synth_effects``)."""
+    glare_prob: float = 0.0
+    """Chance of each frame to be spoilt by overexposure, a sun flare or motion blur (``synth_effects.glare``)."""
+    night: bool = False
+    """Night: headlights light the near road, the rest is dark and noisy (``synth_effects.night``)."""
     label_range: float = 80.0
     h_step: int = 10
     jpeg_quality: int = 92
@@ -111,26 +203,19 @@ class SynthConfig:
     """Average the texture along the road as far as one image row spans (no far-field aliasing)."""
 
     @classmethod
-    def challenging(cls, **overrides: object) -> SynthConfig:
-        """Heavy occlusion and shadow (the paper's Table 6 subset): more vehicles and trucks, darker shadows."""
-        base = cls(
-            occluder_prob=1.0,
-            vehicles=(4, 8),
-            truck_prob=0.35,
-            oncoming_prob=0.9,
-            vehicle_lane_change_prob=0.5,
-            vehicle_ahead=(3.0, 30.0),
-            static_shadows=(4, 10),
-            shadow_depth=0.7,
-            moving_shadow_depth=0.8,
-        )
-        return replace(base, **overrides)
+    def with_factor(cls, factor: str, **overrides: object) -> SynthConfig:
+        """The clean settings (with ``overrides``) plus one challenging factor of `FACTORS`."""
+        if factor not in FACTORS:
+            raise ValueError(f"factor must be one of {tuple(FACTORS)}, got {factor!r}")
+        return replace(cls(**overrides), **FACTORS[factor].overrides)
 
     def __post_init__(self) -> None:
         if self.width < 64 or self.height < 48:
             raise ValueError(f"frame size must be at least 64x48, got {self.width}x{self.height}")
         if self.num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
+        if not 0.0 <= self.glare_prob <= 1.0:
+            raise ValueError(f"glare_prob must be in [0, 1], got {self.glare_prob}")
 
     @property
     def texture_ppm(self) -> float:
@@ -154,10 +239,12 @@ class SynthClip:
     Attributes:
         frames: T BGR uint8 images (H, W, 3), oldest first.
         labels: per frame, TuSimple ``lanes`` (list of x lists, -2 = absent) at ``h_samples``.
-        occluded: per frame, per lane, per h_sample: True where a vehicle hides the labelled point.
+        occluded: per frame, per lane, per h_sample: True where a vehicle (or windscreen dirt, the wiper) hides
+            the labelled point.
         h_samples: label rows.
         image_from_ground: per frame, (3, 3) homography ground (X, Z, 1) metres -> pixels (w = depth).
-        vehicle_masks: per frame, uint8 (H, W), 255 on vehicle pixels.
+        vehicle_masks: per frame, uint8 (H, W), 255 on pixels that hide the road: vehicles, and the windscreen's
+            dirt and wiper.
     """
 
     frames: list[np.ndarray]
@@ -270,6 +357,9 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
         curved_prob=cfg.curved_prob,
         max_kappa=cfg.max_kappa,
         worn_prob=cfg.worn_prob,
+        worn_stretches=cfg.worn_stretches,
+        worn_strength=cfg.worn_strength,
+        dash_gap=cfg.dash_gap,
     )
     poses, track = _ego_poses(cfg, rng, road, ego_lane)
     n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
@@ -289,6 +379,7 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
             truck_prob=cfg.truck_prob,
             oncoming_prob=cfg.oncoming_prob,
             ahead=cfg.vehicle_ahead,
+            speed_ratio=cfg.vehicle_speed,
         )
     sky, ridge = _sky(cfg, rng)
     haze = tuple(float(c) for c in sky[-1, 0])
@@ -296,6 +387,9 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
     renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=7 if cfg.prefilter else 1)
     h_samples = cfg.h_samples()
     gains = 1.0 + 0.03 * rng.standard_normal(cfg.num_frames)
+    # the factors' effects draw from rng only when used: the clean clips stay what they were
+    windscreen = Windscreen.sample(rng, cfg.width, cfg.height) if cfg.windscreen else None
+    night_light = NightLight.sample(rng) if cfg.night else None
 
     frames, labels, occluded, homs, masks = [], [], [], [], []
     for i, pose in enumerate(poses):
@@ -319,6 +413,12 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
             frame = (frame * factor[..., None]).astype(np.uint8)
         mask = np.zeros((cfg.height, cfg.width), np.uint8)
         draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
+        if night_light is not None:
+            frame = night(frame, rng, night_light, horizon)
+        if cfg.glare_prob > 0 and rng.random() < cfg.glare_prob:
+            frame = glare(frame, rng, horizon)
+        if windscreen is not None:
+            mask |= windscreen.apply(frame, i)
         frame = cv2.convertScaleAbs(frame, alpha=float(gains[i]))
         lanes = _lane_labels(cfg, camera, road, pose, img_from_ground, h_samples)
         occ = [[bool(x >= 0 and mask[y, x] > 0) for x, y in zip(lane, h_samples)] for lane in lanes]
@@ -449,6 +549,15 @@ def clip_statistics(clip: SynthClip, num_frames: int = 4, stride: int = 1) -> di
     return {"key_points": points, "hidden": hidden, "revealed": revealed, "unaligned_shift": shift / max(count, 1)}
 
 
+def challenging_factor(index: int) -> str:
+    """The factor (`FACTORS`) of clip ``index`` of the challenging split."""
+    return list(FACTORS)[index % len(FACTORS)]
+
+
+def _json_lines(records: list[dict]) -> str:
+    return "".join(json.dumps(r) + "\n" for r in records)
+
+
 def _make_clip(job: tuple[Path, str, SynthConfig, int, int, int, int]) -> tuple[list[dict], dict[str, float]]:
     """Render and write clip ``index`` of split ``split`` (a worker of `generate_dataset`): its key-frame
     records and `clip_statistics`."""
@@ -478,7 +587,8 @@ def generate_dataset(
     Args:
         root: output folder (created; existing clips of the same ids are overwritten).
         train, val, test: clips per split with the normal settings.
-        challenging: clips of the challenging split (``SynthConfig.challenging`` with the same size).
+        challenging: clips of the challenging split: clip ``i`` has the factor ``challenging_factor(i)`` on top
+            of ``config`` (`FACTORS`); each factor's key frames also go to ``challenging-<factor>.json``.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``).
         progress: show a tqdm progress bar.
@@ -493,14 +603,7 @@ def generate_dataset(
     """
     root = Path(root)
     cfg = config or SynthConfig()
-    hard = SynthConfig.challenging(
-        width=cfg.width,
-        height=cfg.height,
-        num_frames=cfg.num_frames,
-        fps=cfg.fps,
-        grain=cfg.grain,
-        prefilter=cfg.prefilter,
-    )
+    factor_cfgs = {name: replace(cfg, **factor.overrides) for name, factor in FACTORS.items()}
     counts = {"train": train, "val": val, "test": test, "challenging": challenging}
     for name, n in counts.items():
         if n < 0:
@@ -511,20 +614,32 @@ def generate_dataset(
     keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
     root.mkdir(parents=True, exist_ok=True)
     stats: dict[str, dict[str, float]] = {}
+    clip_factors: dict[str, str] = {}
+    by_factor: dict[str, list[dict]] = {name: [] for name in FACTORS}
     bar = tqdm(total=sum(counts.values()), desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
     try:
         for code, split in enumerate(SPLITS):
-            split_cfg = hard if split == "challenging" else cfg
-            jobs = [(root, split, split_cfg, seed, code, i, steps[split]) for i in range(counts[split])]
+            jobs = []
+            for i in range(counts[split]):
+                split_cfg = cfg
+                if split == "challenging":
+                    factor = challenging_factor(i)
+                    clip_factors[f"{split}-{i:04d}"] = factor
+                    split_cfg = factor_cfgs[factor]
+                jobs.append((root, split, split_cfg, seed, code, i, steps[split]))
             records: list[dict] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-            for clip_records, clip_stats in pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs):
+            for i, (clip_records, clip_stats) in enumerate(
+                pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
+            ):
                 records += clip_records
+                if split == "challenging":
+                    by_factor[challenging_factor(i)] += clip_records
                 for k, v in clip_stats.items():
                     totals[k] += v
                 bar.update(1)
-            (root / f"{split}.json").write_text("".join(json.dumps(r) + "\n" for r in records))
+            (root / f"{split}.json").write_text(_json_lines(records))
             n = max(counts[split], 1)
             stats[split] = {
                 "clips": counts[split],
@@ -533,6 +648,8 @@ def generate_dataset(
                 "revealed_fraction_of_hidden": totals["revealed"] / max(totals["hidden"], 1),
                 "unaligned_shift_px": totals["unaligned_shift"] / n,
             }
+        for name, records in by_factor.items():
+            (root / f"challenging-{name}.json").write_text(_json_lines(records))
     finally:
         if pool:
             pool.shutdown()
@@ -542,7 +659,8 @@ def generate_dataset(
         "format_version": FORMAT_VERSION,
         "seed": seed,
         "config": asdict(cfg),
-        "challenging_config": asdict(hard),
+        "factors": {name: asdict(factor) for name, factor in FACTORS.items()},
+        "clip_factors": clip_factors,
         "splits": counts,
         "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS},
         "statistics": stats,
