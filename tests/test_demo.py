@@ -81,6 +81,7 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
         (["--finetune-steps", "-1"], "--finetune-steps must be >= 1, got -1"),
         (["--data", __file__], "is not a folder"),
         (["--seeds", "0"], "--seeds must be >= 1, got 0"),
+        (["--rows", "f4_nope"], "no paper row 'f4_nope'; known rows: f1_cbam"),
     ],
 )
 def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -124,9 +125,17 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     kept = labels.read_text().splitlines()[: len(FACTORS)]  # a newer generator wrote another split
     labels.write_text("".join(line + "\n" for line in kept))
     capsys.readouterr()
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    assert main(["demo", "--quick", "--out", str(out), "--rows", "f4_add"]) == 0  # and a row of the tables
     printed = capsys.readouterr().out
     assert "single-s0: the challenging labels changed, scoring them again" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    row = next(m for m in summary["models"] if m["name"] == "f4_add")
+    assert row["configs"][-1] == "configs/paper/rows/f4_add.yaml" and row["frames"] == 4
+    assert "SimpleAdd" in (out / "f4_add-s0" / "run" / "config.yaml").read_text()
+    assert {(c["a"], c["b"]) for c in summary["comparisons"] if c["split"] == "test"} == {
+        ("stam4", "single"),
+        ("f4_add", "single"),
+    }
     assert "test labels changed" not in printed
     again = json.loads((out / "single-s0" / "done.json").read_text())
     assert again["challenging"]["images"] == len(FACTORS) and again["test"] == first["test"]

@@ -213,6 +213,7 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
 
 
 def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path) -> None:
+    """Encoder and decoder must fit; another fusion module starts afresh (paper rows from the demo's stage 1)."""
     trained = _module()
     with torch.no_grad():
         for p in trained.parameters():
@@ -227,9 +228,17 @@ def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path) -> None:
         assert torch.equal(a, b), name
     with pytest.raises(ValueError, match=r"init_weights: checkpoint .*missing\.ckpt does not exist"):
         _module(init_weights=str(tmp_path / "missing.ckpt")).setup("fit")
-    other = _module(fusion=SimpleAdd, init_weights=str(path))  # no STAM parameters: does not fit
+    # another fusion (no STAM parameters): encoder and decoder loaded, the fusion keeps its own initialisation
+    other = _module(fusion=SimpleAdd, init_weights=str(path))
+    other.setup("fit")
+    loaded = {k: v for k, v in trained.state_dict().items() if not k.startswith("net.fusion.")}
+    assert loaded and all(torch.equal(other.state_dict()[k], v) for k, v in loaded.items())
+    # a network whose encoder differs does not fit
+    wider = StamLaneModule(
+        VGGEncoder(width=0.25), SimpleAdd, LaneDecoder, num_frames=T, image_size=SIZE, init_weights=str(path)
+    )
     with pytest.raises(ValueError, match="does not fit this network"):
-        other.setup("fit")
+        wider.setup("fit")
 
 
 @pytest.mark.usefixtures("plain_argv")

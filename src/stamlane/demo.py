@@ -49,11 +49,28 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 
 @dataclass(frozen=True)
 class DemoModel:
-    """One model of the demo: its name, config file and a one-line description."""
+    """One model of the demo: its name, config file (under ``configs/``) and a one-line description; a row of
+    the paper's tables also has its row config (``configs/paper/rows/<id>.yaml``) applied after
+    ``configs/paper/ablation.yaml``."""
 
     name: str
     config: str
     label: str
+    row: str | None = None
+
+    def configs(self) -> list[str]:
+        """The config files of a ``stamlane fit`` of this model, in order (relative to ``configs/``)."""
+        return (
+            [self.config] if self.row is None else [self.config, "paper/ablation.yaml", f"paper/rows/{self.row}.yaml"]
+        )
+
+    @classmethod
+    def paper_row(cls, row: str) -> DemoModel:
+        """A row of the paper's tables (``configs/paper/tables.yaml``) on the demo's base and recipe."""
+        if not (CONFIG_DIR / "paper" / "rows" / f"{row}.yaml").is_file():
+            known = sorted(p.stem for p in (CONFIG_DIR / "paper" / "rows").glob("*.yaml"))
+            raise DemoError(f"no paper row {row!r}; known rows: {' '.join(known)}")
+        return cls(row, "demo.yaml", f"paper row {row}", row=row)
 
 
 PRETRAIN = DemoModel("pretrain", "demo_single.yaml", "1 frame, stage 1 (every model starts here)")
@@ -89,6 +106,14 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
     parser.add_argument("--seeds", type=int, default=1, help="training seeds per model (F1 as mean ± std)")
     parser.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
+    parser.add_argument(
+        "--rows",
+        nargs="+",
+        default=[],
+        metavar="ID",
+        help="also train rows of the paper's tables (configs/paper/rows/<ID>.yaml) on the demo's recipe, each "
+        "compared with the single frame",
+    )
     parser.add_argument("--quick", action="store_true", help="seconds-long smoke run on a tiny set (tests)")
     parser.add_argument("--max-overlays", type=int, default=12, help="overlay pictures per model and split")
     return parser
@@ -139,8 +164,7 @@ def _cli(args: list[str], **kwargs: Any) -> Any:
 
 def _common(model: DemoModel, root: Path, out: Path, quick: bool) -> list[str]:
     return [
-        "--config",
-        str(CONFIG_DIR / model.config),
+        *(arg for config in model.configs() for arg in ("--config", str(CONFIG_DIR / config))),
         f"--data.root={root}",
         "--trainer.enable_progress_bar=false" if quick else "--trainer.enable_progress_bar=true",
         *(QUICK_OVERRIDES if quick else []),
@@ -379,8 +403,9 @@ def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list
     from stamlane_eval.stats import f1_of_rates, paired_bootstrap
 
     present = {m["name"] for m in summary["models"]}
+    rows = [(m["name"], "single") for m in summary["models"] if m["name"] not in {n.name for n in MODELS}]
     found = []
-    for a, b in PAIRS:
+    for a, b in (*PAIRS, *rows):
         if a not in present or b not in present:
             continue
         for name, split, rows in views:
@@ -451,11 +476,12 @@ def run(args: argparse.Namespace) -> dict:
     import torch
 
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
+    skip_noalign = args.no_noalign or args.quick  # the quick run checks the machinery, not the ablation
+    models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
+    models += [DemoModel.paper_row(row) for row in dict.fromkeys(args.rows) if row not in {m.name for m in models}]
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     root = _make_data(args.data, out, args.quick)
-    skip_noalign = args.no_noalign or args.quick  # the quick run checks the machinery, not the ablation
-    models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
     pre_steps, ft_steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     seeds = list(range(args.seeds))
     summary: dict[str, Any] = {
@@ -470,7 +496,10 @@ def run(args: argparse.Namespace) -> dict:
     curve_labels: dict[str, str] = {}
     rates: dict[str, dict[str, list[np.ndarray]]] = {m.name: {split: [] for split in SPLITS} for m in models}
     clips: dict[str, list[str]] = {}
-    entries = {m.name: {"name": m.name, "label": m.label, "config": f"configs/{m.config}", "runs": []} for m in models}
+    entries = {
+        m.name: {"name": m.name, "label": m.label, "configs": [f"configs/{c}" for c in m.configs()], "runs": []}
+        for m in models
+    }
     start_all = time.perf_counter()
     settings = {"data": str(root.resolve()), "pretrain_steps": pre_steps, "finetune_steps": ft_steps}
     for seed in seeds:

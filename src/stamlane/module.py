@@ -29,6 +29,7 @@ from typing import Any, Literal
 import numpy as np
 import torch
 from lightning.pytorch import LightningModule
+from lightning.pytorch.utilities import rank_zero_info
 from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
@@ -111,6 +112,8 @@ class StamLaneModule(LightningModule):
             an image-space model with ``warp="feature"`` data for the streaming predictor. Only the weights
             (optimizer, schedule and step start afresh); read at the start of ``fit``, so a resumed run
             (``--ckpt_path``) keeps its own weights, and loading or testing the result never needs the file.
+            The encoder and decoder must fit exactly; a fusion module other than the checkpoint's (another
+            aggregator) keeps its own initialisation, which is printed.
     """
 
     def __init__(
@@ -172,6 +175,20 @@ class StamLaneModule(LightningModule):
                 state = read_checkpoint(self.init_weights)["state_dict"]
             except CheckpointError as err:
                 raise ValueError(f"init_weights: {err}") from None
+            own = self.state_dict()
+            fusion = "net.fusion."
+
+            def shapes(weights: dict[str, Tensor]) -> dict[str, tuple[int, ...]]:
+                return {k: tuple(v.shape) for k, v in weights.items() if k.startswith(fusion)}
+
+            if shapes(state) != shapes(own):  # another fusion (a row of the paper's tables): it starts afresh
+                state = {k: v for k, v in state.items() if not k.startswith(fusion)}
+                state |= {k: v for k, v in own.items() if k.startswith(fusion)}
+                rank_zero_info(
+                    f"init_weights: encoder and decoder from {self.init_weights}; the fusion module "
+                    f"({type(self.net.fusion).__name__}) differs from the checkpoint's and starts from its own "
+                    f"initialisation"
+                )
             try:
                 self.load_state_dict(state)
             except RuntimeError as err:  # other architecture: missing / unexpected keys, other shapes
