@@ -255,3 +255,24 @@ def test_a_bad_checkpoint_is_one_line(content: bytes, tiny_set: Path, tmp_path: 
     assert main(["validate", *_args(tiny_set, tmp_path, f"--ckpt_path={bad}")]) == 2
     err = capsys.readouterr().err.strip()
     assert f"checkpoint {bad}" in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_default_root_dir_moves_the_logs_and_tensorboard_logs_on_request(
+    tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``--trainer.default_root_dir`` alone moves the config's CSV logger there too; a TensorBoard logger (the
+    ``tensorboard`` extra) writes its event file where its save_dir says."""
+    args = [a for a in _args(tiny_set, tmp_path / "unused", "--trainer.max_steps=2") if "logger" not in a]
+    args = [a for a in args if not a.startswith("--trainer.default_root_dir")]
+    root = tmp_path / "root"
+    assert main(["fit", *args, f"--trainer.default_root_dir={root}"]) == 0
+    assert (root / "stam4" / "version_0" / "config.yaml").is_file()
+    assert (root / "stam4" / "version_0" / "checkpoints" / "last.ckpt").is_file()
+    assert f"logs and config: {root / 'stam4' / 'version_0'}" in capsys.readouterr().out
+    pytest.importorskip("tensorboardX", reason="the tensorboard extra is not installed")
+    board = tmp_path / "tb"
+    tensorboard = ["--trainer.logger=lightning.pytorch.loggers.TensorBoardLogger", f"--trainer.logger.save_dir={board}"]
+    assert main(["fit", *args, *tensorboard]) == 0
+    events = list(board.rglob("events.out.tfevents.*"))
+    assert events and events[0].stat().st_size > 100
+    assert (events[0].parent / "checkpoints" / "last.ckpt").is_file()

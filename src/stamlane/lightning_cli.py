@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +69,27 @@ class StamLaneCLI(LightningCLI):
             default=None,
             help="predict only: a folder of frames or a video file to predict on instead of the data split",
         )
+
+    def parse_arguments(self, parser: LightningArgumentParser, args: Any) -> None:
+        super().parse_arguments(parser, args)
+        given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
+        self._logs_follow_root(given)
+
+    def _logs_follow_root(self, given: list[str]) -> None:
+        """``--trainer.default_root_dir DIR`` on the command line, without a ``--trainer.logger`` option, moves
+        the logger's ``save_dir`` to DIR too: logs, config and checkpoints then all land under DIR (the
+        configs' logger writes under ``outputs/demo`` otherwise)."""
+        flags = [a.split("=", 1)[0] for a in given if a.startswith("--")]
+        if "--trainer.default_root_dir" not in flags or any(f.startswith("--trainer.logger") for f in flags):
+            return
+        config = self.config.get(str(self.config.get("subcommand"))) or self.config
+        trainer = config.get("trainer")
+        logger = trainer.get("logger") if trainer is not None else None
+        loggers = logger if isinstance(logger, list) else [logger]
+        for one in loggers:
+            init = getattr(one, "init_args", None)
+            if init is not None and "save_dir" in init:
+                init["save_dir"] = trainer["default_root_dir"]
 
     def _parse_ckpt_path(self) -> None:
         """Keep the command line in charge: plain LightningCLI re-applies the checkpoint's saved ``model``
