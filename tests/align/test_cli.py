@@ -70,7 +70,7 @@ def test_clip_discovery(dataset):
 
 def test_command_writes_resumes_and_loads(dataset, tmp_path, capsys):
     cache = tmp_path / "cache"
-    args = [str(dataset), "--cache", str(cache), "--num-frames", "3", "--horizon-row", "0.45", "--quiet"]
+    args = [str(dataset), "--cache", str(cache), "--num-frames", "3", "--horizon-row", "81", "--quiet"]
     assert main(args) == 0
     assert "aligned 3 clip folders (0 already cached)" in capsys.readouterr().out
     data = json.loads((cache / "clips/0530/a.json").read_text())
@@ -140,3 +140,17 @@ def test_command_with_a_relative_root(dataset, tmp_path, monkeypatch):
     assert main([dataset.name, "--cache", "cache", "--num-frames", "2", "--quiet"]) == 0
     assert (dataset.parent / "cache" / "clips" / "0530" / "b.json").is_file()
     assert load_alignment("cache", dataset.name, "clips/0530/b/4.png", "clips/0530/b/3.png") is not None
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("0.45", "--horizon-row: invalid int value: '0.45'"),  # a row in pixels, as in the data and stream options
+        ("-3", "--horizon-row must be >= 0, got -3"),
+        ("170", "horizon_row must be in [0, 148] for an image of height 180, got 170"),
+    ],
+)
+def test_horizon_row_is_a_row_and_is_checked(dataset, tmp_path, capsys, row: str, message: str) -> None:
+    assert main([str(dataset), "--cache", str(tmp_path / "c"), "--horizon-row", row, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1

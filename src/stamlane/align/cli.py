@@ -1,7 +1,7 @@
 """``stamlane align``: precompute ``key_from_hist`` for every clip of a dataset into a JSON cache.
 
     stamlane align DATA_ROOT --cache CACHE_DIR [--num-frames 5] [--stride 1] [--key-frames last|all]
-                   [--horizon-row 0.45] [--strategy chain|direct] [--workers 1] [--visualize DIR]
+                   [--horizon-row ROW] [--strategy chain|direct] [--workers 1] [--visualize DIR]
                    [--write-frames OUT]
 
 Walks ``DATA_ROOT`` for clip folders (any folder with numbered frames ``<n>.jpg``/``<n>.png``), and for each
@@ -37,7 +37,14 @@ from stamlane.align.cache import (
     read_cache,
 )
 from stamlane.align.export import MANIFEST_NAME, mirror, missing_outputs, write_aligned_frames
-from stamlane.align.homography import DEFAULT_HORIZON_FRACTION, AlignConfig, Alignment, FramePrep, estimate_prepared
+from stamlane.align.homography import (
+    DEFAULT_HORIZON_FRACTION,
+    AlignConfig,
+    Alignment,
+    FramePrep,
+    estimate_prepared,
+    resolve_horizon_row,
+)
 from stamlane.align.warp import alignments_to_key
 from stamlane.imageio import read_image
 
@@ -53,7 +60,8 @@ class AlignJob:
     num_frames: int = 5
     stride: int = 1
     key_frames: str = "last"
-    horizon: float = DEFAULT_HORIZON_FRACTION
+    horizon: int | None = None
+    """First row of the ground region in pixels; None: ``round(0.45 * H)`` of each clip's frames."""
     strategy: str = "chain"
     visualize_dir: Path | None = None
     frames_dir: Path | None = None
@@ -76,10 +84,10 @@ class ClipResult(NamedTuple):
     """frames that could not be read (missing, truncated, not an image): their pairs are cached as failed."""
 
 
-def horizon_for(horizon: float, height: int) -> int:
-    """``--horizon-row``: a value below 1 is a fraction of the frame height, otherwise a row."""
-    row = round(horizon * height) if horizon < 1 else int(horizon)
-    return min(max(row, 0), height - 32)
+def horizon_for(horizon: int | None, height: int) -> int:
+    """The ground region's first row for frames of ``height`` rows (``--horizon-row``, the same meaning as the
+    data's and ``stamlane stream``'s ``horizon_row``). Raises ValueError when it leaves no ground region."""
+    return resolve_horizon_row(horizon, height)
 
 
 def requested_pairs(num_frames_in_clip: int, job: AlignJob) -> dict[int, list[int]]:
@@ -213,9 +221,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--key-frames", choices=("last", "all"), default="last", help="which frames are key frames")
     p.add_argument(
         "--horizon-row",
-        type=float,
-        default=DEFAULT_HORIZON_FRACTION,
-        help=f"first row of the ground region: a fraction of the height if < 1, else a row (default {DEFAULT_HORIZON_FRACTION})",
+        type=int,
+        default=None,
+        help=f"first image row of the ground region in pixels (default round({DEFAULT_HORIZON_FRACTION} x height))",
     )
     p.add_argument(
         "--strategy", choices=("chain", "direct"), default="chain", help="see stamlane.align.align_clip (default chain)"
@@ -243,7 +251,7 @@ def main(argv: list[str]) -> int:
         (args.num_frames < 2, f"--num-frames must be >= 2, got {args.num_frames}"),
         (args.stride < 1, f"--stride must be >= 1, got {args.stride}"),
         (args.workers < 1, f"--workers must be >= 1, got {args.workers}"),
-        (not 0 <= args.horizon_row, f"--horizon-row must be >= 0, got {args.horizon_row}"),
+        (args.horizon_row is not None and args.horizon_row < 0, f"--horizon-row must be >= 0, got {args.horizon_row}"),
         (not args.root.is_dir(), f"dataset root {args.root} is not a folder"),
         (
             args.write_frames is not None and args.write_frames.exists() and not args.write_frames.is_dir(),
@@ -295,7 +303,7 @@ def main(argv: list[str]) -> int:
             written, unaligned = written + result.written, unaligned + result.unaligned
             unreadable += result.unreadable
             bar.update(1)
-    except OSError as err:  # e.g. a full disk under --write-frames
+    except (OSError, ValueError) as err:  # e.g. a full disk under --write-frames, a --horizon-row below the frames
         if pool is not None:
             pool.terminate()
         print(f"stamlane align: {err}", file=sys.stderr)

@@ -160,7 +160,7 @@ def resolve_horizon_row(horizon_row: int | None, height: int) -> int:
         raise ValueError(f"horizon_row must be an int or None, got {horizon_row!r}")
     if not 0 <= horizon_row <= height - 32:
         raise ValueError(
-            f"horizon_row must be in [0, {height - 48}] for an image of height {height}, got {horizon_row}"
+            f"horizon_row must be in [0, {height - 32}] for an image of height {height}, got {horizon_row}"
         )
     return int(horizon_row)
 
