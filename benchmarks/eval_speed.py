@@ -7,7 +7,8 @@
 Workloads: random road scenes (TuSimple 1280x720, 56 rows; CULane 1640x590, 4-5 lanes) with perturbed
 predictions, written to a temporary folder so that file reading is timed too.
 
-Timed (medians of ``--runs`` runs, one process):
+Timed (medians of ``--runs`` runs, in this process, and end to end: each tool run as a user runs it, a fresh
+process with its interpreter start and imports):
 - TuSimple: read both json-lines files + ``stamlane_eval.tusimple.evaluate`` (what ``stamlane-eval tusimple``
   does), against ``LaneEval.bench_one_submit`` of the official ``lane.py`` when ``--reference lane.py`` is given;
   without it, against ``_ReferenceLaneEval`` below, a re-implementation of lane.py's ALGORITHM written for this
@@ -24,6 +25,7 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -198,6 +200,38 @@ def _bench_tusimple(args: argparse.Namespace, folder: Path, refs: dict[str, Path
     rows.append(("TuSimple", args.tusimple_images, t_ours, label, t_ref, t_ref / t_ours, same))
     results |= {"tusimple_s": t_ours, "tusimple_reference_s": t_ref, "tusimple_reference": label}
 
+    # end to end, as a user runs them: a fresh process each (interpreter start, imports, reading, scoring)
+    command = [
+        str(Path(sys.executable).parent / "stamlane-eval"),
+        "tusimple",
+        str(pred_f),
+        str(gt_f),
+        "--format",
+        "json",
+    ]
+    t_cmd, _ = _median(lambda: subprocess.run(command, check=True, capture_output=True), args.runs)
+    reference = [sys.executable, __file__, "--run-reference", str(pred_f), str(gt_f)]
+    reference += ["--reference", str(refs["lane"])] if "lane" in refs else []
+    t_ref_cmd, _ = _median(lambda: subprocess.run(reference, check=True, capture_output=True), args.reference_runs)
+    t_start, _ = _median(lambda: subprocess.run([sys.executable, "-c", "pass"], check=True), args.runs)
+    t_import, _ = _median(
+        lambda: subprocess.run([sys.executable, "-c", "import stamlane_eval.cli"], check=True), args.runs
+    )
+    rows.append(
+        ("TuSimple e2e", args.tusimple_images, t_cmd, f"{label}, own process", t_ref_cmd, t_ref_cmd / t_cmd, None)
+    )
+    results |= {
+        "tusimple_end_to_end_s": t_cmd,
+        "tusimple_reference_end_to_end_s": t_ref_cmd,
+        "python_start_s": t_start,
+        "stamlane_eval_cli_import_s": t_import - t_start,
+    }
+    print(
+        f"end to end: stamlane-eval tusimple {t_cmd:.3f} s (python start {t_start:.3f} s, importing the command "
+        f"{t_import - t_start:.3f} s), reference {t_ref_cmd:.3f} s: {t_ref_cmd / t_cmd:.1f}x",
+        file=sys.stderr,
+    )
+
     return rows, results
 
 
@@ -270,7 +304,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reference", type=Path, nargs="*", default=[], help="copies of lane.py / culane_metric.py")
     ap.add_argument("--metrics", nargs="+", choices=("tusimple", "culane"), default=["tusimple", "culane"])
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/eval_speed.json"), help="figures as JSON")
+    ap.add_argument("--run-reference", nargs=2, metavar=("PRED", "GT"), help=argparse.SUPPRESS)  # the e2e child
     args = ap.parse_args(argv)
+    if args.run_reference:  # one reference evaluation in this fresh process (timed from outside)
+        lane = [r for r in args.reference if "LaneEval" in r.read_text()]
+        evaluator = _load_reference(lane[0]).LaneEval if lane else _ReferenceLaneEval()
+        print(evaluator.bench_one_submit(*args.run_reference))
+        return 0
     for ref in args.reference:
         if not ref.is_file():
             print(f"eval_speed: error: {ref}: no such file", file=sys.stderr)
