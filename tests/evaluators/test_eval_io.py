@@ -29,6 +29,9 @@ def test_culane_paths_and_entries(tmp_path: Path) -> None:
     (tmp_path / "list.txt").write_text("\n")
     with pytest.raises(LaneFileError, match="empty list"):
         culane_entries(tmp_path, tmp_path / "list.txt")
+    (tmp_path / "list.txt").write_text("/d/a.jpg\n/d/b.jpg\nd/a.lines.txt\n")  # the same image, written twice
+    with pytest.raises(LaneFileError, match=r"entries 1 and 3 name the same image .*two results for one image"):
+        culane_entries(tmp_path, tmp_path / "list.txt")
 
 
 def test_tusimple_reader(tmp_path: Path) -> None:
@@ -44,3 +47,8 @@ def test_tusimple_reader(tmp_path: Path) -> None:
     f.write_bytes(b"\xff\xfe\n")
     with pytest.raises(LaneFileError, match="cannot read"):
         read_tusimple(f)
+    f.write_text('{"raw_file": "a", "lanes": [[1, false]], "run_time": 1}\n')  # lane.py would read 0
+    with pytest.raises(LaneFileError, match="line 1: a boolean .true/false. where a number belongs"):
+        read_tusimple(f)
+    f.write_text('{"raw_file": "a/true/1.jpg", "lanes": [[1, 2]], "run_time": 1}\n')  # the word, not a boolean
+    assert read_tusimple(f)[0]["lanes"] == [[1, 2]]

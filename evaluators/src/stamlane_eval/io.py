@@ -15,6 +15,7 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 import numpy as np
 
 __all__ = [
+    "MAX_COORDINATE",
     "MAX_IMAGE_SIDE",
     "MAX_LANES",
     "MAX_LANE_POINTS",
@@ -22,9 +23,11 @@ __all__ = [
     "LaneFileError",
     "culane_entries",
     "culane_lines_path",
+    "iter_tusimple",
     "read_culane_lines",
     "read_tusimple",
     "read_vil100_json",
+    "tusimple_record_error",
     "video_frames",
 ]
 
@@ -38,6 +41,9 @@ MAX_LANE_POINTS = 10000
 """Most points in one lane (a CULane lane of 1M points took 3.4 GB to rasterise)."""
 MAX_LANE_WIDTH = 1024
 """Widest lane line (px) the CULane metric may draw."""
+MAX_COORDINATE = 100_000.0
+"""Largest absolute pixel coordinate accepted in a label or prediction (6x ``MAX_IMAGE_SIDE``): a 1e12 is a bug
+in whatever wrote the file, not a lane (the official tools score it as a far-off point; we refuse it)."""
 
 
 class LaneFileError(ValueError):
@@ -75,24 +81,151 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
     try:  # fast path: one parse for the whole file (a blank line makes ",," and falls to the slow path)
         records = json.loads("[" + body.replace("\n", ",") + "]", parse_constant=_reject_constant)
         if len(records) == body.count("\n") + 1 and all(type(r) is dict for r in records):
+            _refuse_booleans(records, text, p)
             return records
     except (ValueError, RecursionError):  # RecursionError: nesting too deep; the slow path names the line
         pass
-    lines = text.splitlines()
     out = []
-    for i, line in enumerate(lines, 1):  # slow path: find the first bad line
+    for _, rec in iter_tusimple(p, text=text):  # slow path: find the first bad line
+        if isinstance(rec, LaneFileError):
+            raise rec
+        out.append(rec)
+    _refuse_booleans(out, text, p)
+    return out
+
+
+def _one_document(text: str) -> bool:
+    """Whether ``text`` is ONE JSON value spread over several lines (a pretty-printed file)."""
+    try:
+        json.loads(text)
+    except (ValueError, RecursionError):
+        return False
+    return text.strip().count("\n") > 0
+
+
+def iter_tusimple(
+    path: str | os.PathLike, role: str | None = None, *, text: str | None = None
+) -> Iterator[tuple[int, dict | LaneFileError]]:
+    """The records of a TuSimple json-lines file one line at a time, for readers that may skip bad ones.
+
+    Args:
+        path: the file.
+        role: ``"gt"`` or ``"pred"``: also check each record with `tusimple_record_error`; None: only that
+            each line is one JSON object.
+        text: the file's content when already read.
+
+    Yields:
+        ``(line_number, record)``, or ``(line_number, LaneFileError)`` for a bad line (the caller raises or
+        skips it). A blank line is an error, as in lane.py.
+
+    Raises:
+        LaneFileError: an unreadable file, or one JSON document spread over lines (not json-lines).
+    """
+    p = Path(path)
+    if text is None:
+        try:
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise LaneFileError(f"{p}: cannot read: {e}") from None
+    for i, line in enumerate(text.splitlines(), 1):
         if not line.strip():
-            raise LaneFileError(f"{p}: line {i} is blank (every line must be one JSON object, as lane.py requires)")
+            yield i, LaneFileError(f"{p}: line {i} is blank (every line must be one JSON object, as lane.py requires)")
+            continue
         try:
             rec = json.loads(line, parse_constant=_reject_constant)
         except ValueError as e:
-            raise LaneFileError(f"{p}: line {i}: invalid JSON ({e})") from None
+            if i == 1 and _one_document(text):
+                raise LaneFileError(
+                    f"{p}: one JSON document over {text.strip().count(chr(10)) + 1} lines; TuSimple files hold one "
+                    f"JSON object per line (json-lines)"
+                ) from None
+            yield i, LaneFileError(f"{p}: line {i}: invalid JSON ({e})")
+            continue
         except RecursionError:
-            raise LaneFileError(f"{p}: line {i}: JSON nested too deeply") from None
+            yield i, LaneFileError(f"{p}: line {i}: JSON nested too deeply")
+            continue
         if not isinstance(rec, dict):
-            raise LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
-        out.append(rec)
-    return out
+            yield i, LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
+            continue
+        problem = tusimple_record_error(rec, role) if role else None
+        yield i, (LaneFileError(f"{p}: line {i}: {problem}") if problem else rec)
+
+
+def _refuse_booleans(records: list[dict], text: str, path: Path) -> None:
+    """JSON ``true``/``false`` where a number belongs (lane.py would read them as 1 and 0): refused. Only
+    looked for when the words occur in the file at all."""
+    if "true" not in text and "false" not in text:
+        return
+    for i, rec in enumerate(records, 1):
+        values = [rec.get("run_time"), *_numbers(rec.get("h_samples"))]
+        lanes = rec.get("lanes")
+        for lane in lanes if isinstance(lanes, list) else []:
+            values += _numbers(lane)
+        if any(type(v) is bool for v in values):
+            raise LaneFileError(f"{path}: line {i}: a boolean (true/false) where a number belongs")
+
+
+def _numbers(value: object) -> list:
+    return value if isinstance(value, list) else []
+
+
+def _number_list_error(values: object, what: str) -> str | None:
+    if not isinstance(values, list):
+        return f"{what} must be a list of numbers, got {values!r:.60}"
+    for v in values:
+        if type(v) not in (int, float):
+            return f"{what} must be a list of numbers, got {v!r:.40} in it"
+        if not math.isfinite(v) or abs(v) > MAX_COORDINATE:
+            return f"{what} has {v!r}: not a pixel coordinate (finite, |v| <= {MAX_COORDINATE:g})"
+    return None
+
+
+def tusimple_record_error(rec: object, role: str) -> str | None:
+    """What is wrong with one TuSimple record, or None: the one typed check of the format that the datasets use
+    per record and that ``stamlane_eval.tusimple.evaluate`` applies (vectorised) to whole files.
+
+    Args:
+        rec: a parsed json line.
+        role: ``"gt"`` (``raw_file``, ``lanes``, ``h_samples`` required; every lane as long as ``h_samples``,
+            which is not empty) or ``"pred"`` (``raw_file``, ``lanes``; ``run_time`` a number when present;
+            lanes as long as ``h_samples`` when the record has them).
+
+    Returns:
+        a one-line description naming the key, or None for a good record.
+    """
+    if role not in ("gt", "pred"):
+        raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
+    if not isinstance(rec, dict):
+        return f"expected a JSON object, got {type(rec).__name__}"
+    needed = ("raw_file", "lanes", "h_samples") if role == "gt" else ("raw_file", "lanes")
+    missing = [k for k in needed if k not in rec]
+    if missing:
+        return f"missing key(s) {missing} (has {sorted(rec)[:6]})"
+    if not isinstance(rec["raw_file"], str) or not rec["raw_file"].strip():
+        return f"raw_file must be a non-empty string, got {rec['raw_file']!r:.60}"
+    lanes = rec["lanes"]
+    if not isinstance(lanes, list):
+        return f"lanes must be a list of lists, got {lanes!r:.60}"
+    if len(lanes) > MAX_LANES:
+        return f"{len(lanes)} lanes, more than the limit of {MAX_LANES}"
+    rows = rec.get("h_samples")
+    if rows is not None or role == "gt":
+        problem = _number_list_error(rows, "h_samples")
+        if problem:
+            return problem
+        if not rows:
+            return "h_samples is empty: no row to score"
+    if role == "pred" and "run_time" in rec:
+        rt = rec["run_time"]
+        if type(rt) not in (int, float) or not math.isfinite(rt):
+            return f"run_time must be a finite number, got {rt!r:.40}"
+    for k, lane in enumerate(lanes):
+        problem = _number_list_error(lane, f"lane {k}")
+        if problem:
+            return problem
+        if rows is not None and len(lane) != len(rows):
+            return f"lane {k} has {len(lane)} x values, h_samples has {len(rows)}"
+    return None
 
 
 def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:
@@ -160,7 +293,8 @@ def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | Non
     """The images to evaluate: the lines of ``list_file``, or every ``.lines.txt`` under ``gt_dir`` (sorted).
 
     Raises:
-        LaneFileError: unreadable or empty list, missing ``gt_dir``, or no annotation found.
+        LaneFileError: unreadable or empty list, missing ``gt_dir``, no annotation found, an entry outside
+            ``gt_dir`` or two entries naming one image.
     """
     root = Path(gt_dir)
     if not root.is_dir():
@@ -172,6 +306,15 @@ def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | Non
             raise LaneFileError(f"{list_file}: cannot read: {e}") from None
         if not entries:
             raise LaneFileError(f"{list_file}: empty list")
+        first: dict[Path, int] = {}
+        for i, entry in enumerate(entries):  # the C++ tool would score such an image twice
+            path = culane_lines_path(root, entry)
+            if path in first:
+                raise LaneFileError(
+                    f"{list_file}: entries {first[path] + 1} and {i + 1} name the same image ({entry.strip()!r}): "
+                    f"two results for one image"
+                )
+            first[path] = i
         return entries
     entries = sorted("/" + str(q.relative_to(root).as_posix()) for q in _walk_lines(root))
     if not entries:

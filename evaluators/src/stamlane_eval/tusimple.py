@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stamlane_eval.io import MAX_COORDINATE
+
 __all__ = [
     "ABSENT",
     "EXTRA_PRED_LANES",
@@ -176,6 +178,11 @@ def _stack_rows(
             # lane.py would silently treat NaN as absent and inf as a miss; we refuse instead.
             bad = idx[np.flatnonzero(~np.isfinite(arr).all(axis=1))[0]]
             raise TuSimpleInputError(f"non-finite (NaN/inf) value in {what} {kind}", what, int(owner[bad]) + 1)
+        if arr.size and np.abs(arr).max() > MAX_COORDINATE:  # a 1e12 is a bug, not a far-off lane point
+            bad = idx[np.flatnonzero(np.abs(arr).max(axis=1) > MAX_COORDINATE)[0]]
+            raise TuSimpleInputError(
+                f"{what} {kind} value beyond +-{MAX_COORDINATE:g} px: not a pixel coordinate", what, int(owner[bad]) + 1
+            )
         out[idx, :length] = arr
     return out
 
@@ -334,6 +341,8 @@ def evaluate_batch(
         if not isinstance(h, (list, tuple, np.ndarray)):
             raise TuSimpleInputError(f"h_samples must be a list of numbers, got {h!r:.80}", "gt", i + 1)
     n_rows = np.fromiter(map(len, h_samples), dtype=np.int64, count=n)
+    if not n_rows.all():  # lane.py would divide by zero
+        raise TuSimpleInputError("h_samples is empty: no row to score", "gt", int(np.argmin(n_rows)) + 1)
     ys = _stack_rows(list(h_samples), n_rows, np.arange(n), int(n_rows.max()), "gt", "h_samples")
     # Quirk (order of checks): the pred lane lengths are checked first, for every image; then the
     # run_time / count rule; gt lanes only for the images that get past it (where lane.py's indexing fails).

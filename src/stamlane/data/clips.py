@@ -257,6 +257,7 @@ class ClipDataset(Dataset):
         """Build the sample of one entry (see the module docstring); ``rng`` drives the augmentation."""
         frames = self.read_frames(entry)
         h0, w0 = frames[0].shape[:2]
+        _check_inside(entry, w0, h0)
         key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
@@ -320,6 +321,7 @@ class TuSimpleClips(ClipDataset):
 
     def _index(self) -> list[ClipEntry | DataError]:
         out: list[ClipEntry | DataError] = []
+        seen: dict[str, str] = {}
         for name in self.labels:
             path = resolve_inside(self.root, name, "labels")
             for number, rec in read_tusimple_labels(path):
@@ -327,6 +329,10 @@ class TuSimpleClips(ClipDataset):
                     out.append(rec)
                     continue
                 source = f"{path}:{number}"
+                if rec["raw_file"] in seen:  # two labels for one image: which one is right?
+                    out.append(DataError(f"{source}: duplicate raw_file {rec['raw_file']!r} (first at {seen[rec['raw_file']]})"))
+                    continue
+                seen[rec["raw_file"]] = source
                 try:
                     frames = self._clip_paths(rec["raw_file"], source)
                 except DataError as err:
@@ -334,6 +340,21 @@ class TuSimpleClips(ClipDataset):
                     continue
                 out.append(ClipEntry(rec["raw_file"], frames, tusimple_lanes(rec), list(rec["h_samples"]), source))
         return out
+
+
+def _check_inside(entry: ClipEntry, width: int, height: int) -> None:
+    """Refuse lane points more than one image size outside the ``width`` x ``height`` frame: drawn as a target,
+    such a lane would cross the image on a line the annotation never meant (points just outside, as CULane's
+    lanes that run off the border, are fine)."""
+    for k, lane in enumerate(entry.lanes):
+        if len(lane) and (
+            np.abs(lane[:, 0] - width / 2).max() > 1.5 * width or np.abs(lane[:, 1] - height / 2).max() > 1.5 * height
+        ):
+            far = lane[np.argmax(np.abs(lane[:, 0] - width / 2) / width + np.abs(lane[:, 1] - height / 2) / height)]
+            raise DataError(
+                f"{entry.label_file}: lane {k} has the point ({far[0]:g}, {far[1]:g}), far outside the "
+                f"{width}x{height} image"
+            )
 
 
 class _ListClips(ClipDataset):
@@ -353,6 +374,7 @@ class _ListClips(ClipDataset):
 
     def _index(self) -> list[ClipEntry | DataError]:
         out: list[ClipEntry | DataError] = []
+        seen: dict[str, str] = {}
         for name in self.lists:
             path = resolve_inside(self.root, name, "lists")
             try:
@@ -364,6 +386,10 @@ class _ListClips(ClipDataset):
                     continue
                 source = f"{path}:{number}"
                 image_rel = _image_token(line)
+                if image_rel in seen:
+                    out.append(DataError(f"{source}: duplicate entry {image_rel!r} (first at {seen[image_rel]})"))
+                    continue
+                seen[image_rel] = source
                 try:
                     frames = self._clip_paths(image_rel, source)
                     label = self._label_path(frames[-1])

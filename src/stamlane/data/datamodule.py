@@ -240,7 +240,14 @@ class ClipDataModule(LightningDataModule):
         }.get(stage, ())
         for split in wanted:
             if split not in self.datasets:
-                self.datasets[split] = self.make_dataset(split)
+                self.datasets[split] = dataset = self.make_dataset(split)
+                if dataset.skipped:  # on_error: skip; every one was also warned about when it was read
+                    total = len(dataset) + len(dataset.skipped)
+                    warnings.warn(
+                        f"{split}: skipped {len(dataset.skipped)} of {total} samples with bad data "
+                        f"(on_error: skip); the first: {dataset.skipped[0]}",
+                        stacklevel=2,
+                    )
 
     def _loader(self, split: str) -> DataLoader:
         if split not in self.datasets:

@@ -1,7 +1,8 @@
 """Readers of the lane label formats, each returning lanes as ``(N, 2)`` float arrays in original pixels.
 
 Every reader raises ``DataError`` naming the file (and line) on malformed content, so a dataset can
-either stop or skip the sample with a warning (``on_error``).
+either stop or skip the sample with a warning (``on_error``). The parsing and the typed checks are the
+evaluators' (``stamlane_eval.io``): a file the evaluator refuses is refused here, for the same reason.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
 
 import numpy as np
+from stamlane_eval import io as eval_io
+from stamlane_eval.io import LaneFileError, iter_tusimple
 
 __all__ = [
     "DataError",
@@ -24,8 +27,9 @@ __all__ = [
 ]
 
 
-class DataError(ValueError):
-    """Bad data: a missing or unreadable file, a path outside the data root, malformed labels."""
+class DataError(LaneFileError):
+    """Bad data: a missing or unreadable file, a path outside the data root, malformed labels (a
+    ``stamlane_eval.io.LaneFileError``: the same files fail the same way in the evaluators)."""
 
 
 class TuSimpleRecord(dict):
@@ -55,45 +59,22 @@ def resolve_inside(root: Path, rel: str, source: str) -> Path:
 
 
 def read_tusimple_labels(path: Path) -> Iterator[tuple[int, TuSimpleRecord | DataError]]:
-    """Parse a TuSimple label file (json-lines).
+    """Parse a TuSimple label file (json-lines) with the evaluator's typed check of every record
+    (``stamlane_eval.io.tusimple_record_error``: numbers only, finite, within ``MAX_COORDINATE``, lanes as long
+    as a non-empty ``h_samples``).
 
     Yields:
-        ``(line_number, record)`` per non-empty line, or ``(line_number, DataError)`` for a bad line
-        (invalid json, missing key, a lane whose length differs from ``h_samples``), so the caller
+        ``(line_number, record)`` per line, or ``(line_number, DataError)`` for a bad line, so the caller
         decides whether to raise or skip.
 
     Raises:
-        DataError: when the file itself cannot be read.
+        DataError: when the file itself cannot be read (or is one JSON document, not json-lines).
     """
     try:
-        text = path.read_text()
-    except OSError as err:
-        raise DataError(f"cannot read label file {path}: {err}") from err
-    for number, line in enumerate(text.splitlines(), start=1):
-        if not line.strip():
-            continue
-        where = f"{path}:{number}"
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError as err:
-            yield number, DataError(f"{where}: invalid json ({err.msg})")
-            continue
-        missing = [k for k in ("raw_file", "lanes", "h_samples") if k not in rec]
-        if missing:
-            yield number, DataError(f"{where}: missing key(s) {missing}")
-            continue
-        n = len(rec["h_samples"])
-        bad = [i for i, lane in enumerate(rec["lanes"]) if len(lane) != n]
-        if bad:
-            lengths = [len(rec["lanes"][i]) for i in bad]
-            yield (
-                number,
-                DataError(
-                    f"{where}: lane(s) {bad} have {lengths} x values but h_samples has {n} (mismatched lane lengths)"
-                ),
-            )
-            continue
-        yield number, TuSimpleRecord(rec)
+        for number, rec in iter_tusimple(path, "gt"):
+            yield number, DataError(str(rec)) if isinstance(rec, LaneFileError) else TuSimpleRecord(rec)
+    except LaneFileError as err:
+        raise DataError(str(err)) from None
 
 
 def tusimple_lanes(rec: dict) -> list[np.ndarray]:
@@ -113,54 +94,31 @@ def tusimple_lanes(rec: dict) -> list[np.ndarray]:
 
 
 def read_culane_lines(path: Path) -> list[np.ndarray]:
-    """Read a CULane ``.lines.txt``: one lane per line, ``x1 y1 x2 y2 ...``.
+    """Read a CULane ``.lines.txt`` with the evaluator's reader (one lane per line, ``x1 y1 x2 y2 ...``, its
+    limits and checks); a blank line, a lane of 0 points for the official tool, is no lane here.
 
     Raises:
-        DataError: missing or unreadable file, a non-number, or an odd number of values on a line.
+        DataError: missing or unreadable file, a non-number, NaN/inf, an odd number of values, too many lanes
+            or points.
     """
     try:
-        text = path.read_text()
-    except OSError as err:
-        raise DataError(f"cannot read lane file {path}: {err}") from err
-    lanes = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            vals = [float(v) for v in line.split()]
-        except ValueError as err:
-            raise DataError(f"{path}:{number}: not a number ({err})") from err
-        if len(vals) % 2:
-            raise DataError(f"{path}:{number}: odd number of values ({len(vals)}); expected x y pairs")
-        lanes.append(np.asarray(vals, dtype=np.float64).reshape(-1, 2))
-    return lanes
+        return [lane for lane in eval_io.read_culane_lines(path, missing_ok=False) if len(lane)]
+    except LaneFileError as err:
+        raise DataError(str(err)) from None
 
 
 def read_vil100_json(path: Path) -> list[np.ndarray]:
-    """Read a VIL-100 annotation ``Json/<video>/<frame>.jpg.json`` (``annotations.lane[*].points``).
-
-    Lanes are returned in ``lane_id`` order.
+    """Read a VIL-100 annotation ``Json/<video>/<frame>.jpg.json`` (``annotations.lane[*].points``) with the
+    evaluator's reader; lanes are returned in ``lane_id`` order.
 
     Raises:
-        DataError: missing file, invalid json, or points that are not ``[[x, y], ...]``.
+        DataError: missing file, invalid json, points that are not ``[[x, y], ...]``, limits exceeded.
     """
     try:
-        data = json.loads(path.read_text())
-    except OSError as err:
-        raise DataError(f"cannot read annotation {path}: {err}") from err
-    except json.JSONDecodeError as err:
-        raise DataError(f"{path}: invalid json ({err.msg})") from err
-    try:
-        items = data["annotations"]["lane"]
-    except (KeyError, TypeError) as err:
-        raise DataError(f"{path}: no annotations.lane list") from err
-    lanes = []
-    for i, item in enumerate(sorted(items, key=lambda it: it.get("lane_id", 0))):
-        pts = np.asarray(item.get("points", []), dtype=np.float64)
-        if pts.size and (pts.ndim != 2 or pts.shape[1] != 2):
-            raise DataError(f"{path}: lane {i} points have shape {pts.shape}; expected (N, 2)")
-        lanes.append(pts.reshape(-1, 2))
-    return lanes
+        lanes, ids, _size = eval_io.read_vil100_json(path)
+    except LaneFileError as err:
+        raise DataError(str(err)) from None
+    return [lanes[k] for k in sorted(range(len(lanes)), key=lambda k: ids[k])]
 
 
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
