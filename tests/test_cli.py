@@ -276,3 +276,33 @@ def test_default_root_dir_moves_the_logs_and_tensorboard_logs_on_request(
     events = list(board.rglob("events.out.tfevents.*"))
     assert events and events[0].stat().st_size > 100
     assert (events[0].parent / "checkpoints" / "last.ckpt").is_file()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ("--trainer.max_steps=-5", "`max_steps` must be a non-negative integer or -1"),
+        ("--data.image_size=[-16, 64]", "image_size must be positive multiples of the encoder stride 16"),
+        ("--data.num_frames=0", "num_frames must be >= 1, got 0"),
+    ],
+)
+def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: str, message: str) -> None:
+    assert main(["fit", *_args(tiny_set, tmp_path, extra)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([line for line in err if line.startswith("stamlane fit:")]) == 1 and message in err[-1]
+    assert not any("Traceback" in line for line in err)
+
+
+def test_a_data_error_in_a_dataloader_worker_is_one_line(tiny_set: Path, tmp_path: Path, capsys) -> None:
+    import shutil
+
+    root = tmp_path / "set"
+    shutil.copytree(tiny_set, root)
+    key = json.loads((root / "train.json").read_text().splitlines()[0])["raw_file"]
+    frame = root / key
+    frame.write_bytes(frame.read_bytes()[: len(frame.read_bytes()) // 2])  # a truncated JPEG
+    args = _args(root, tmp_path / "out", "--trainer.max_steps=4", "--data.num_workers=1")
+    assert main(["fit", *args]) == 2
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if line.startswith("stamlane")]
+    assert len(err) == 1 and "cannot read image" in err[0] and key in err[0]
+    assert "Original Traceback" not in err[0] and "DataLoader worker" not in err[0]

@@ -138,6 +138,20 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
 
 
+def one_line(err: BaseException) -> str:
+    """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
+    traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
+    last line is the original message; other multi-line messages are joined."""
+    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
+    if not lines:
+        return type(err).__name__
+    if "Original Traceback" in str(err):
+        last = lines[-1]
+        name, sep, message = last.partition(": ")
+        return message if sep and name.replace(".", "").replace("_", "").isalnum() else last
+    return "; ".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -155,14 +169,16 @@ def main(argv: list[str] | None = None) -> int:
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
+        from lightning.fabric.utilities.exceptions import MisconfigurationException
+
         from stamlane.data.labels import DataError
 
         try:
             with _config_from_checkpoint(command, rest) as extra:
                 # args=None when they are sys.argv's own (LightningCLI warns when given both)
                 build_cli(None if argv == sys.argv[1:] and not extra else [command, *extra, *rest])
-        except (DataError, FileNotFoundError, ValueError) as err:  # bad data, checkpoint or value: one line, status 2
-            print(f"stamlane {command}: {err}", file=sys.stderr)
+        except (DataError, FileNotFoundError, ValueError, MisconfigurationException) as err:  # bad input: status 2
+            print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
             return 2
         return 0
     print(f"stamlane: unknown command {command!r}; {_usage()}", file=sys.stderr)

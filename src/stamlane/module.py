@@ -158,9 +158,9 @@ class StamLaneModule(LightningModule):
         if image_size is not None:
             stride = int(getattr(encoder, "total_stride", 1))
             height, width = image_size
-            if height % stride or width % stride:
+            if height % stride or width % stride or height <= 0 or width <= 0:
                 raise ValueError(
-                    f"image_size must be multiples of the encoder stride {stride}, got {tuple(image_size)}"
+                    f"image_size must be positive multiples of the encoder stride {stride}, got {tuple(image_size)}"
                 )
             self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
         if channels_last:

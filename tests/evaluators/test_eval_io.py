@@ -48,7 +48,7 @@ def test_tusimple_reader(tmp_path: Path) -> None:
     with pytest.raises(LaneFileError, match="cannot read"):
         read_tusimple(f)
     f.write_text('{"raw_file": "a", "lanes": [[1, false]], "run_time": 1}\n')  # lane.py would read 0
-    with pytest.raises(LaneFileError, match="line 1: a boolean .true/false. where a number belongs"):
+    with pytest.raises(LaneFileError, match=r"line 1: a boolean .true/false. where a number belongs"):
         read_tusimple(f)
     f.write_text('{"raw_file": "a/true/1.jpg", "lanes": [[1, 2]], "run_time": 1}\n')  # the word, not a boolean
     assert read_tusimple(f)[0]["lanes"] == [[1, 2]]

@@ -170,6 +170,8 @@ def run(args: argparse.Namespace) -> int:
         raise StreamError(f"--max-frames must be >= 1, got {args.max_frames}")
     if args.fps is not None and not args.fps > 0:
         raise StreamError(f"--fps must be > 0, got {args.fps}")
+    if args.num_frames is not None and args.num_frames < 1:
+        raise StreamError(f"--num-frames must be >= 1, got {args.num_frames}")
     out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
     check_output(out_dir, [source])
     frames, count, fps = iter_frames(source, args.max_frames)
