@@ -40,7 +40,7 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     """Score every demo run on test/challenging clips of generator seed ``seed``."""
     from stamlane_eval.stats import bootstrap, f1_of_rates, paired_bootstrap
 
-    from stamlane.data.synthetic import generate_dataset
+    from stamlane.synth.generator import generate_dataset
 
     root = out / f"synthetic-seed{seed}"
     if not (root / "dataset.json").is_file():

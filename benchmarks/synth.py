@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane.data.synthetic import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
+from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synth_align import parse_overrides

@@ -29,7 +29,7 @@ import numpy as np
 
 from stamlane.align import AlignConfig, estimate_clip
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.data.synthetic import FACTORS, SynthConfig, generate_clip
+from stamlane.synth.generator import FACTORS, SynthConfig, generate_clip
 
 
 def corner_error(estimate: np.ndarray, truth: np.ndarray, shape: tuple[int, int], horizon_row: int) -> float:

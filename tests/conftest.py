@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from stamlane.synth import SynthConfig, generate_dataset
+
 # With the other core busy, torch's default OpenMP spin-waiting ran 15x slower on the 2-core CI machine.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
@@ -34,7 +36,6 @@ def plain_argv(monkeypatch: pytest.MonkeyPatch) -> None:
 def tiny_synthetic(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Path]:
     """``tiny_synthetic(width, height, num_frames, train=, val=, test=, challenging=, seed=0)``: a small synthetic
     set in the TuSimple layout (``stamlane synth``), written to a fresh temporary folder, without a progress bar."""
-    from stamlane.data.synthetic import SynthConfig, generate_dataset
 
     def make(width: int, height: int, num_frames: int, *, seed: int = 0, **splits: int) -> Path:
         root = tmp_path_factory.mktemp("synthetic")
@@ -43,3 +44,15 @@ def tiny_synthetic(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Pa
         return root
 
     return make
+
+
+TINY_SYNTH = SynthConfig(width=160, height=96, num_frames=8)
+"""The settings of the session's tiny synthetic set (`synthetic_root`)."""
+
+
+@pytest.fixture(scope="session")
+def synthetic_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny synthetic set (160x96, 8 frames): 3 train, 1 val, 1 test, 1 challenging clip."""
+    root = tmp_path_factory.mktemp("synthetic")
+    generate_dataset(root, train=3, val=1, test=1, challenging=1, seed=3, config=TINY_SYNTH, progress=False)
+    return root

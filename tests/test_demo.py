@@ -12,7 +12,7 @@ import torch
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
-from stamlane.data.synthetic import FACTORS
+from stamlane.synth.generator import FACTORS
 
 torch.set_num_threads(1)
 

@@ -75,6 +75,11 @@ def test_data_never_imports_models():
     assert violations(python_files(SRC / "data"), ("stamlane.models", "stamlane.module")) == []
 
 
+def test_the_generator_makes_clips_without_reading_them_or_torch():
+    forbidden = ("stamlane.data", "stamlane.models", "stamlane.module", *TORCH_STACK)
+    assert violations(python_files(SRC / "synth"), forbidden) == []
+
+
 def test_the_import_checker_catches_a_forbidden_import(tmp_path):
     # guard against a checker that can never fail: the imports the rules forbid are found
     bad = tmp_path / "core.py"

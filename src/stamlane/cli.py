@@ -35,7 +35,7 @@ __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 # ``stamlane synth`` does not pay for importing Lightning.
 TOOLS: dict[str, str] = {
     "align": "stamlane.align.cli",
-    "synth": "stamlane.data.synth_cli",
+    "synth": "stamlane.synth.cli",
     "show": "stamlane.data.show_cli",
     "demo": "stamlane.demo",
     "ablate": "stamlane.experiments.ablate",

@@ -131,9 +131,8 @@ def _require_pieces() -> None:
 
 
 def _make_data(root: Path | None, out: Path, quick: bool) -> Path:
-    from stamlane.data import SynthConfig, generate_dataset
     from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
-    from stamlane.data.synthetic import FACTORS
+    from stamlane.synth import FACTORS, SynthConfig, generate_dataset
 
     if quick:
         root = root or out / "quick_data"

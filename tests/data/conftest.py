@@ -9,7 +9,6 @@ import cv2
 import numpy as np
 import pytest
 
-from stamlane.data.synthetic import SynthConfig, generate_dataset
 
 W, H = 96, 64
 """Size of the hand-made test images (original pixels)."""
@@ -97,14 +96,3 @@ def vil_root(tmp_path: Path) -> Path:
         f"/JPEGImages/{video}/00005.jpg /Annotations/{video}/00005.png\n/JPEGImages/{video}/00003.jpg\n"
     )
     return tmp_path
-
-
-TINY = SynthConfig(width=160, height=96, num_frames=8)
-
-
-@pytest.fixture(scope="session")
-def synthetic_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A tiny synthetic set (160x96, 8 frames): 3 train, 1 val, 1 test, 1 challenging clip."""
-    root = tmp_path_factory.mktemp("synthetic")
-    generate_dataset(root, train=3, val=1, test=1, challenging=1, seed=3, config=TINY, progress=False)
-    return root

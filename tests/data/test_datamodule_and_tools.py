@@ -16,9 +16,9 @@ from stamlane.data import collate_clips
 from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
 from stamlane.data.labels import history_name
 from stamlane.data.show_cli import main as show_main
-from stamlane.data.synth_cli import main as synth_main
-from stamlane.data.synth_cli import split_counts
-from stamlane.data.synthetic import SynthConfig, generate_dataset
+from stamlane.synth.cli import main as synth_main
+from stamlane.synth.cli import split_counts
+from stamlane.synth.generator import SynthConfig, generate_dataset
 
 TINY_SYNTH = {"synth_train": 2, "synth_val": 1, "synth_test": 1, "synth_challenging": 0, "synth_size": (96, 64)}
 

@@ -1,4 +1,5 @@
-"""Clip datasets, targets, clip-consistent augmentation and the synthetic road-clip generator.
+"""Read clips: datasets of the benchmark formats, targets, clip-consistent augmentation, the DataModule (the
+synthetic generator that makes the default set is ``stamlane.synth``).
 
 Lightning is imported only by ``stamlane.data.datamodule`` (import ``ClipDataModule`` from there, or
 from here: it is loaded on first access), so the tools ``stamlane synth`` and ``stamlane show`` start fast.
@@ -20,7 +21,6 @@ from stamlane.data.clips import (
 )
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
-from stamlane.data.synthetic import SynthConfig, generate_clip, generate_dataset
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipParams, ClipTransform, net_homographies
 
@@ -37,13 +37,10 @@ __all__ = [
     "ClipParams",
     "ClipTransform",
     "DataError",
-    "SynthConfig",
     "TuSimpleClips",
     "VIL100Clips",
     "collate_clips",
     "draw_lane_targets",
-    "generate_clip",
-    "generate_dataset",
     "left_to_right",
     "net_homographies",
 ]

@@ -15,7 +15,7 @@ from torch.utils.data import DataLoader
 from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
-from stamlane.data.synthetic import EVAL_KEY_STEP, FORMAT_VERSION, TRAIN_KEY_STEP, SynthConfig, generate_dataset
+from stamlane.synth.generator import EVAL_KEY_STEP, FORMAT_VERSION, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 from stamlane.data.transforms import ClipTransform
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule"]
@@ -66,7 +66,7 @@ class ClipDataModule(LightningDataModule):
         align_strategy: ``"chain"`` (default) or ``"direct"`` matching for ``align="fly"``.
         synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
         synth_train_key_step, synth_eval_key_step: labelled key frames per clip of the train split and of the
-            others (``stamlane.data.synthetic.key_frames``: 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
+            others (``stamlane.synth.generator.key_frames``: 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         synth_seed: seed of a generated set.
         synth_size: ``(W, H)`` frame size of a generated set.
     """

@@ -1,6 +1,6 @@
 """The road of a synthetic clip: lane-mark geometry on the ground plane and its top-down texture.
 
-Ground coordinates are metres (``X`` right, ``Z`` forward, see ``synth_camera``). The road centre
+Ground coordinates are metres (``X`` right, ``Z`` forward, see ``camera``). The road centre
 follows ``X = c(Z) = kappa Z^2 / 2 + dkappa Z^3 / 6``; a lane mark lies at a fixed lateral offset from
 it. The texture is ONE top-down image of the whole stretch a clip drives over, rendered once per clip:
 asphalt with stones, cracks and repair patches (corners for ORB), the paint (solid or dashed, worn in

@@ -7,9 +7,9 @@ import numpy as np
 
 from stamlane.align import estimate_clip
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.data.synth_camera import Camera, Pose
-from stamlane.data.synth_render import GrainLayer, GroundRenderer
-from stamlane.data.synthetic import SynthConfig, generate_clip
+from stamlane.synth.camera import Camera, Pose
+from stamlane.synth.generator import SynthConfig, generate_clip
+from stamlane.synth.render import GrainLayer, GroundRenderer
 
 CAMERA = Camera.for_size(320, 180)
 POSE = Pose(0.0, 0.0, 1.8, 0.0, 0.0)

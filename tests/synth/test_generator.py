@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from stamlane.data.synth_effects import Windscreen
-from stamlane.data.synthetic import FACTORS, SynthConfig, clip_statistics, generate_clip, generate_dataset
+from stamlane.synth.effects import Windscreen
+from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, generate_dataset
 
 GEOM = SynthConfig(width=320, height=180, num_frames=6, occluder_prob=0.0)
 
@@ -76,7 +76,7 @@ def test_same_seed_same_clip_other_seed_other_clip():
 
 
 def test_dataset_layout_and_determinism(tmp_path: Path, synthetic_root: Path):
-    from tests.data.conftest import TINY
+    from tests.conftest import TINY_SYNTH as TINY
 
     again = tmp_path / "again"
     generate_dataset(again, train=3, val=1, test=1, challenging=1, seed=3, config=TINY, progress=False)
@@ -122,7 +122,7 @@ def test_traffic_factors_hide_more_lane_points_and_only_moving_traffic_is_reveal
 
 
 def test_every_factor_is_a_labelled_split_of_the_challenging_clips(tmp_path: Path):
-    from tests.data.conftest import TINY
+    from tests.conftest import TINY_SYNTH as TINY
 
     root = tmp_path / "set"
     info = generate_dataset(

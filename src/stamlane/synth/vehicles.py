@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stamlane.data.synth_camera import Camera, Pose
-from stamlane.data.synth_road import Road
+from stamlane.synth.camera import Camera, Pose
+from stamlane.synth.road import Road
 
 __all__ = ["Vehicle", "draw_vehicles", "sample_vehicles", "shadow_polygons"]
 

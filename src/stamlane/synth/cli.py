@@ -8,7 +8,8 @@ import time
 from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
-from stamlane.data.synthetic import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
+
+from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
 __all__ = ["main"]
 
@@ -66,13 +67,17 @@ def main(argv: list[str] | None = None) -> int:
     if challenging < 0:
         print(f"stamlane synth: --challenging-clips must be >= 0, got {challenging}", file=sys.stderr)
         return 2
-    existing = [name for name in ("dataset.json", "train.json", "val.json", "test.json") if (Path(args.out) / name).exists()]
+    existing = [
+        name for name in ("dataset.json", "train.json", "val.json", "test.json") if (Path(args.out) / name).exists()
+    ]
     if existing:
         print(f"stamlane synth: {args.out} already holds a set ({existing[0]}); give another --out", file=sys.stderr)
         return 2
     for flag in ("train_key_step", "eval_key_step"):
         if getattr(args, flag) < 0:
-            print(f"stamlane synth: --{flag.replace('_', '-')} must be >= 0, got {getattr(args, flag)}", file=sys.stderr)
+            print(
+                f"stamlane synth: --{flag.replace('_', '-')} must be >= 0, got {getattr(args, flag)}", file=sys.stderr
+            )
             return 2
     if args.workers < 1:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)

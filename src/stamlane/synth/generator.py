@@ -1,10 +1,10 @@
 """Synthetic road clips in the TuSimple layout, with the true inter-frame homographies.
 
-A flat road (``synth_road``) is seen by a pinhole camera (``synth_camera``) that drives along it with
+A flat road (``road``) is seen by a pinhole camera (``camera``) that drives along it with
 speed, lateral drift or a lane change, the matching yaw, curvature and pitch jitter; box vehicles
-(``synth_vehicles``) drive on the road at their own speeds, change lanes, occlude lane marks and cast
+(``vehicles``) drive on the road at their own speeds, change lanes, occlude lane marks and cast
 moving shadows. The ground texture is rendered once per clip and each frame samples it through the
-frame's ground homography (``synth_render``: averaged along the road as far as one image row spans, with
+frame's ground homography (``render``: averaged along the road as far as one image row spans, with
 ground-anchored asphalt grain near the camera), so the ground-plane homography of every frame is known
 exactly. Defaults follow TuSimple: 20 frames at 20 fps (0.6-1.4 m of forward motion per frame).
 
@@ -39,11 +39,11 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stamlane.data.synth_camera import Camera, Pose
-from stamlane.data.synth_effects import NightLight, Windscreen, glare, night
-from stamlane.data.synth_render import GrainLayer, GroundRenderer
-from stamlane.data.synth_road import Road, render_texture, sample_road
-from stamlane.data.synth_vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
+from stamlane.synth.camera import Camera, Pose
+from stamlane.synth.effects import NightLight, Windscreen, glare, night
+from stamlane.synth.render import GrainLayer, GroundRenderer
+from stamlane.synth.road import Road, render_texture, sample_road
+from stamlane.synth.vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
 __all__ = [
     "FACTORS",
@@ -187,18 +187,18 @@ class SynthConfig:
     dash_gap: tuple[float, float] = (4.0, 8.0)
     """Metres between two dashes of a dashed mark (the dashes are 2-4 m)."""
     windscreen: bool = False
-    """Dirt and drops on the windscreen and a sweeping wiper (camera-fixed occluders, ``synth_effects``)."""
+    """Dirt and drops on the windscreen and a sweeping wiper (camera-fixed occluders, ``effects``)."""
     glare_prob: float = 0.0
-    """Chance of each frame to be spoilt by overexposure, a sun flare or motion blur (``synth_effects.glare``)."""
+    """Chance of each frame to be spoilt by overexposure, a sun flare or motion blur (``effects.glare``)."""
     night: bool = False
-    """Night: headlights light the near road, the rest is dark and noisy (``synth_effects.night``)."""
+    """Night: headlights light the near road, the rest is dark and noisy (``effects.night``)."""
     label_range: float = 80.0
     h_step: int = 10
     jpeg_quality: int = 92
     ppm: float = 0.0
     """Texture pixels per metre; 0 = ``16 * width / 640``."""
     grain: float = 0.12
-    """Relative brightness amplitude of the fine asphalt grain near the camera (``synth_render``); 0: none."""
+    """Relative brightness amplitude of the fine asphalt grain near the camera (``render``); 0: none."""
     prefilter: bool = True
     """Average the texture along the road as far as one image row spans (no far-field aliasing)."""
 
@@ -655,7 +655,7 @@ def generate_dataset(
             pool.shutdown()
         bar.close()
     info = {
-        "generator": "stamlane.data.synthetic",
+        "generator": "stamlane.synth.generator",
         "format_version": FORMAT_VERSION,
         "seed": seed,
         "config": asdict(cfg),
