@@ -13,10 +13,10 @@ from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.checkpoints import CheckpointError, read_checkpoint
-from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.module import StamLaneModule
-from stamlane.predict import FramesDataModule, LanePredictionWriter
+from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
 
 __all__ = ["CONFIG_KEY", "ConfigInCheckpoint", "StamLaneCLI"]

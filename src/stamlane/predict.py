@@ -11,9 +11,7 @@
 
 With several processes (DDP) every rank writes ``predictions.rank<r>.json``.
 
-`FramesDataModule` serves clips of consecutive frames from a folder of images (in name order, ``2.jpg`` before ``10.jpg``) or a video
-file (decoded to JPEG files under ``frames_dir`` first), key frame last; the first frames of the sequence
-repeat the earliest available frame as history.
+The data of ``stamlane predict --source FOLDER|VIDEO`` is ``stamlane.data.datamodule.FramesDataModule``.
 """
 
 from __future__ import annotations
@@ -25,20 +23,12 @@ import cv2
 import lightning.pytorch as pl
 import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
-from torch.utils.data import DataLoader
-from tqdm import tqdm
 
-from stamlane.data.alignment import WARP_MODES
-from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
-from stamlane.data.collate import collate_clips
-from stamlane.data.labels import DataError
-from stamlane.data.transforms import ClipTransform
 from stamlane.overlay import draw_lanes
 from stamlane.writers import TusimpleWriter, culane_lines_path, write_culane_lines
 
-__all__ = ["VIDEO_SUFFIXES", "FolderClips", "FramesDataModule", "LanePredictionWriter", "decode_video"]
+__all__ = ["LanePredictionWriter"]
 
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 """File suffixes `FramesDataModule` treats as videos."""
 
 _FORMATS = ("auto", "tusimple", "culane")
@@ -130,123 +120,3 @@ class LanePredictionWriter(BasePredictionWriter):
         if trainer.is_global_zero:
             parts = [f"{n} {k}" for k, n in self.written.items() if n]
             print(f"stamlane predict: wrote {', '.join(parts) or 'nothing'} under {self.output_dir}")
-
-
-class FolderClips(ClipDataset):
-    """Every image of one folder (in name order, numbers compared as numbers) as the key frame of a clip of its predecessors; no labels.
-
-    ``raw_file`` is the image's name; ``h_samples`` is ``None`` (lanes are written as CULane text).
-    """
-
-    format = "frames"
-
-    def __init__(self, root: str | Path, **kwargs: Any) -> None:
-        kwargs.update(history="sorted", repeat_missing_history=True, require_labels=False)
-        super().__init__(root, **kwargs)
-
-    def _index(self) -> list[ClipEntry | DataError]:
-        names = self._sorted_listing(self.root)
-        if not names:
-            raise DataError(f"{self.root} holds no image ({', '.join(IMAGE_SUFFIXES)})")
-        source = str(self.root)
-        return [ClipEntry(name, self._clip_paths(name, source), [], None, source) for name in names]
-
-
-def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path:
-    """Decode a video into ``out_dir/000000.jpg, 000001.jpg, ...`` (every ``every``-th frame); returns ``out_dir``."""
-    capture = cv2.VideoCapture(str(video))
-    if not capture.isOpened():
-        raise DataError(f"cannot open video {video}")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
-    index = written = 0
-    with tqdm(total=total, desc=f"decoding {Path(video).name}", unit="frame") as bar:
-        while True:
-            ok, frame = capture.read()
-            if not ok:
-                break
-            if index % every == 0:
-                cv2.imwrite(str(out / f"{written:06d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
-                written += 1
-            index += 1
-            bar.update(1)
-    capture.release()
-    if written == 0:
-        raise DataError(f"no frame could be decoded from {video}")
-    return out
-
-
-class FramesDataModule(pl.LightningDataModule):
-    """Prediction data from a folder of frames or a video file (see the module docstring).
-
-    Args:
-        source: a folder of images or a video file.
-        num_frames: frames per clip T, key frame last.
-        stride: distance between clip frames, in positions of the sorted listing.
-        image_size: network input ``(H, W)``.
-        crop_top: fraction of the frame height cut off at the top, as the model was trained (``ClipTransform``).
-        align: ``"fly"`` (the paper's pre-alignment) or ``"none"``.
-        warp: ``"image"`` (history frames warped before the network) or ``"feature"`` (unwarped frames and
-            ``key_from_hist_net``, for a model trained with ``warp="feature"``; see `stamlane.data.clips`).
-        batch_size: clips per batch.
-        num_workers: DataLoader workers.
-        frames_dir: where a video is decoded (default: ``<video>.frames`` beside the video).
-        horizon_row: first ground row for ``align="fly"`` (None: ``stamlane.align``'s default).
-    """
-
-    def __init__(
-        self,
-        source: str,
-        num_frames: int = 4,
-        stride: int = 1,
-        image_size: tuple[int, int] = (128, 256),
-        crop_top: float = 0.0,
-        align: str = "fly",
-        warp: str = "image",
-        batch_size: int = 4,
-        num_workers: int = 0,
-        frames_dir: str | None = None,
-        horizon_row: int | None = None,
-    ) -> None:
-        super().__init__()
-        path = Path(source)
-        if not path.exists():
-            raise DataError(f"prediction source {path} does not exist")
-        if align not in ("fly", "none"):
-            raise ValueError(f"align must be 'fly' or 'none' for a folder or video, got {align!r}")
-        if warp not in WARP_MODES:
-            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
-        self.source = path
-        self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
-        if path.is_file() and not self.is_video:
-            raise DataError(f"{path} is neither a folder of frames nor a video ({', '.join(VIDEO_SUFFIXES)})")
-        self.root = Path(frames_dir) if frames_dir else (path.with_suffix(".frames") if self.is_video else path)
-        self.options = {
-            "num_frames": num_frames,
-            "stride": stride,
-            "image_size": tuple(image_size),
-            "align": align,
-            "warp": warp,
-            "horizon_row": horizon_row,
-        }
-        self.crop_top = crop_top
-        self.batch_size = batch_size
-        self.num_workers = num_workers
-        self.dataset: FolderClips | None = None
-
-    def prepare_data(self) -> None:
-        if self.is_video and not any(self.root.glob("*.jpg")):
-            decode_video(self.source, self.root)
-
-    def setup(self, stage: str | None = None) -> None:
-        if self.dataset is None:
-            size = self.options["image_size"]
-            transform = ClipTransform(size, crop_top=self.crop_top)
-            self.dataset = FolderClips(self.root, transform=transform, **self.options)
-
-    def predict_dataloader(self) -> DataLoader:
-        self.setup("predict")
-        return DataLoader(
-            self.dataset, batch_size=self.batch_size, num_workers=self.num_workers, collate_fn=collate_clips
-        )

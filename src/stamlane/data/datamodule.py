@@ -15,10 +15,12 @@ from torch.utils.data import DataLoader
 from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
+from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
+from stamlane.data.labels import DataError
 from stamlane.synth.generator import EVAL_KEY_STEP, FORMAT_VERSION, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 from stamlane.data.transforms import ClipTransform
 
-__all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule"]
+__all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
 
 DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
 """Where ``root=None`` points (relative to the working directory); generated there when missing. Named by the
@@ -272,3 +274,78 @@ class ClipDataModule(LightningDataModule):
 
     def predict_dataloader(self) -> DataLoader:
         return self._loader("predict")
+
+
+class FramesDataModule(LightningDataModule):
+    """Prediction data from a folder of frames or a video file (``stamlane.data.frames``): clips of consecutive frames, key frame last.
+
+    Args:
+        source: a folder of images or a video file.
+        num_frames: frames per clip T, key frame last.
+        stride: distance between clip frames, in positions of the sorted listing.
+        image_size: network input ``(H, W)``.
+        crop_top: fraction of the frame height cut off at the top, as the model was trained (``ClipTransform``).
+        align: ``"fly"`` (the paper's pre-alignment) or ``"none"``.
+        warp: ``"image"`` (history frames warped before the network) or ``"feature"`` (unwarped frames and
+            ``key_from_hist_net``, for a model trained with ``warp="feature"``; see `stamlane.data.clips`).
+        batch_size: clips per batch.
+        num_workers: DataLoader workers.
+        frames_dir: where a video is decoded (default: ``<video>.frames`` beside the video).
+        horizon_row: first ground row for ``align="fly"`` (None: ``stamlane.align``'s default).
+    """
+
+    def __init__(
+        self,
+        source: str,
+        num_frames: int = 4,
+        stride: int = 1,
+        image_size: tuple[int, int] = (128, 256),
+        crop_top: float = 0.0,
+        align: str = "fly",
+        warp: str = "image",
+        batch_size: int = 4,
+        num_workers: int = 0,
+        frames_dir: str | None = None,
+        horizon_row: int | None = None,
+    ) -> None:
+        super().__init__()
+        path = Path(source)
+        if not path.exists():
+            raise DataError(f"prediction source {path} does not exist")
+        if align not in ("fly", "none"):
+            raise ValueError(f"align must be 'fly' or 'none' for a folder or video, got {align!r}")
+        if warp not in WARP_MODES:
+            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
+        self.source = path
+        self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
+        if path.is_file() and not self.is_video:
+            raise DataError(f"{path} is neither a folder of frames nor a video ({', '.join(VIDEO_SUFFIXES)})")
+        self.root = Path(frames_dir) if frames_dir else (path.with_suffix(".frames") if self.is_video else path)
+        self.options = {
+            "num_frames": num_frames,
+            "stride": stride,
+            "image_size": tuple(image_size),
+            "align": align,
+            "warp": warp,
+            "horizon_row": horizon_row,
+        }
+        self.crop_top = crop_top
+        self.batch_size = batch_size
+        self.num_workers = num_workers
+        self.dataset: FolderClips | None = None
+
+    def prepare_data(self) -> None:
+        if self.is_video and not any(self.root.glob("*.jpg")):
+            decode_video(self.source, self.root)
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.dataset is None:
+            size = self.options["image_size"]
+            transform = ClipTransform(size, crop_top=self.crop_top)
+            self.dataset = FolderClips(self.root, transform=transform, **self.options)
+
+    def predict_dataloader(self) -> DataLoader:
+        self.setup("predict")
+        return DataLoader(
+            self.dataset, batch_size=self.batch_size, num_workers=self.num_workers, collate_fn=collate_clips
+        )
