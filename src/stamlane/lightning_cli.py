@@ -15,6 +15,7 @@ from stamlane_eval.integrations.lightning import LaneEvalCallback
 from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.final_checkpoint import FinalCheckpoint
+from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
@@ -91,10 +92,8 @@ class StamLaneCLI(LightningCLI):
             if init is not None and "save_dir" in init:
                 init["save_dir"] = trainer["default_root_dir"]
 
-    def _parse_ckpt_path(self) -> None:
-        """Keep the command line in charge: plain LightningCLI re-applies the checkpoint's saved ``model``
-        hyperparameters OVER ``--config``/``--model.*`` (so ``--model.postprocess.eps`` would be ignored at
-        predict time). The model is built from the config (pass the run's saved ``config.yaml``)."""
+    # the command line stays in charge of the model's settings (see stamlane.lightning_compat)
+    _parse_ckpt_path = keep_command_line_hparams
 
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:
         trainer = super().instantiate_trainer(**kwargs)

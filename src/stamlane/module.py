@@ -35,6 +35,7 @@ from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
 from stamlane.hardware import resolve_bf16
+from stamlane.lightning_compat import drop_hyperparameters
 from stamlane.losses import LaneLoss
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.postprocess import PostprocessConfig, decode_lanes
@@ -139,9 +140,7 @@ class StamLaneModule(LightningModule):
             self.save_hyperparameters()
         # keep only what a weights_only checkpoint can hold (under LightningCLI the hparams are the plain
         # config, which all stays; built objects passed from Python are dropped)
-        for key in [k for k, v in self.hparams.items() if not _is_plain(v)]:
-            del self._hparams[key]
-            self._hparams_initial.pop(key, None)
+        drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
         if num_frames is not None and num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")
         self.net = LaneNet(encoder, fusion, decoder)

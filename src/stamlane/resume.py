@@ -19,6 +19,8 @@ import lightning.pytorch as pl
 import numpy as np
 import torch
 
+from stamlane.lightning_compat import fit_data_fetcher
+
 __all__ = ["ExactResume", "get_rng_states", "set_rng_states"]
 
 
@@ -74,7 +76,7 @@ class ExactResume(pl.Callback):
         self._epoch_length = _finite(trainer.num_training_batches)
         skip, self._skip = self._skip, 0
         resumed, self._resumed = self._resumed, False
-        fetcher = trainer.fit_loop._data_fetcher  # created by FitLoop.setup_data, nothing fetched yet
+        fetcher = fit_data_fetcher(trainer)  # created by FitLoop.setup_data, nothing fetched yet
         if not resumed or fetcher is None or fetcher.iterator is None:
             return
         for _ in range(skip):  # the batches the interrupted run had trained on in this epoch
