@@ -35,14 +35,14 @@ import cv2
 import numpy as np
 
 from stamlane.align import AlignConfig, align_clip, detect_plain_orb, detect_spread_features, estimate_homography
-from stamlane.align.egomotion import Camera, key_from_hist_motion
+from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
 from stamlane.align.features import FeatureConfig, to_gray
 from stamlane.align.homography import FramePrep, estimate_prepared, fit_homography, ground_corners, match_features
 from stamlane.align.synthetic import render_road, road_texture
 
 REPO = Path(__file__).resolve().parents[1]
 FRAMES = REPO.parent / "shared" / "data" / "frames"
-CAMERA = Camera()  # 1280x720, f = 1000 px, 1.5 m high, vanishing line at row 280 (TuSimple-like)
+CAMERA = RoadCamera()  # 1280x720, f = 1000 px, 1.5 m high, vanishing line at row 280 (TuSimple-like)
 HORIZON = 324  # 0.45 * 720, the default
 SUCCESS_PX = 3.0
 CELL = 30  # px, the cells counted as "occupied" in the Figure 2 comparison

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stamlane.align.egomotion import Camera
+from stamlane.align.egomotion import RoadCamera
 from stamlane.align.synthetic import road_texture
 
 # a 640x360 camera keeps the tests fast; same geometry as the benchmark's 1280x720 one, halved
-SMALL_CAMERA = Camera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
+SMALL_CAMERA = RoadCamera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
 SMALL_HORIZON = 162  # 0.45 * 360
 
 

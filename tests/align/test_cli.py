@@ -21,12 +21,12 @@ from stamlane.align.cache import (
     load_alignment,
 )
 from stamlane.align.cli import main
-from stamlane.align.egomotion import Camera, key_from_hist_motion
+from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
 from stamlane.align.synthetic import render_road
 
 from .conftest import corner_error
 
-TINY = Camera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
+TINY = RoadCamera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
 
 
 @pytest.fixture(scope="module")

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from stamlane.align.cli import main
-from stamlane.align.egomotion import Camera
+from stamlane.align.egomotion import RoadCamera
 from stamlane.align.export import MANIFEST_NAME, aligned_frame_name
 from stamlane.align.synthetic import render_road
 
-TINY = Camera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
+TINY = RoadCamera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
 GROUND_ROW = 81  # 0.45 * 180, the default --horizon-row
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from stamlane.align.egomotion import Camera
+from stamlane.align.egomotion import RoadCamera
 from stamlane.align.synthetic import render_road, road_texture
 from stamlane.stream.cli import iter_frames, main
 
@@ -52,7 +52,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def frames_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    camera = Camera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
+    camera = RoadCamera(width=320, height=180, focal=250.0, horizon_row=70.0, camera_height=1.5)
     texture = road_texture(seed=1)
     folder = tmp_path_factory.mktemp("frames")
     for i in range(NUM_FRAMES):

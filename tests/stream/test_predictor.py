@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from stamlane.align import align_clip
-from stamlane.align.egomotion import Camera, image_from_ground
+from stamlane.align.egomotion import RoadCamera, image_from_ground
 from stamlane.align.synthetic import render_road, road_texture
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder
 from stamlane.stream import StreamingPredictor, fuse_feature_aligned
@@ -121,7 +121,7 @@ def _corner_error(estimate: np.ndarray, truth: np.ndarray, shape: tuple[int, int
 
 
 def test_bgr_frames_with_alignment_give_lanes_and_true_homographies(net: LaneNet) -> None:
-    camera = Camera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
+    camera = RoadCamera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
     row = 160
     texture = road_texture(seed=3)
     poses = [(1.0 * i, 0.004 * i) for i in range(5)]  # (forward metres, yaw radians)

@@ -7,7 +7,7 @@ import numpy as np
 
 from stamlane.align import estimate_clip
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.synth.camera import Camera, Pose
+from stamlane.camera import Camera, Pose
 from stamlane.synth.generator import SynthConfig, generate_clip
 from stamlane.synth.render import GrainLayer, GroundRenderer
 

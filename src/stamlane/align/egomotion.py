@@ -1,7 +1,9 @@
-"""Ground-plane homographies of a moving pinhole camera (for generating pairs with a known ``key_from_hist``).
+"""Ground-plane homographies of a moving camera, for pairs with a known ``key_from_hist`` (tests, benchmarks).
 
-Frames: camera x right, y down, z forward; the ground is the plane ``y = camera_height`` of the world frame,
-which is the history camera's frame before its pitch. A ground point is ``(X, Z)`` in metres.
+The camera model is ``stamlane.camera`` (the synthetic generator's): pixel centres at integers, principal point
+at the image centre ``((W - 1) / 2, (H - 1) / 2)``. A `RoadCamera` is that camera mounted on a car: its height
+above the road and the image row of the horizon (which sets its pitch). The history frame's camera stands at
+the origin of the road; the key frame's has moved ``forward`` metres and turned.
 """
 
 from __future__ import annotations
@@ -10,18 +12,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Camera", "image_from_ground", "key_from_hist_motion", "rotation"]
+from stamlane.camera import Camera, Pose
+
+__all__ = ["RoadCamera", "image_from_ground", "key_from_hist_motion"]
 
 
 @dataclass(frozen=True)
-class Camera:
-    """A pinhole camera above a flat road.
+class RoadCamera:
+    """A `stamlane.camera.Camera` (principal point at the image centre) mounted above a flat road.
 
     Attributes:
         width: image width in pixels.
         height: image height in pixels.
         focal: focal length in pixels.
-        horizon_row: image row of the vanishing line (sets the camera's pitch).
+        horizon_row: image row of the horizon (sets the camera's pitch).
         camera_height: metres above the road.
     """
 
@@ -32,35 +36,33 @@ class Camera:
     camera_height: float = 1.5
 
     @property
+    def camera(self) -> Camera:
+        """The intrinsics: the one camera model, principal point at the image centre."""
+        return Camera.centred(self.width, self.height, self.focal)
+
+    @property
     def K(self) -> np.ndarray:
-        """``(3, 3)`` intrinsics with the principal point at the image centre."""
-        return np.array([[self.focal, 0, self.width / 2], [0, self.focal, self.height / 2], [0, 0, 1.0]])
+        """``(3, 3)`` intrinsics."""
+        return self.camera.K
 
     @property
     def pitch(self) -> float:
-        """Downward pitch in radians that puts the vanishing line at ``horizon_row``."""
-        return float(np.arctan2(self.height / 2 - self.horizon_row, self.focal))
+        """Downward pitch in radians that puts the horizon at ``horizon_row``."""
+        return self.camera.pitch_for_horizon(self.horizon_row)
+
+    def pose(self, forward: float = 0.0, yaw: float = 0.0, pitch: float = 0.0) -> Pose:
+        """The camera ``forward`` metres along the road, turned by ``yaw`` and pitched ``pitch`` radians more."""
+        return Pose(0.0, forward, self.camera_height, yaw, self.pitch + pitch)
 
 
-def rotation(yaw: float = 0.0, pitch: float = 0.0) -> np.ndarray:
-    """``(3, 3)`` camera_from_world rotation for a yaw (right positive) and a downward pitch, radians."""
-    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-    r_yaw = np.array([[cy, 0, -sy], [0, 1, 0], [sy, 0, cy]])
-    r_pitch = np.array([[1, 0, 0], [0, cp, -sp], [0, sp, cp]])
-    return r_pitch @ r_yaw
-
-
-def image_from_ground(camera: Camera, yaw: float = 0.0, pitch: float = 0.0, forward: float = 0.0) -> np.ndarray:
-    """``(3, 3)`` homography from ground ``(X, Z, 1)`` metres to pixels for a camera moved ``forward``
-    metres along the world z axis, turned by ``yaw`` and pitched by ``camera.pitch + pitch`` radians."""
-    r = rotation(yaw, camera.pitch + pitch)
-    centre = np.array([0.0, 0.0, forward])
-    ground = np.stack([[1.0, 0, 0], [0, 0, 1.0], np.array([0, camera.camera_height, 0]) - centre], axis=1)
-    return camera.K @ r @ ground
+def image_from_ground(camera: RoadCamera, yaw: float = 0.0, pitch: float = 0.0, forward: float = 0.0) -> np.ndarray:
+    """``(3, 3)`` homography from ground ``(X, Z, 1)`` metres to pixels for the camera moved ``forward``
+    metres along the road, turned by ``yaw`` and pitched by ``camera.pitch + pitch`` radians."""
+    return camera.camera.image_from_ground(camera.pose(forward, yaw, pitch))
 
 
 def key_from_hist_motion(
-    camera: Camera, forward: float, yaw: float = 0.0, pitch: float = 0.0, hist_yaw: float = 0.0
+    camera: RoadCamera, forward: float, yaw: float = 0.0, pitch: float = 0.0, hist_yaw: float = 0.0
 ) -> np.ndarray:
     """``(3, 3)`` ``key_from_hist`` of the ground when the camera moved ``forward`` metres and turned by
     ``yaw`` / ``pitch`` radians between the history and the key frame (normalised to ``H[2, 2] = 1``)."""

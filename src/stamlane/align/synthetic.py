@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from stamlane.align.egomotion import Camera, image_from_ground
+from stamlane.align.egomotion import RoadCamera, image_from_ground
 
 __all__ = ["render_road", "road_texture"]
 
@@ -59,7 +59,7 @@ def _texture_from_ground() -> np.ndarray:
 
 def render_road(
     texture: np.ndarray,
-    camera: Camera,
+    camera: RoadCamera,
     *,
     yaw: float = 0.0,
     pitch: float = 0.0,

@@ -1,9 +1,11 @@
-"""Pinhole camera over a flat road, the geometry behind the synthetic clips.
+"""The one camera model of stamlane: a pinhole camera over a flat road (the synthetic clips, the ego-motion
+homographies of ``stamlane.align.egomotion`` and their tests all use it).
 
 World frame (metres): ``X`` to the right, ``Y`` up, ``Z`` forward along the road; the road is the plane
 ``Y = 0``. A camera pose is its ground position ``(x, z)``, its height, its heading ``yaw`` (radians,
 positive turns towards +X) and its ``pitch`` (radians, positive looks down). Image pixels follow
-``stamlane.types``: ``(u, v)`` with ``u`` right, ``v`` down, pixel centres at integers.
+``stamlane.types``: ``(u, v)`` with ``u`` right, ``v`` down, pixel centres at integers, so the image centre
+of a ``W`` x ``H`` image is ``((W - 1) / 2, (H - 1) / 2)``, the default principal point (`Camera.centred`).
 
 Because the road is a plane, each pose gives a homography ``image_from_ground`` mapping ground points
 ``(X, Z, 1)`` to image pixels; between two poses of one clip ``key_from_hist =
@@ -56,6 +58,16 @@ class Camera:
         """A camera of ``hfov_deg`` horizontal field of view whose level horizon lies at ``horizon * height``."""
         focal = (width / 2.0) / np.tan(np.radians(hfov_deg) / 2.0)
         return cls(width, height, float(focal), (width - 1) / 2.0, horizon * (height - 1))
+
+    @classmethod
+    def centred(cls, width: int, height: int, focal: float) -> Camera:
+        """A camera whose principal point is the image centre ``((W - 1) / 2, (H - 1) / 2)``."""
+        return cls(width, height, float(focal), (width - 1) / 2.0, (height - 1) / 2.0)
+
+    def pitch_for_horizon(self, horizon_row: float) -> float:
+        """The downward pitch (radians) that puts the horizon at image row ``horizon_row`` (`horizon_row`'s
+        inverse)."""
+        return float(np.arctan2(self.cy - horizon_row, self.focal))
 
     @property
     def K(self) -> np.ndarray:
