@@ -115,3 +115,17 @@ def test_estimate_clip_returns_the_alignments_of_align_clip(texture):
         np.testing.assert_allclose(a.key_from_hist, b.key_from_hist)
     with pytest.raises(ValueError, match="best"):
         estimate_clip(frames, strategy="best")
+
+
+def test_chain_link_multiplies_checks_and_reports_the_counts_asked_for():
+    from stamlane.align.warp import chain_link
+
+    a = Alignment(np.array([[1.0, 0, 3.0], [0, 1, 0], [0, 0, 1]]), 40, 30, True, "")  # mid -> key: 3 px right
+    b = Alignment(np.array([[1.0, 0, 2.0], [0, 1, 1.0], [0, 0, 1]]), 50, 45, True, "")  # hist -> mid
+    linked = chain_link(a, b, (360, 640), 160)
+    np.testing.assert_allclose(linked.key_from_hist, [[1, 0, 5], [0, 1, 1], [0, 0, 1]])
+    assert linked.ok and (linked.num_matches, linked.num_inliers) == (50, 45)
+    assert (chain_link(a, b, (360, 640), 160, counts=a).num_inliers) == 30
+    wild = Alignment(np.array([[1.0, 0, 900.0], [0, 1, 0], [0, 0, 1]]), 40, 30, True, "")  # off the image
+    failed = chain_link(wild, b, (360, 640), 160)
+    assert not failed.ok and failed.reason

@@ -18,7 +18,7 @@ from stamlane.align.homography import (
     resolve_horizon_row,
 )
 
-__all__ = ["align_clip", "alignments_to_key", "chain_alignments", "estimate_clip", "warp_to_key"]
+__all__ = ["align_clip", "alignments_to_key", "chain_alignments", "chain_link", "estimate_clip", "warp_to_key"]
 
 Strategy = Literal["direct", "chain"]
 
@@ -82,12 +82,40 @@ def chain_alignments(
             acc = Alignment.failed(f"chain link {i}->{i + 1} failed: {step.reason}", step.num_matches, step.num_inliers)
             out[i] = acc
             continue
-        h = acc.key_from_hist @ step.key_from_hist
-        h = h / h[2, 2]
-        reason = check_plausible(h, shape, horizon_row, cfg)
-        acc = Alignment(h, step.num_matches, step.num_inliers, True, "") if not reason else Alignment.failed(reason)
+        acc = chain_link(acc, step, shape, horizon_row, cfg)
         out[i] = acc
     return out
+
+
+def chain_link(
+    key_from_mid: Alignment,
+    mid_from_hist: Alignment,
+    shape: tuple[int, int],
+    horizon_row: int,
+    cfg: AlignConfig | None = None,
+    counts: Alignment | None = None,
+) -> Alignment:
+    """One link of a chain: ``key_from_hist = key_from_mid @ mid_from_hist``, normalised and checked for
+    plausibility (the one place a chain is multiplied: ``chain_alignments`` and the streaming predictor).
+
+    Args:
+        key_from_mid: a middle frame -> the key frame (must be ok).
+        mid_from_hist: the history frame -> the middle frame (must be ok).
+        shape: ``(H, W)`` of the frames.
+        horizon_row: first row of the ground region.
+        cfg: settings of the plausibility check.
+        counts: whose matches / inliers the result reports (default ``mid_from_hist``'s).
+
+    Returns:
+        the product, or a failed alignment naming why the product is implausible.
+    """
+    h = key_from_mid.key_from_hist @ mid_from_hist.key_from_hist
+    h = h / h[2, 2]
+    reason = check_plausible(h, shape, horizon_row, cfg)
+    if reason:
+        return Alignment.failed(reason)
+    counts = counts or mid_from_hist
+    return Alignment(h, counts.num_matches, counts.num_inliers, True, "")
 
 
 def alignments_to_key(

@@ -107,10 +107,9 @@ class ClipAligner:
         return result
 
     def _estimate(self, frames: list[np.ndarray]) -> list:  # -> list[stamlane.align.Alignment], T - 1
-        from stamlane.align import align_clip  # imported only when used
+        from stamlane.align.warp import estimate_clip  # imported only when used
 
-        _, alignments = align_clip(frames, horizon_row=self.horizon_row, strategy=self.strategy)
-        return alignments[:-1]
+        return estimate_clip(frames, horizon_row=self.horizon_row, strategy=self.strategy)[:-1]  # no warping
 
     def _cached(self, key_path: str, hist_path: str):  # -> Alignment | None
         from stamlane.align.cache import load_alignment  # imported only when used

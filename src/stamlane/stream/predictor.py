@@ -43,8 +43,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from stamlane.align import AlignConfig, Alignment, check_plausible
+from stamlane.align import AlignConfig, Alignment
 from stamlane.align.homography import FramePrep, check_image, estimate_prepared, resolve_horizon_row
+from stamlane.align.warp import chain_link
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import LaneNet
 from stamlane.models.feature_aligned import fuse_feature_aligned
@@ -307,11 +308,8 @@ class StreamingPredictor:
                 continue
             alignment = None
             if step.ok and entry.alignment.ok:
-                h = step.key_from_hist @ entry.key_from_hist
-                h = h / h[2, 2]
-                if not check_plausible(h, shape, row, cfg):
-                    alignment = Alignment(h, step.num_matches, step.num_inliers, True, "")
-            if alignment is None:  # the chain broke: match this frame with the new one directly
+                alignment = chain_link(step, entry.alignment, shape, row, cfg, counts=step)
+            if alignment is None or not alignment.ok:  # the chain broke: match this frame with the new one directly
                 alignment = estimate(entry)
             entry.alignment = alignment
             entry.key_from_hist = np.asarray(alignment.key_from_hist, np.float64)
