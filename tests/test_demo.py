@@ -82,6 +82,7 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
         (["--data", __file__], "is not a folder"),
         (["--seeds", "0"], "--seeds must be >= 1, got 0"),
         (["--rows", "f4_nope"], "no paper row 'f4_nope'; known rows: f1_cbam"),
+        (["--quick", "--out", __file__], "is a file, not a folder"),
     ],
 )
 def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

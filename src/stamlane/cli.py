@@ -22,6 +22,7 @@ What `StamLaneCLI` adds to plain LightningCLI:
 from __future__ import annotations
 
 import importlib
+import logging
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -138,6 +139,19 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
 
 
+class _NoTips(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.getMessage()).startswith("\N{ELECTRIC LIGHT BULB} Tip")
+
+
+def _quiet_lightning_tips() -> None:
+    """Drop Lightning's advertising tip ("try installing litlogger ...") from every command's output."""
+    for name in ("lightning.pytorch.utilities.rank_zero", "lightning.fabric.utilities.rank_zero"):
+        logger = logging.getLogger(name)
+        if not any(isinstance(f, _NoTips) for f in logger.filters):
+            logger.addFilter(_NoTips())
+
+
 def one_line(err: BaseException) -> str:
     """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
     traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
@@ -172,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         from lightning.fabric.utilities.exceptions import MisconfigurationException
 
         from stamlane.data.labels import DataError
+
+        _quiet_lightning_tips()
 
         try:
             with _config_from_checkpoint(command, rest) as extra:

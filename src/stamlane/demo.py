@@ -479,6 +479,8 @@ def run(args: argparse.Namespace) -> dict:
     models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
     models += [DemoModel.paper_row(row) for row in dict.fromkeys(args.rows) if row not in {m.name for m in models}]
     out = args.out
+    if out.exists() and not out.is_dir():
+        raise DemoError(f"--out {out} is a file, not a folder")
     out.mkdir(parents=True, exist_ok=True)
     root = _make_data(args.data, out, args.quick)
     pre_steps, ft_steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)

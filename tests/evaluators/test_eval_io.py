@@ -29,6 +29,9 @@ def test_culane_paths_and_entries(tmp_path: Path) -> None:
     (tmp_path / "list.txt").write_text("\n")
     with pytest.raises(LaneFileError, match="empty list"):
         culane_entries(tmp_path, tmp_path / "list.txt")
+    (tmp_path / "list.txt").write_bytes(b"\x00\x01\n")  # a binary file given as the list
+    with pytest.raises(LaneFileError, match="holds a NUL byte: not a path"):
+        culane_entries(tmp_path, tmp_path / "list.txt")
     (tmp_path / "list.txt").write_text("/d/a.jpg\n/d/b.jpg\nd/a.lines.txt\n")  # the same image, written twice
     with pytest.raises(LaneFileError, match=r"entries 1 and 3 name the same image .*two results for one image"):
         culane_entries(tmp_path, tmp_path / "list.txt")

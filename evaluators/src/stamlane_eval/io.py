@@ -279,6 +279,10 @@ def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
         LaneFileError: an entry that would leave ``root`` (``..`` components, a drive); a list file is data and
             never names a file outside the folder it indexes.
     """
+    if "\x00" in entry:
+        raise LaneFileError(
+            f"list entry {entry.strip()[:60]!r} holds a NUL byte: not a path (is the list a text file?)"
+        )
     rel = entry.strip().lstrip("/")  # CULane lists write paths from the dataset root with a leading slash
     parts = PurePosixPath(rel.replace("\\", "/")).parts
     if ".." in parts or PureWindowsPath(rel).drive or not parts:
