@@ -1,0 +1,79 @@
+"""Markdown tables of a ``stamlane demo`` summary (the ones in docs/results.md are made with this).
+
+    python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
+
+Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % interval]; the paired
+differences; per factor of the challenging split, each model's F1 and the paired differences against the single
+frame (and aligned against unaligned), an interval that excludes 0 in bold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+def _f1(m: dict) -> str:
+    std = f" ± {100 * m['f1_std']:.1f}" if m.get("f1_std") is not None else ""
+    ci = m.get("f1_ci95")
+    interval = f" [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]" if ci else ""
+    return f"{100 * m['f1_mean']:.1f}{std}{interval}"
+
+
+def _diff(c: dict | None) -> str:
+    if c is None:
+        return "–"
+    low, high = c["ci95"]
+    text = f"{100 * c['f1_diff']:+.1f} [{100 * low:+.1f}, {100 * high:+.1f}]"
+    return f"**{text}**" if not low <= 0 <= high else text
+
+
+def tables(summary: dict) -> str:
+    models = summary["models"]
+    seeds = len(summary["seeds"])
+    lines = [
+        f"Seeds {seeds} ({', '.join(map(str, summary['seeds']))}); {summary['steps']} steps per model "
+        f"({summary['pretrain_steps']} + {summary['finetune_steps']}). F1 % mean ± std over seeds [95 % interval of "
+        f"the seed-averaged per-image rates, clips resampled].",
+        "",
+        "| model | frames | test F1 | challenging F1 |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {m['label']} | {m['frames']} | {_f1(m['test'])} | {_f1(m['challenging'])} |" for m in models]
+    by = {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
+    pairs = list(dict.fromkeys((c["a"], c["b"]) for c in summary["comparisons"]))
+    label = {m["name"]: m["label"] for m in models}
+    lines += ["", "| paired difference (F1 points) | test | challenging |", "|---|---|---|"]
+    for a, b in pairs:
+        lines.append(
+            f"| {label[a]} − {label[b]} | {_diff(by.get((a, b, 'test')))} | {_diff(by.get((a, b, 'challenging')))} |"
+        )
+    factors = list(models[0].get("factors", {}))
+    if factors:
+        head = "| factor | images | " + " | ".join(m["label"] for m in models) + " | "
+        head += " | ".join(f"{a} − {b}" for a, b in pairs) + " |"
+        lines += ["", head, "|" + "---|" * (2 + len(models) + len(pairs))]
+        for f in factors:
+            cells = [_f1(m["factors"][f]) for m in models]
+            cells += [_diff(by.get((a, b, f"challenging:{f}"))) for a, b in pairs]
+            lines.append(f"| `{f}` | {models[0]['factors'][f]['images']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("summary", type=Path)
+    p.add_argument("--out", type=Path)
+    args = p.parse_args(argv)
+    text = tables(json.loads(args.summary.read_text()))
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text)
+    sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
