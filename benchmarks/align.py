@@ -1,4 +1,4 @@
-"""Benchmark of the pre-alignment (issue 4): accuracy, success rate and speed of ``key_from_hist``.
+"""Benchmark of the pre-alignment: accuracy, success rate and speed of ``key_from_hist``.
 
 Pairs with a known homography:
 

@@ -1,4 +1,4 @@
-"""Benchmark of the synthetic clip generator (issue 6): speed, and what each split offers the fusion.
+"""Benchmark of the synthetic clip generator: speed, and what each split offers the fusion.
 
 Speed: clips rendered in memory (texture once per clip, one warp per frame, vehicles, shadows, labels)
 and, separately, written as JPEG with labels and homographies, in frames per second on one process.
