@@ -15,7 +15,7 @@ process with its interpreter start and imports):
   benchmark only (the same per-image Python loops and sklearn fit), clearly not the official code.
 - CULane @ IoU 0.5: read the .lines.txt files + ``stamlane_eval.culane.evaluate`` (official C++ variant and the
   lanedet variant), against lanedet's ``culane_metric`` when ``--reference culane_metric.py`` is given. The
-  official C++ binary is not run here; the figure measured for the issue (about 20 s for 2000 images on 2
+  official C++ binary is not run here; the figure measured before on this machine (about 20 s for 2000 images on 2
   threads) is printed for comparison.
 """
 
@@ -38,7 +38,7 @@ from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
 CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine
-LANE_PY_SECONDS_2782 = 6.1  # official lane.py, 2782 images, measured on this machine (2 threads)
+LANE_PY_SECONDS_2782 = 6.1  # official lane.py, 2782 images, measured on this machine
 H_SAMPLES = list(range(160, 720, 10))
 
 
