@@ -259,7 +259,7 @@ def _score_run(record: dict, name: str, out: Path, root: Path, max_overlays: int
             continue
         if split in record:
             print(f"[demo] {name}: the {split} labels changed, scoring them again", flush=True)
-        pred_dir = predict_split(name, Path(record["run"]), out, split, max_overlays)
+        pred_dir = predict_split(name, Path(record["run"]), out, split, max_overlays, root=root)  # today's data
         record[split], _, _ = score_split(pred_dir, root / f"{split}.json")
         labels[split] = digest
         changed = True
