@@ -84,12 +84,6 @@ class ClipResult(NamedTuple):
     """frames that could not be read (missing, truncated, not an image): their pairs are cached as failed."""
 
 
-def horizon_for(horizon: int | None, height: int) -> int:
-    """The ground region's first row for frames of ``height`` rows (``--horizon-row``, the same meaning as the
-    data's and ``stamlane stream``'s ``horizon_row``). Raises ValueError when it leaves no ground region."""
-    return resolve_horizon_row(horizon, height)
-
-
 def requested_pairs(num_frames_in_clip: int, job: AlignJob) -> dict[int, list[int]]:
     """``{key index: [history indices, oldest first]}`` of one clip."""
     keys = range(num_frames_in_clip) if job.key_frames == "all" else [num_frames_in_clip - 1]
@@ -136,7 +130,7 @@ class _Clip:
             return Alignment.failed(
                 f"size mismatch: {self.frames[i].name} {hist.shape} vs {self.frames[k].name} {key.shape}"
             )
-        row = horizon_for(self.job.horizon, key.shape[0])
+        row = resolve_horizon_row(self.job.horizon, key.shape[0])
         return estimate_prepared(self.prep(i, row), self.prep(k, row), self.cfg)
 
     def prep(self, i: int, row: int) -> FramePrep:
@@ -169,7 +163,7 @@ def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
                 len(seq),
                 lambda a, b, seq=seq: clip.estimate(seq[a], seq[b]),
                 shape,
-                horizon_for(job.horizon, shape[0]),
+                resolve_horizon_row(job.horizon, shape[0]),
                 cfg,
                 job.strategy,
             )
@@ -198,7 +192,7 @@ def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: Al
     hist, key = clip.image(i), clip.image(k)
     if hist is None or key is None or hist.shape != key.shape:
         return
-    row = horizon_for(job.horizon, key.shape[0])
+    row = resolve_horizon_row(job.horizon, key.shape[0])
     picture = draw_alignment(hist, key, clip.estimate(i, k), row, clip.cfg)
     rel = clip_dir.resolve().relative_to(job.root.resolve())
     name = "__".join(rel.parts) or "root"
