@@ -125,6 +125,14 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     labels = out / "quick_data" / "challenging.json"
     kept = labels.read_text().splitlines()[: len(FACTORS)]  # a newer generator wrote another split
     labels.write_text("".join(line + "\n" for line in kept))
+    # a run scored under older rules (the 200 ms rule on) is scored again from its predictions, not predicted
+    done = out / "stam4-s0" / "done.json"
+    before = json.loads(done.read_text())
+    done.write_text(json.dumps({k: v for k, v in before.items() if k != "scoring"}))
+    preds = out / "predictions" / "stam4-s0" / "test" / "predictions.json"
+    records = [json.loads(line) for line in preds.read_text().splitlines()]
+    records[0]["run_time"] = 500.0  # a busy machine
+    preds.write_text("".join(json.dumps(r) + "\n" for r in records))
     capsys.readouterr()
     assert main(["demo", "--quick", "--out", str(out), "--rows", "f4_add"]) == 0  # and a row of the tables
     printed = capsys.readouterr().out
@@ -141,3 +149,7 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     again = json.loads((out / "single-s0" / "done.json").read_text())
     assert again["challenging"]["images"] == len(FACTORS) and again["test"] == first["test"]
     assert again["labels"]["test"] == first["labels"]["test"] != again["labels"]["challenging"]
+    rescored = json.loads(done.read_text())
+    assert rescored["scoring"] == "no-time-limit" and rescored["test"]["late"] == 1
+    assert json.loads(preds.read_text().splitlines()[0])["run_time"] == 500.0  # not predicted again
+    assert rescored["test"]["f1"] == before["test"]["f1"] and before["test"]["late"] == 0

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from stamlane_eval import tusimple
 from stamlane_eval.cli import main
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -36,6 +37,26 @@ def test_tusimple_table_json_and_per_image(capsys: pytest.CaptureFixture[str], t
     rows = [json.loads(x) for x in (tmp_path / "per.jsonl").read_text().splitlines()]
     assert [(r["acc"], r["fp"], r["fn"]) for r in rows] == [(p["acc"], p["fp"], p["fn"]) for p in exp["per_image"]]
     assert rows[0]["raw_file"] == exp["per_image"][0]["raw_file"]
+
+
+def test_tusimple_without_the_time_limit(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """--no-time-limit scores the golden set's image timed at 200.001 ms on its lanes; every other image as before."""
+    exp = json.loads((GOLDEN / "tusimple_expected.json").read_text())
+    code, _, _ = _run(capsys, "tusimple", TS_PRED, TS_GT, "--no-time-limit", "--per-image", tmp_path / "per.jsonl")
+    assert code == 0
+    rows = [json.loads(x) for x in (tmp_path / "per.jsonl").read_text().splitlines()]
+    preds = [json.loads(x) for x in TS_PRED.read_text().splitlines()]
+    gts = {g["raw_file"]: g for g in map(json.loads, TS_GT.read_text().splitlines())}
+    late = [i for i, p in enumerate(preds) if p["run_time"] > tusimple.MAX_RUN_TIME_MS]
+    assert len(late) == 1
+    for i, (row, p, e) in enumerate(zip(rows, preds, exp["per_image"], strict=True)):
+        if i in late:
+            g = gts[p["raw_file"]]
+            on_lanes = tusimple.evaluate_image(p["lanes"], g["lanes"], g["h_samples"], run_time=0.0)
+            assert (row["acc"], row["fp"], row["fn"]) == (on_lanes.acc, on_lanes.fp, on_lanes.fn)
+            assert (row["acc"], row["fn"]) != (e["acc"], e["fn"])  # the rule had scored it as missed
+        else:
+            assert (row["acc"], row["fp"], row["fn"]) == (e["acc"], e["fp"], e["fn"])
 
 
 @pytest.mark.parametrize("variant", ["official", "lanedet"])
