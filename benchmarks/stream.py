@@ -304,7 +304,7 @@ def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: li
                 np.linalg.inv(params.net_from_orig),
                 module.postprocess,
                 y_samples=h_samples,
-                orig_size=(frames[0].shape[1], frames[0].shape[0]),
+                orig_size=frames[0].shape[:2],
             )
             preds[name].append({"raw_file": entry.raw_file, "lanes": lanes_to_xs(lanes, h_samples), "run_time": 0})
     gt_list = [gts[e.raw_file] for e in entries]

@@ -43,7 +43,7 @@ def _batch(size: int = 2) -> dict:
     scale = 10.0  # original image = 10x the network input
     meta = {
         "raw_file": "clips/0/20.jpg",
-        "orig_size": (W * 10, H * 10),
+        "orig_size": (H * 10, W * 10),
         "net_from_orig": [[1 / scale, 0, 0], [0, 1 / scale, 0], [0, 0, 1]],
         "h_samples": list(range(80, 320, 10)),
         "frame_paths": [],
@@ -71,7 +71,7 @@ def test_validation_step_returns_callback_dict() -> None:
     with torch.no_grad():
         out = module.validation_step(_batch(), 0)
     assert set(out) >= {"pred_lanes", "gt_lanes", "h_samples", "orig_size", "run_time"}
-    assert len(out["pred_lanes"]) == 2 and out["orig_size"] == [(640, 320)] * 2
+    assert len(out["pred_lanes"]) == 2 and out["orig_size"] == [(H * 10, W * 10)] * 2
     assert all(ms > 0 for ms in out["run_time"])
     for lanes in out["pred_lanes"]:  # untrained: any number of lanes, but well formed in original pixels
         for lane in lanes:

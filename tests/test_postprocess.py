@@ -59,7 +59,7 @@ def test_decode_recovers_lanes_in_original_pixels() -> None:
     sx, sy, crop = 1280 / W, (720 - 200) / H, 200
     orig_from_net = np.array([[sx, 0, 0], [0, sy, crop], [0, 0, 1]])
     h_samples = list(range(160, 720, 10))
-    lanes = decode_lanes(prob, emb, orig_from_net, y_samples=h_samples, orig_size=(1280, 720))
+    lanes = decode_lanes(prob, emb, orig_from_net, y_samples=h_samples, orig_size=(720, 1280))
     assert len(lanes) == 4
     for lane, x_of in zip(lanes, truth):  # left to right
         assert lane.shape[1] == 2
@@ -109,7 +109,7 @@ def test_a_network_never_that_sure_still_gets_its_lanes() -> None:
     leave no pixel above cluster_thresh 0.9: clustering falls back to every lane pixel instead of no lane."""
     prob, emb, _ = _heads([40.0, 110.0, 160.0, 230.0])
     prob = np.where(prob > 0.5, 0.8, prob).astype(np.float32)
-    assert len(decode_lanes(prob, emb, np.eye(3), orig_size=(W, H))) == 4
+    assert len(decode_lanes(prob, emb, np.eye(3), orig_size=(H, W))) == 4
     assert decode_lanes(prob, emb, np.eye(3), PostprocessConfig(prob_thresh=0.85, cluster_thresh=0.9)) == []
 
 
@@ -119,9 +119,9 @@ def test_extend_continues_a_lane_hidden_at_its_far_end_to_the_common_top() -> No
         x = round(truth[1](y))
         prob[y, x - 1 : x + 2] = 0.1
     y_samples = list(range(50, H, 4))
-    plain = decode_lanes(prob, emb, None, PostprocessConfig(degree=1), y_samples=y_samples, orig_size=(W, H))
+    plain = decode_lanes(prob, emb, None, PostprocessConfig(degree=1), y_samples=y_samples, orig_size=(H, W))
     extended = decode_lanes(
-        prob, emb, None, PostprocessConfig(degree=1, extend=True), y_samples=y_samples, orig_size=(W, H)
+        prob, emb, None, PostprocessConfig(degree=1, extend=True), y_samples=y_samples, orig_size=(H, W)
     )
     assert len(plain) == len(extended) == 4
     tops = [lane[:, 1].min() for lane in plain]

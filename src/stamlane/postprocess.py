@@ -265,7 +265,7 @@ def decode_lanes(
         config: decoding options; ``None`` = defaults.
         y_samples: original-image rows to sample each lane at (TuSimple ``h_samples``); ``None`` =
             every ``config.y_step`` pixels.
-        orig_size: ``(W, H)`` of the original image; points outside it are dropped (``None`` = keep all).
+        orig_size: ``(H, W)`` of the original image; points outside it are dropped (``None`` = keep all).
 
     Returns:
         the image's lanes, left to right: ``(N, 2)`` float arrays of ``(x, y)`` in original pixels.
@@ -305,7 +305,7 @@ def decode_lanes(
         top = min(c.y_lo for c in curves)
         bottom = max(y_samples) if y_samples is not None and len(y_samples) else None
         if bottom is None:
-            bottom = orig_size[1] - 1 if orig_size is not None else max(c.y_hi for c in curves)
+            bottom = orig_size[0] - 1 if orig_size is not None else max(c.y_hi for c in curves)
     lanes: Lanes = []
     for curve in curves:
         lo, hi = (top, bottom) if config.extend else (curve.y_lo, curve.y_hi)
@@ -313,9 +313,9 @@ def decode_lanes(
         if lane is not None and orig_size is not None:
             inside = (
                 (lane[:, 0] >= 0)
-                & (lane[:, 0] <= orig_size[0] - 1)
+                & (lane[:, 0] <= orig_size[1] - 1)
                 & (lane[:, 1] >= 0)
-                & (lane[:, 1] <= orig_size[1] - 1)
+                & (lane[:, 1] <= orig_size[0] - 1)
             )
             lane = lane[inside] if inside.sum() >= 2 else None
         if lane is not None:

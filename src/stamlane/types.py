@@ -10,6 +10,11 @@ Points and lanes
     A lane is a ``(N, 2)`` float array of such points ordered by ``y`` descending or ascending as read;
     an image's lanes are a ``list`` of lanes. Normalised coordinates never cross a module boundary.
 
+Sizes
+    An image size is ``(H, W)``, like a tensor's shape and torch (``orig_size``, ``image_size``, a warp's output,
+    the CULane metric's canvas); ``WxH`` only where a person types or reads it (``--size 1640x590``:
+    ``stamlane_eval.cli_tools.parse_wxh`` / ``format_wxh``). OpenCV's ``(W, H)`` ``dsize`` is built at the call.
+
 Transforms
     A 3x3 matrix is named by the frames it maps between, target first: ``key_from_hist`` maps
     history-frame pixels to key-frame pixels; ``net_from_orig`` maps original-image pixels to
@@ -26,7 +31,7 @@ Samples (what a dataset returns, what the LightningModule consumes)
                       identity for the key); the model warps the history's features with it.
     ``lanes``         list of ``(N, 2)`` float arrays: the key frame's lanes in original pixels.
     ``meta``          dict: ``raw_file`` (str, the benchmark's name of the key frame), ``orig_size``
-                      ``(W, H)``, ``net_from_orig`` (3x3 list), ``h_samples`` (list[int] or None),
+                      ``(H, W)``, ``net_from_orig`` (3x3 list), ``h_samples`` (list[int] or None),
                       ``frame_paths`` (list[str]), ``format`` ("tusimple" | "culane" | "apollo" | "vil100").
     A batch (see ``stamlane.data.collate_clips``) stacks the tensors and keeps ``lanes`` and ``meta``
     as per-sample lists.

@@ -18,7 +18,7 @@ def test_warp_to_key_translation_and_padding():
     image = np.zeros((50, 80, 3), np.uint8)
     image[10, 20] = 255
     shift = np.array([[1.0, 0, 5], [0, 1, 3], [0, 0, 1]])
-    out = warp_to_key(image, shift, size=(100, 60))
+    out = warp_to_key(image, shift, size=(60, 100))
     assert out.shape == (60, 100, 3) and out.dtype == np.uint8
     assert out[13, 25].tolist() == [255, 255, 255]
     assert out[:, 85:].max() == 0  # padded beyond the source

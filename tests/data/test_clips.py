@@ -24,7 +24,7 @@ def check_sample(s: dict, t: int, fmt: str) -> None:
     assert s["key_from_hist"].shape == (t, 3, 3) and s["key_from_hist"].dtype == torch.float32
     assert torch.equal(s["binary"], (s["instance"] > 0).long())
     assert s["meta"]["format"] == fmt
-    assert tuple(s["meta"]["orig_size"]) == (W, H)
+    assert tuple(s["meta"]["orig_size"]) == (H, W)
     assert np.asarray(s["meta"]["net_from_orig"]).shape == (3, 3)
     assert len(s["meta"]["frame_paths"]) == t
 

@@ -20,7 +20,7 @@ from stamlane.synth.cli import main as synth_main
 from stamlane.synth.cli import split_counts
 from stamlane.synth.generator import SynthConfig, generate_dataset
 
-TINY_SYNTH = {"synth_train": 2, "synth_val": 1, "synth_test": 1, "synth_challenging": 0, "synth_size": (96, 64)}
+TINY_SYNTH = {"synth_train": 2, "synth_val": 1, "synth_test": 1, "synth_challenging": 0, "synth_size": (64, 96)}
 
 
 def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
@@ -55,7 +55,7 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
         ClipDataModule(**TINY_SYNTH).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
     with pytest.warns(UserWarning, match="other settings"):  # another size: kept, with a warning
-        ClipDataModule(**dict(TINY_SYNTH, synth_size=(128, 64))).prepare_data()
+        ClipDataModule(**dict(TINY_SYNTH, synth_size=(64, 128))).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
 
 

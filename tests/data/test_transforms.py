@@ -24,14 +24,14 @@ def test_one_draw_applies_to_every_frame_alike():
     rng = np.random.default_rng(1)
     seen_flip = set()
     for _ in range(8):
-        p = t.draw((160, 90), rng)
+        p = t.draw((90, 160), rng)
         seen_flip.add(p.flip)
         out = t.apply_frames([frame] * 4, eye, p)
         assert out.shape == (4, 3, 48, 80)
         for k in range(1, 4):  # identical input frames -> identical outputs: one crop/flip/jitter per clip
             np.testing.assert_array_equal(out[k], out[0])
     assert seen_flip == {True, False}
-    plain = ClipTransform((48, 80)).apply_frames([frame], eye[:1], ClipTransform((48, 80)).draw((160, 90)))
+    plain = ClipTransform((48, 80)).apply_frames([frame], eye[:1], ClipTransform((48, 80)).draw((90, 160)))
     assert not np.allclose(out[0], plain[0])  # the augmentation did change something
 
 
@@ -45,7 +45,7 @@ def test_targets_follow_the_frames_through_crop_and_flip():
     t = ClipTransform((45, 80), crop_scale=(0.7, 1.0), flip_prob=0.5)
     rng = np.random.default_rng(0)
     for _ in range(6):
-        p = t.draw((w, h), rng)
+        p = t.draw((h, w), rng)
         frames = t.apply_frames([img, img], np.repeat(np.eye(3)[None], 2, 0), p)
         binary, _ = draw_lane_targets(ClipTransform.map_lanes(lanes, p.net_from_orig), (45, 80), thickness=1)
         bright = frames[-1].mean(axis=0) > 0.3
@@ -57,7 +57,7 @@ def test_targets_follow_the_frames_through_crop_and_flip():
 def test_flip_mirrors_lane_order():
     lanes = [np.array([[20.0, 89], [60, 30]]), np.array([[140.0, 89], [100, 30]])]  # left, right
     t = ClipTransform((45, 80), flip_prob=1.0)
-    p = t.draw((160, 90), np.random.default_rng(0))
+    p = t.draw((90, 160), np.random.default_rng(0))
     assert p.flip
     _, inst = draw_lane_targets(ClipTransform.map_lanes(lanes, p.net_from_orig), (45, 80), thickness=1)
     ys, xs = np.nonzero(inst == 1)
@@ -72,7 +72,7 @@ def test_lanes_round_trip_through_net_from_orig_without_drift():
     t = ClipTransform((128, 256), crop_scale=(0.5, 1.0), flip_prob=0.5)
     for _ in range(20):
         lanes = [rng.uniform([0, 0], [1280, 720], (12, 2))]
-        p = t.draw((1280, 720), rng)
+        p = t.draw((720, 1280), rng)
         net = ClipTransform.map_lanes(lanes, p.net_from_orig)
         back = ClipTransform.map_lanes(net, np.linalg.inv(p.net_from_orig))
         assert np.abs(back[0] - lanes[0]).max() < 0.5
@@ -83,7 +83,7 @@ def test_points_and_pixels_share_one_convention(flip: bool):
     """A 1-px vertical line at x in the original lands where net_from_orig maps x (within 0.5 net px)."""
     h, w = 72, 320
     t = ClipTransform((36, 80), flip_prob=1.0 if flip else 0.0)
-    p = t.draw((w, h), np.random.default_rng(0))
+    p = t.draw((h, w), np.random.default_rng(0))
     for x in (40, 161, 250):
         img = np.zeros((h, w, 3), np.uint8)
         img[:, x - 2 : x + 2] = 255  # 4 px wide, centred at x - 0.5
@@ -99,7 +99,7 @@ def test_history_frames_are_warped_by_key_from_hist():
     shift = np.array([[1.0, 0, 6], [0, 1, 0], [0, 0, 1]])  # key_from_hist: history content moves 6 px right
     hist = cv2.warpAffine(key, np.linalg.inv(shift)[:2], (160, 90))
     t = ClipTransform((90, 160))
-    p = t.draw((160, 90))
+    p = t.draw((90, 160))
     out = t.apply_frames([hist, key], np.stack([shift, np.eye(3)]), p)
     diff = np.abs(out[0] - out[1])[:, :, 10:-10].mean()
     raw = np.abs(t.apply_frames([hist, key], np.repeat(np.eye(3)[None], 2, 0), p)[0] - out[1])[:, :, 10:-10].mean()
@@ -143,12 +143,12 @@ def test_crop_top_cuts_the_sky_before_any_other_crop(crop_scale: tuple[float, fl
     t = ClipTransform((32, 64), crop_top=0.4, crop_scale=crop_scale)
     rng = np.random.default_rng(3)
     for _ in range(5):
-        p = t.draw((w, h), rng)
+        p = t.draw((h, w), rng)
         out = t.apply_frames([frame], np.eye(3)[None], p)[0]
         assert out.min() > 0.5, "a sky pixel reached the network input"
         top_net = p.net_from_orig @ np.array([0.0, 36.0 - 0.5, 1.0])  # the top edge of row 36
         assert top_net[1] <= -0.5 + 1e-9
-    full = ClipTransform((32, 64), crop_top=0.4).draw((w, h))
+    full = ClipTransform((32, 64), crop_top=0.4).draw((h, w))
     # no random crop: the kept band [36, 90) fills the network rows exactly (pixel edges -0.5 .. 31.5)
     edges = full.net_from_orig @ np.array([[0, 35.5, 1], [0, 89.5, 1]]).T
     np.testing.assert_allclose(edges[1], [-0.5, 31.5])

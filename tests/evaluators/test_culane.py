@@ -39,7 +39,7 @@ def test_fixture_parity(shared_dir: Path, variant: str, key: str) -> None:
     exp = json.loads((root / "expected.json").read_text())
     entries, preds, gts = _load(root)
     assert entries == [p["entry"] for p in exp["per_image"]]
-    res = culane.evaluate(preds, gts, (0.3, 0.5), 30, (1640, 590), variant)
+    res = culane.evaluate(preds, gts, (0.3, 0.5), 30, (590, 1640), variant)
     _check_per_image(res, exp["per_image"], key)
     for t in THRESHOLDS:
         assert res.totals[float(t)].as_dict() == exp["totals"][key][t]
@@ -57,7 +57,7 @@ def test_golden_parity(variant: str, key: str) -> None:
 
 
 def _full_image(pts: np.ndarray, size: tuple[int, int], width: int) -> np.ndarray:
-    img = np.zeros((size[1], size[0]), np.uint8)
+    img = np.zeros(size, np.uint8)  # size is (H, W)
     for p, q in itertools.pairwise(pts):  # the C++ tool: one cv::line per segment on the whole image
         cv2.line(img, (int(p[0]), int(p[1])), (int(q[0]), int(q[1])), 1, thickness=width)
     return img.astype(bool)
@@ -65,7 +65,7 @@ def _full_image(pts: np.ndarray, size: tuple[int, int], width: int) -> np.ndarra
 
 def test_cropped_polyline_equals_full_image_lines() -> None:
     rng = np.random.default_rng(1)
-    size = (320, 160)
+    size = (160, 320)
     for i in range(60):
         n = int(rng.integers(2, 8))
         lane = np.stack([rng.uniform(-80, 400, n), np.sort(rng.uniform(-40, 220, n))], 1)

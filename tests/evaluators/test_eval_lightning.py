@@ -59,13 +59,13 @@ def _images(golden: ModuleType) -> list[dict]:
                 "pred_lanes": golden.xs_to_points(p["lanes"], g["h_samples"]),
                 "gt_lanes": [torch.as_tensor(x) for x in golden.xs_to_points(g["lanes"], g["h_samples"])],
                 "h_samples": g["h_samples"],
-                "orig_size": (1280, 720),
+                "orig_size": (720, 1280),
                 "run_time": p["run_time"],
             }
         )
     cp, cg = golden.culane_lanes()
     for p, g in zip(cp, cg, strict=True):
-        out.append({"pred_lanes": p, "gt_lanes": g, "h_samples": None, "orig_size": (1640, 590), "run_time": 1.0})
+        out.append({"pred_lanes": p, "gt_lanes": g, "h_samples": None, "orig_size": (590, 1640), "run_time": 1.0})
     return out
 
 
@@ -134,7 +134,7 @@ def test_callback_in_trainer(golden: ModuleType) -> None:
 
 
 def test_callback_fixed_size_and_bad_outputs(golden: ModuleType) -> None:
-    cb = LaneEvalCallback(tusimple=False, culane_size=(1640, 590))
+    cb = LaneEvalCallback(tusimple=False, culane_size=(590, 1640))
     images = _images(golden)[-3:]
     cb._update({k: [im[k] for im in images] for k in ("pred_lanes", "gt_lanes", "h_samples", "orig_size")})
     assert int(cb.culane_metric.images) == 3 and int(cb.tusimple_metric.images) == 0

@@ -51,7 +51,7 @@ def test_culane_metric_equals_function(variant: str, golden: ModuleType) -> None
     want = culane.evaluate(preds, gts, variant=variant)
     m = CULaneMetric(variant=variant)
     m.update(preds[:7], [[torch.as_tensor(x) for x in g] for g in gts[:7]])
-    m.update(preds[7:], gts[7:], sizes=[(1640, 590)] * (len(preds) - 7))
+    m.update(preds[7:], gts[7:], sizes=[(590, 1640)] * (len(preds) - 7))
     got = m.compute()
     for t in (0.3, 0.5):
         c = want.totals[t]

@@ -111,9 +111,9 @@ def test_culane_counts_add_up_and_self_match(images: list) -> None:
 @given(st.lists(points.filter(lambda p: len(p) >= 2), min_size=1, max_size=3), st.integers(2, 3))
 def test_culane_scaling_image_lanes_and_width_together_keeps_the_counts(gt: list, factor: int) -> None:
     lanes_ = [np.round(np.asarray(p, dtype=np.float64).reshape(-1, 2)) for p in gt]
-    base = culane.evaluate([lanes_], [lanes_], width=10, size=(1640, 590))
+    base = culane.evaluate([lanes_], [lanes_], width=10, size=(590, 1640))
     scaled = [ln * factor for ln in lanes_]
-    big = culane.evaluate([scaled], [scaled], width=10 * factor, size=(1640 * factor, 590 * factor))
+    big = culane.evaluate([scaled], [scaled], width=10 * factor, size=(590 * factor, 1640 * factor))
     for t in base.totals:
         assert (base.totals[t].tp, base.totals[t].fp, base.totals[t].fn) == (
             big.totals[t].tp,

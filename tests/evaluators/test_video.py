@@ -11,7 +11,7 @@ from stamlane_eval import video
 from stamlane_eval.cli import main
 from stamlane_eval.video import Frame
 
-SIZE = (640, 360)
+SIZE = (360, 640)  # (H, W)
 A = np.array([[100.0, 359.0], [180.0, 250.0], [260.0, 150.0]])
 B = np.array([[540.0, 359.0], [460.0, 250.0], [380.0, 150.0]])
 FAR = np.array([[320.0, 100.0], [330.0, 0.0]])  # overlaps neither A nor B: IoU 0
@@ -95,7 +95,7 @@ def _vil_tree(tmp_path: Path) -> tuple[Path, Path]:
     order = [[A, B], [B, A], [A, B]]
     for f, lanes in enumerate(order):
         ann = {
-            "info": {"width": SIZE[0], "height": SIZE[1], "image_path": f"{f:05d}.jpg"},
+            "info": {"width": SIZE[1], "height": SIZE[0], "image_path": f"{f:05d}.jpg"},
             "annotations": {"lane": [{"lane_id": 1, "points": A.tolist()}, {"lane_id": 2, "points": B.tolist()}]},
         }
         (gt / "Json" / "0_road").mkdir(parents=True, exist_ok=True)

@@ -145,7 +145,7 @@ def test_export_writes_onnx_and_prints_the_parity(checkpoint: Path, tmp_path: Pa
         and (tmp_path / "s" / "encoder.onnx").is_file()
         and (tmp_path / "s" / "fuse_decode.onnx").is_file()
     )
-    assert "T=2, 64x128 HxW, opset 17" in said
+    assert "T=2, 128x64, opset 17" in said  # WxH for people
     logits = float(said.split("max |logits| diff ")[1].split(",")[0])
     assert logits < 1e-4  # onnxruntime reproduces the PyTorch model
     assert not list(tmp_path.glob(".*tmp*"))  # no temporary file left

@@ -30,7 +30,7 @@ def test_without_prefilter_and_grain_it_is_one_perspective_warp():
     tex = rng.integers(0, 256, (int(100 * PPM) + 1, int(20 * PPM) + 1, 3), dtype=np.uint8)
     h = CAMERA.image_from_ground(POSE)
     first = int(np.ceil(CAMERA.horizon_row(POSE) + 1))
-    got = GroundRenderer(tex, TEX_FROM_GROUND, None, levels=1).render(h, (320, 180), first, (9, 9, 9))
+    got = GroundRenderer(tex, TEX_FROM_GROUND, None, levels=1).render(h, (180, 320), first, (9, 9, 9))
     want = cv2.warpPerspective(tex, h @ np.linalg.inv(TEX_FROM_GROUND), (320, 180), borderValue=(9, 9, 9))
     assert np.abs(got[first:].astype(int) - want[first:].astype(int)).max() <= 1
     assert (got[:first] == 9).all()
@@ -39,8 +39,8 @@ def test_without_prefilter_and_grain_it_is_one_perspective_warp():
 def test_prefiltering_averages_far_rows_and_keeps_near_rows():
     h = CAMERA.image_from_ground(POSE)
     first = int(np.ceil(CAMERA.horizon_row(POSE) + 1))
-    plain = GroundRenderer(stripes(), TEX_FROM_GROUND, None, levels=1).render(h, (320, 180), first, (128,) * 3)
-    filtered = GroundRenderer(stripes(), TEX_FROM_GROUND, None).render(h, (320, 180), first, (128,) * 3)
+    plain = GroundRenderer(stripes(), TEX_FROM_GROUND, None, levels=1).render(h, (180, 320), first, (128,) * 3)
+    filtered = GroundRenderer(stripes(), TEX_FROM_GROUND, None).render(h, (180, 320), first, (128,) * 3)
     far = slice(first + 5, first + 25)  # 20-60 m: one image row spans many texture rows
     # point sampling aliases the stripes into rows of black and white; prefiltering gives their mean grey
     assert plain[far, 160, 0].astype(float).std() > 60
@@ -56,9 +56,9 @@ def test_grain_is_anchored_to_the_ground_and_fades_out_far_away():
     renderer = GroundRenderer(grey, TEX_FROM_GROUND, GrainLayer(rng))
     big = Camera.for_size(640, 360)
     first = int(np.ceil(big.horizon_row(POSE) + 1))
-    a = renderer.render(big.image_from_ground(POSE), (640, 360), first, (100,) * 3)
+    a = renderer.render(big.image_from_ground(POSE), (360, 640), first, (100,) * 3)
     moved = Pose(0.3, 1.0, 1.8, 0.01, 0.0)
-    b = renderer.render(big.image_from_ground(moved), (640, 360), first, (100,) * 3)
+    b = renderer.render(big.image_from_ground(moved), (360, 640), first, (100,) * 3)
     near = slice(300, 360)
     assert a[near].astype(float).std() > 5  # grain near the camera
     assert a[first : first + 30].astype(float).std() < 1  # none far away (it would alias)

@@ -23,7 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from stamlane_eval import __version__, culane, tusimple, video
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
+from stamlane_eval.cli_tools import (
+    OneLineParser,
+    OutputError,
+    check_output,
+    format_wxh,
+    parse_or_status,
+    parse_wxh,
+)
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
@@ -42,13 +49,7 @@ EXIT_BAD_INPUT = 2
 
 
 def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH such as 1640x590, got {text!r}") from None
-    if not (0 < w <= MAX_IMAGE_SIDE and 0 < h <= MAX_IMAGE_SIDE):
-        raise argparse.ArgumentTypeError(f"expected WxH with sides in 1..{MAX_IMAGE_SIDE}, got {text!r}")
-    return w, h
+    return parse_wxh(text, MAX_IMAGE_SIDE)  # (H, W)
 
 
 def _lane_width(text: str) -> int:
@@ -128,15 +129,13 @@ def _build_parser() -> OneLineParser:
     )
 
     for name, size in (("culane", culane.CULANE_SIZE), ("apollo", culane.APOLLO_SIZE)):
-        cu = sub.add_parser(
-            name, help=f"{name} area metric (official C++ tool or lanedet), default {size[0]}x{size[1]}"
-        )
+        cu = sub.add_parser(name, help=f"{name} area metric (official C++ tool or lanedet), default {format_wxh(size)}")
         cu.add_argument("pred", type=Path, help="folder of predicted .lines.txt (or a TuSimple json-lines file)")
         cu.add_argument("gt", type=Path, help="folder of annotated .lines.txt (or a TuSimple json-lines file)")
         cu.add_argument("--list", type=Path, help="image list (CULane style); default: every .lines.txt in GT")
         cu.add_argument("--iou", type=_iou, nargs="+", default=list(culane.IOU_THRESHOLDS), help="IoU thresholds")
         cu.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
-        cu.add_argument("--size", type=_size, default=None, help=f"image WxH (default {size[0]}x{size[1]})")
+        cu.add_argument("--size", type=_size, default=None, help=f"image WxH (default {format_wxh(size)})")
         cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
         _output_format(cu, official="what the C++ tool writes to its -o file, per IoU threshold")
         cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
@@ -296,7 +295,7 @@ def _run_culane(args: argparse.Namespace) -> int:
         rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision %", "recall %", "F1 %"]]
         for t, c in res.totals.items():
             rows.append([f"{t:g}", c.tp, c.fp, c.fn, *(f"{100 * v:.2f}" for v in (c.precision, c.recall, c.f1))])
-        print(f"{args.command} ({args.variant}), {res.images} images, {size[0]}x{size[1]}, width {args.width}")
+        print(f"{args.command} ({args.variant}), {res.images} images, {format_wxh(size)}, width {args.width}")
         print(_table(rows))
     return 0
 

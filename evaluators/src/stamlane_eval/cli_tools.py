@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import NoReturn
 
-__all__ = ["OneLineParser", "OutputError", "check_output", "parse_or_status"]
+__all__ = ["OneLineParser", "OutputError", "check_output", "format_wxh", "parse_or_status", "parse_wxh"]
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -29,6 +29,27 @@ def parse_or_status(parser: argparse.ArgumentParser, argv: list[str] | None) -> 
         return parser.parse_args(argv)
     except SystemExit as stop:
         return int(stop.code or 0)
+
+
+def parse_wxh(text: str, max_side: int | None = None) -> tuple[int, int]:
+    """An image size as people type it, ``WxH`` (``1640x590``), as the code holds it: ``(H, W)``, like torch.
+
+    Raises:
+        argparse.ArgumentTypeError: not two positive integers joined by ``x``, or a side over ``max_side``.
+    """
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH such as 1640x590, got {text!r}") from None
+    if w <= 0 or h <= 0 or (max_side is not None and max(w, h) > max_side):
+        sides = f"sides in 1..{max_side}" if max_side is not None else "positive sides"
+        raise argparse.ArgumentTypeError(f"expected WxH with {sides}, got {text!r}")
+    return h, w
+
+
+def format_wxh(size: tuple[int, int]) -> str:
+    """An ``(H, W)`` size written for people: ``"WxH"``."""
+    return f"{size[1]}x{size[0]}"
 
 
 class OutputError(ValueError):

@@ -42,8 +42,8 @@ __all__ = [
     "evaluate_image",
 ]
 
-CULANE_SIZE = (1640, 590)  # (W, H) of CULane images
-APOLLO_SIZE = (3384, 2710)  # (W, H) of ApolloScape frames
+CULANE_SIZE = (590, 1640)  # (H, W) of CULane images (1640x590)
+APOLLO_SIZE = (2710, 3384)  # (H, W) of ApolloScape frames (3384x2710)
 LANE_WIDTH = 30  # px, the protocol's line thickness (the C++ binary's built-in default 10 is not the protocol)
 IOU_THRESHOLDS = (0.3, 0.5)
 VARIANTS = ("official", "lanedet")
@@ -200,10 +200,10 @@ class _Mask:
 
 
 def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Mask | None:
-    """Draw a polyline as ``cv::line`` calls of thickness ``width`` on a ``size`` = (W, H) image, cropped."""
+    """Draw a polyline as ``cv::line`` calls of thickness ``width`` on a ``size`` = (H, W) image, cropped."""
     if pts is None:
         return None
-    w_img, h_img = size
+    h_img, w_img = size
     if len(pts) == 0 or np.abs(pts).max() > 2**28:  # NaN points (cvRound -> INT_MIN) and absurd values
         canvas = np.zeros((h_img, w_img), np.uint8)
         pts32 = np.clip(pts, -(2**31), 2**31 - 1).astype(np.int32)
@@ -343,7 +343,7 @@ def evaluate_image(
         target: annotated lanes, same form.
         iou_thresholds: TP when the matched IoU is strictly greater.
         width: line thickness in pixels.
-        size: image ``(W, H)``; CULane ``(1640, 590)``, ApolloScape ``(3384, 2710)``.
+        size: image ``(H, W)``; CULane ``(590, 1640)``, ApolloScape ``(2710, 3384)``.
         variant: ``"official"`` (the C++ tool) or ``"lanedet"`` (lanedet's culane_metric).
 
     Returns:
@@ -356,7 +356,7 @@ def evaluate_image(
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     if len(size) != 2 or min(size) <= 0:
-        raise ValueError(f"size must be (W, H) with positive values, got {size!r}")
+        raise ValueError(f"size must be (H, W) with positive values, got {size!r}")
     if width <= 0:
         raise ValueError(f"width must be a positive number of pixels, got {width!r}")
     thresholds = tuple(float(t) for t in iou_thresholds)

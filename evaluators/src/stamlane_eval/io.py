@@ -337,7 +337,7 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
     """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``).
 
     Returns:
-        lanes (``(N, 2)`` float ``(x, y)`` arrays), their ``lane_id``s, and the image ``(W, H)`` from ``info``
+        lanes (``(N, 2)`` float ``(x, y)`` arrays), their ``lane_id``s, and the image ``(H, W)`` from ``info``
         (None when absent).
 
     Raises:
@@ -375,11 +375,11 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
     size = None
     if isinstance(info, dict) and "width" in info and "height" in info:
         try:
-            size = (int(info["width"]), int(info["height"]))
+            size = (int(info["height"]), int(info["width"]))
         except (TypeError, ValueError):
             raise LaneFileError(f"{p}: info.width/height must be integers") from None
         if not (0 < size[0] <= MAX_IMAGE_SIDE and 0 < size[1] <= MAX_IMAGE_SIDE):
-            raise LaneFileError(f"{p}: image size {size[0]}x{size[1]} outside 1..{MAX_IMAGE_SIDE} px per side")
+            raise LaneFileError(f"{p}: image size {size[1]}x{size[0]} (WxH) outside 1..{MAX_IMAGE_SIDE} px per side")
     if len(lanes) > MAX_LANES or any(len(lane) > MAX_LANE_POINTS for lane in lanes):
         raise LaneFileError(f"{p}: more than {MAX_LANES} lanes or {MAX_LANE_POINTS} points in a lane")
     return lanes, ids, size

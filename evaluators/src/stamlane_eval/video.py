@@ -46,7 +46,7 @@ class Frame:
         target: annotated lanes, same form.
         pred_ids: identity of each predicted lane (default: its position).
         target_ids: identity of each annotated lane (default: its position; VIL-100: ``lane_id``).
-        size: image ``(W, H)``; None for the size given to :func:`evaluate_sequence`.
+        size: image ``(H, W)``; None for the size given to :func:`evaluate_sequence`.
     """
 
     preds: Sequence[np.ndarray]
@@ -138,7 +138,7 @@ def evaluate_sequence(
         iou_thresholds: thresholds of F.
         match_iou: IoU above which an annotated lane counts as matched for the stability measures.
         width: line thickness in pixels.
-        size: image ``(W, H)`` of frames that do not give their own.
+        size: image ``(H, W)`` of frames that do not give their own.
 
     Returns:
         The sequence's mIoU (None when no frame was scored), counts and stability counts.

@@ -36,7 +36,7 @@ def warp_to_key(
     Args:
         image: history frame, ``(H, W, C)`` or ``(H, W)`` numpy (any dtype OpenCV warps).
         key_from_hist: ``(3, 3)`` homography from history to key pixels.
-        size: output ``(W, H)`` (the key frame's size); default the input's size. Every aligned frame of a
+        size: output ``(H, W)`` (the key frame's size); default the input's size. Every aligned frame of a
             clip gets the same size, i.e. is padded to the key frame (paper 3.1).
         border_value: fill value outside the warped frame.
         interpolation: OpenCV interpolation flag (``cv2.INTER_NEAREST`` for label maps).
@@ -49,11 +49,13 @@ def warp_to_key(
     h = np.asarray(key_from_hist, np.float64)
     if h.shape != (3, 3) or not np.all(np.isfinite(h)):
         raise ValueError(f"key_from_hist must be a finite 3x3 matrix, got {h!r}")
-    dsize = (image.shape[1], image.shape[0]) if size is None else (int(size[0]), int(size[1]))
-    if dsize[0] <= 0 or dsize[1] <= 0:
-        raise ValueError(f"size must be a positive (W, H), got {size!r}")
+    height, width = image.shape[:2] if size is None else (int(size[0]), int(size[1]))
+    if height <= 0 or width <= 0:
+        raise ValueError(f"size must be a positive (H, W), got {size!r}")
     border = (border_value,) * (image.shape[2] if image.ndim == 3 else 1)
-    return cv2.warpPerspective(image, h, dsize, flags=interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=border)
+    return cv2.warpPerspective(
+        image, h, (width, height), flags=interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=border
+    )
 
 
 def chain_alignments(
@@ -231,8 +233,7 @@ def align_clip(
     """
     frames = _check_frames(frames)
     alignments = estimate_clip(frames, horizon_row=horizon_row, config=config, strategy=strategy)
-    shape = frames[-1].shape[:2]
-    size = (shape[1], shape[0])
+    size = frames[-1].shape[:2]
     aligned = [
         warp_to_key(f, a.key_from_hist, size, border_value=border_value) if a.ok and i < len(frames) - 1 else f.copy()
         for i, (f, a) in enumerate(zip(frames, alignments, strict=True))

@@ -261,7 +261,7 @@ class ClipDataset(Dataset):
         key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
-        params = self.transform.draw((w0, h0), rng)
+        params = self.transform.draw((h0, w0), rng)
         feature = self.warp == "feature"
         applied = np.repeat(np.eye(3)[None], len(frames), axis=0) if feature else key_from_hist
         clip = self.transform.apply_frames(frames, applied, params)
@@ -277,7 +277,7 @@ class ClipDataset(Dataset):
             "lanes": lanes,
             "meta": {
                 "raw_file": entry.raw_file,
-                "orig_size": (w0, h0),
+                "orig_size": (h0, w0),
                 "net_from_orig": params.net_from_orig.tolist(),
                 "h_samples": entry.h_samples,
                 "frame_paths": list(entry.frame_paths),

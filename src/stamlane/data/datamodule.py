@@ -70,7 +70,7 @@ class ClipDataModule(LightningDataModule):
         synth_train_key_step, synth_eval_key_step: labelled key frames per clip of the train split and of the
             others (``stamlane.synth.generator.key_frames``: 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         synth_seed: seed of a generated set.
-        synth_size: ``(W, H)`` frame size of a generated set.
+        synth_size: ``(H, W)`` frame size of a generated set.
     """
 
     def __init__(
@@ -109,7 +109,7 @@ class ClipDataModule(LightningDataModule):
         synth_train_key_step: int = TRAIN_KEY_STEP,
         synth_eval_key_step: int = EVAL_KEY_STEP,
         synth_seed: int = 0,
-        synth_size: tuple[int, int] = (640, 360),
+        synth_size: tuple[int, int] = (360, 640),
     ) -> None:
         super().__init__()
         if format not in FORMATS:
@@ -193,7 +193,7 @@ class ClipDataModule(LightningDataModule):
         )
 
     def _synth_config(self) -> SynthConfig:
-        w, h = self.hparams.synth_size
+        h, w = self.hparams.synth_size
         return SynthConfig(width=int(w), height=int(h))
 
     def split_labels(self, split: str) -> list[str]:

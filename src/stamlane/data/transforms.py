@@ -95,10 +95,10 @@ class ClipTransform:
         """Draw the parameters of one clip.
 
         Args:
-            orig_size: original image ``(W, H)``.
+            orig_size: original image ``(H, W)``.
             rng: random generator (needed only when ``augments``).
         """
-        w0, h0 = orig_size
+        h0, w0 = orig_size
         net_h, net_w = self.image_size
         rng = rng if rng is not None else np.random.default_rng(0)
         frac = float(rng.uniform(*self.crop_scale)) if self.crop_scale != (1.0, 1.0) else 1.0

@@ -231,9 +231,9 @@ def _stream(
             jsonl.write(json.dumps(record) + "\n")
             if not args.no_video:
                 if writer is None:
-                    size = (image.shape[1], image.shape[0])
+                    frame_wh = (image.shape[1], image.shape[0])  # OpenCV's (W, H)
                     writer = cv2.VideoWriter(
-                        str(video_path), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, size
+                        str(video_path), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, frame_wh
                     )
                 writer.write(draw_lanes(image, out.lanes))
             written += 1

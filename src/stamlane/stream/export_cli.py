@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, format_wxh, parse_or_status
 
 __all__ = ["main", "parity"]
 
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     except (CheckpointError, OutputError, ValueError, OSError) as err:
         print(f"stamlane export: {err}", file=sys.stderr)
         return 2
-    print(f"stamlane export: {', '.join(map(str, written))} (T={num_frames}, {size[0]}x{size[1]} HxW, opset {opset})")
+    print(f"stamlane export: {', '.join(map(str, written))} (T={num_frames}, {format_wxh(size)}, opset {opset})")
     diff = parity(module.net, output, int(num_frames), size)
     if diff:
         print(

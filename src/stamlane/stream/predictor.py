@@ -244,7 +244,7 @@ class StreamingPredictor:
             raise ValueError(f"image must be (H, W, 3) uint8 BGR, got shape {image.shape}")
         if self._shape is None:
             self._shape = image.shape[:2]
-            self._params = self.transform.draw((image.shape[1], image.shape[0]))
+            self._params = self.transform.draw(image.shape[:2])
             self._net_from_orig = self._params.net_from_orig
             self._row = resolve_horizon_row(self.horizon_row, image.shape[0]) if self.align else 0
         elif image.shape[:2] != self._shape:
@@ -283,7 +283,7 @@ class StreamingPredictor:
             np.linalg.inv(self._net_from_orig),
             self.postprocess,
             y_samples=self.y_samples,
-            orig_size=(image.shape[1], image.shape[0]),
+            orig_size=image.shape[:2],
         )
         timings["decode"] = _ms(start)
         out = StreamOutput(self._index, lanes, logits, embedding, alignments, self._net_from_orig.copy(), timings)

@@ -7,19 +7,11 @@ import sys
 import time
 from pathlib import Path
 
-from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
 from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
 __all__ = ["main"]
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"size must look like 640x360, got {text!r}") from err
-    return w, h
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -34,7 +26,7 @@ def _parser() -> argparse.ArgumentParser:
         "--challenging-clips", type=int, default=None, help="clips of the challenging split (default clips/10)"
     )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--size", type=_size, default=(640, 360), help="frame size WxH (default 640x360)")
+    p.add_argument("--size", type=parse_wxh, default=(360, 640), help="frame size WxH (default 640x360)")
     p.add_argument("--frames", type=int, default=20, help="frames per clip (default 20)")
     p.add_argument("--fps", type=float, default=SynthConfig.fps, help="frame rate of the simulated camera")
     p.add_argument(
@@ -83,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
     try:
-        cfg = SynthConfig(width=args.size[0], height=args.size[1], num_frames=args.frames, fps=args.fps)
+        cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
     except ValueError as err:
         print(f"stamlane synth: {err}", file=sys.stderr)
         return 2

@@ -26,7 +26,7 @@ class Windscreen:
     """Dirt and drops on the windscreen and a sweeping wiper, in image pixels.
 
     Attributes:
-        size: ``(width, height)`` of the frames.
+        size: ``(H, W)`` of the frames.
         dirt: ``(cx, cy, rx, ry, angle_deg, opacity)`` of each opaque-ish dirt blob.
         drops: ``(cx, cy, radius)`` of each drop (the scene seen blurred and brightened through it).
         pivot: the wiper's pivot ``(x, y)``, below the image; ``length``: its blade length in pixels.
@@ -66,7 +66,7 @@ class Windscreen:
         pivot = (float((0.15 if left else 0.85) * width), float(height * 1.15))
         sweep = (-75.0, 10.0) if left else (-10.0, 75.0)
         return cls(
-            (width, height),
+            (height, width),
             dirt,
             drops,
             pivot,
@@ -89,8 +89,8 @@ class Windscreen:
             opaque; drops let the road through (blurred) and are not in it.
         """
         h, w = frame.shape[:2]
-        if (w, h) != self.size:
-            raise ValueError(f"windscreen made for {self.size}, got a frame of {(w, h)}")
+        if (h, w) != tuple(self.size):
+            raise ValueError(f"windscreen made for (H, W) {tuple(self.size)}, got a frame of {(h, w)}")
         hidden = np.zeros((h, w), np.uint8)
         # drops: the scene through a small lens, blurred and brighter
         blurred = cv2.GaussianBlur(frame, (0, 0), 3.0)

@@ -397,7 +397,7 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
         img_from_ground = camera.image_from_ground(pose)
         horizon = camera.horizon_row(pose)
         sky_rows = int(np.clip(np.ceil(horizon + 1), 0, cfg.height))
-        frame = renderer.render(img_from_ground, (cfg.width, cfg.height), sky_rows, haze)
+        frame = renderer.render(img_from_ground, (cfg.height, cfg.width), sky_rows, haze)
         frame[:sky_rows] = sky[:sky_rows]
         _haze(frame, sky_rows, haze)
         _draw_ridge(frame, ridge, horizon, pose, camera)

@@ -27,7 +27,7 @@ __all__ = ["GrainLayer", "GroundRenderer"]
 GRAIN_PPM = 64.0
 """Texels per metre of the grain texture (1.6 cm)."""
 GRAIN_TILE = (1024, 1024)
-"""Grain texture size ``(width, height)`` in texels (16 m by 16 m); it repeats, turned by a random angle."""
+"""Grain texture size ``(H, W)`` in texels (16 m by 16 m); it repeats, turned by a random angle."""
 
 
 class GrainLayer:
@@ -39,7 +39,7 @@ class GrainLayer:
     """
 
     def __init__(self, rng: np.random.Generator, strength: float = 0.12) -> None:
-        w, h = GRAIN_TILE
+        h, w = GRAIN_TILE
         fine = rng.standard_normal((h, w), dtype=np.float32)
         fine = cv2.GaussianBlur(fine, (0, 0), 0.7)
         stones = rng.random((h, w), dtype=np.float32)
@@ -99,14 +99,14 @@ class GroundRenderer:
 
         Args:
             image_from_ground: ``(3, 3)`` homography ground ``(X, Z, 1)`` metres -> image pixels.
-            size: ``(W, H)`` of the frame.
+            size: ``(H, W)`` of the frame.
             first_row: first image row below the horizon (rows above are left at ``border``).
             border: BGR colour where there is no texture (beyond its ends).
 
         Returns:
             BGR uint8 ``(H, W, 3)``.
         """
-        width, height = size
+        height, width = size
         out = np.empty((height, width, 3), np.float32)
         out[:] = np.asarray(border, np.float32)
         first_row = int(np.clip(first_row, 0, height))

@@ -97,10 +97,10 @@ class Road:
         return np.array([[p, -p * self.shear, -p * x_min], [0, -p, p * z_max], [0, 0, 1.0]])
 
     def texture_size(self) -> tuple[int, int]:
-        """Texture ``(width, height)`` in pixels."""
+        """Texture ``(H, W)`` in pixels (rows along the road, columns across it)."""
         x_min, x_max = self.x_range
         z_min, z_max = self.z_range
-        return int(np.ceil((x_max - x_min) * self.ppm)) + 1, int(np.ceil((z_max - z_min) * self.ppm)) + 1
+        return int(np.ceil((z_max - z_min) * self.ppm)) + 1, int(np.ceil((x_max - x_min) * self.ppm)) + 1
 
     def mark_points(self, mark: LaneMark, z: np.ndarray) -> np.ndarray:
         """Ground points ``(X, Z)`` of a mark at distances ``z``, (N, 2) metres."""
@@ -176,7 +176,7 @@ def render_texture(road: Road, rng: np.random.Generator, *, shadows: int = 4, sh
     Returns:
         BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``.
     """
-    w, h = road.texture_size()
+    h, w = road.texture_size()
     tex_from_ground = road.texture_from_ground()
     p = road.ppm
 

@@ -34,7 +34,7 @@ class LaneEvalCallback(pl.Callback):
     - ``pred_lanes``: list of ``(N, 2)`` float arrays/tensors, ``(x, y)`` in original-image pixels;
     - ``gt_lanes``: the same for the ground truth;
     - ``h_samples``: ``list[int]`` (TuSimple rows) or ``None``;
-    - ``orig_size``: ``(W, H)`` of the original image;
+    - ``orig_size``: ``(H, W)`` of the original image;
     - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed).
 
     TuSimple metrics use images with ``h_samples`` only (lanes are converted with
@@ -50,7 +50,7 @@ class LaneEvalCallback(pl.Callback):
     Args:
         tusimple: compute the TuSimple metrics.
         culane: compute the CULane area metric.
-        culane_size: ``(W, H)`` to draw every image at, or None for each image's ``orig_size``.
+        culane_size: ``(H, W)`` to draw every image at, or None for each image's ``orig_size``.
         iou_thresholds: CULane IoU thresholds.
         width: CULane line width in pixels.
         prefix: log-name prefix of the validation stage.
@@ -71,7 +71,7 @@ class LaneEvalCallback(pl.Callback):
     ) -> None:
         super().__init__()
         if culane_size is not None and (len(culane_size) != 2 or min(culane_size) <= 0):
-            raise ValueError(f"culane_size must be (W, H) or None, got {culane_size!r}")
+            raise ValueError(f"culane_size must be (H, W) or None, got {culane_size!r}")
         self.use_tusimple = tusimple
         self.use_culane = culane
         self.culane_size = None if culane_size is None else (int(culane_size[0]), int(culane_size[1]))

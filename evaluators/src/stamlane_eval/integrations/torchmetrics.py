@@ -89,7 +89,7 @@ class CULaneMetric(Metric):
     Args:
         iou_thresholds: TP when the matched IoU is strictly greater.
         width: line thickness in pixels.
-        size: image ``(W, H)``; ``update(..., sizes=...)`` may give each image its own.
+        size: image ``(H, W)``; ``update(..., sizes=...)`` may give each image its own.
         variant: ``"official"`` or ``"lanedet"``.
     """
 
@@ -127,7 +127,7 @@ class CULaneMetric(Metric):
         Args:
             preds: per image, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
             target: per image, annotated lanes, same form.
-            sizes: per image ``(W, H)``; default ``size`` for every image.
+            sizes: per image ``(H, W)``; default ``size`` for every image.
         """
         if len(preds) != len(target):
             raise ValueError(f"got {len(preds)} prediction images and {len(target)} target images")
