@@ -144,6 +144,7 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert {(c["a"], c["b"]) for c in summary["comparisons"] if c["split"] == "test"} == {
         ("stam4", "single"),
         ("f4_add", "single"),
+        ("f4_add", "stam4"),
     }
     assert "test labels changed" not in printed
     again = json.loads((out / "single-s0" / "done.json").read_text())

@@ -410,13 +410,16 @@ PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noal
 
 
 def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list[dict]:
-    """Paired bootstrap of every pair in ``PAIRS`` present, per view: F1(A) - F1(B) on the same images."""
+    """Paired bootstrap of every pair in ``PAIRS`` present, and of each paper row (``--rows``) against the single
+    frame and against the pre-aligned STAM model (the paper's choice, against which Tables 2-4 set every other row),
+    per view: F1(A) - F1(B) on the same images."""
     from stamlane_eval.stats import f1_of_rates, paired_bootstrap
 
     present = {m["name"] for m in summary["models"]}
-    rows = [(m["name"], "single") for m in summary["models"] if m["name"] not in {n.name for n in MODELS}]
+    extra = [m["name"] for m in summary["models"] if m["name"] not in {n.name for n in MODELS}]
+    row_pairs = [(name, other) for name in extra for other in ("single", "stam4")]
     found = []
-    for a, b in (*PAIRS, *rows):
+    for a, b in (*PAIRS, *row_pairs):
         if a not in present or b not in present:
             continue
         for name, split, rows in views:
