@@ -1,10 +1,13 @@
 """Markdown tables of a ``stamlane demo`` summary (the ones in docs/results.md are made with this).
 
     python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
+    python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4]
 
 Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % interval]; the paired
 differences; per factor of the challenging split, each model's F1 and the paired differences against the single
-frame (and aligned against unaligned), an interval that excludes 0 in bold.
+frame (and aligned against unaligned), an interval that excludes 0 in bold. With ``--paper``: the paper's
+tables instead, each row's F1 beside the paper's and its paired differences against one frame and against
+pre-aligned STAM (mixed C-S, the paper's choice); rows not in the summary are listed as not run.
 """
 
 from __future__ import annotations
@@ -62,12 +65,62 @@ def tables(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+STAM_ROW, SINGLE_ROW = "f4_mixed_cs_features", "f1_keyonly"
+
+
+def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
+    """The paper's tables ``which`` (keys of ``configs/paper/tables.yaml``) from a demo summary with ``--rows``."""
+    by_row = {m.get("paper_row") or m["name"]: m for m in summary["models"]}
+    name_of = {row: m["name"] for row, m in by_row.items()}
+    diffs = {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
+    seeds = len(summary["seeds"])
+
+    def versus(row: str, other: str) -> str:
+        a, b = name_of.get(row), name_of.get(other)
+        if a is None or b is None or a == b:
+            return "–"
+        return " / ".join(_diff(diffs.get((a, b, split))) for split in ("test", "challenging"))
+
+    lines = []
+    for key in which:
+        table = index["tables"][key]
+        if table["metrics"] != "tusimple":
+            continue
+        run = [r for r in table["rows"] if r["id"] in by_row]
+        lines += [
+            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seeds} seeds)",
+            "",
+            "| row | paper F1 | test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in table["rows"]:
+            m = by_row.get(r["id"])
+            paper = f"{100 * r['paper']['f1']:.2f}"
+            if m is None:
+                lines.append(f"| {r['label']} (`{r['id']}`) | {paper} | not run | | | |")
+                continue
+            lines.append(
+                f"| {r['label']} (`{r['id']}`) | {paper} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
+                f"{versus(r['id'], SINGLE_ROW)} | {versus(r['id'], STAM_ROW)} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("summary", type=Path)
     p.add_argument("--out", type=Path)
+    p.add_argument("--paper", type=Path, help="configs/paper/tables.yaml: print the paper's tables instead")
+    p.add_argument("--tables", nargs="+", default=["2", "3", "4"], help="which of the paper's tables (--paper)")
     args = p.parse_args(argv)
-    text = tables(json.loads(args.summary.read_text()))
+    summary = json.loads(args.summary.read_text())
+    if args.paper:
+        import yaml
+
+        text = paper_tables(summary, yaml.safe_load(args.paper.read_text()), args.tables)
+    else:
+        text = tables(summary)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text)

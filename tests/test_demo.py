@@ -134,10 +134,17 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     records[0]["run_time"] = 500.0  # a busy machine
     preds.write_text("".join(json.dumps(r) + "\n" for r in records))
     capsys.readouterr()
-    assert main(["demo", "--quick", "--out", str(out), "--rows", "f4_add"]) == 0  # and a row of the tables
+    # and rows of the tables: f4_add is trained, f4_mixed_cs_features IS the demo's stam4 and is not trained again
+    assert main(["demo", "--quick", "--out", str(out), "--rows", "f4_add", "f4_mixed_cs_features"]) == 0
     printed = capsys.readouterr().out
     assert "single-s0: the challenging labels changed, scoring them again" in printed
     summary = json.loads((out / "summary.json").read_text())
+    assert not (out / "f4_mixed_cs_features-s0").exists()
+    assert {m["name"]: m["paper_row"] for m in summary["models"]} == {
+        "stam4": "f4_mixed_cs_features",
+        "single": "f1_keyonly",
+        "f4_add": "f4_add",
+    }
     row = next(m for m in summary["models"] if m["name"] == "f4_add")
     assert row["configs"][-1] == "configs/paper/rows/f4_add.yaml" and row["frames"] == 4
     assert "SimpleAdd" in (out / "f4_add-s0" / "run" / "config.yaml").read_text()

@@ -53,12 +53,14 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
 class DemoModel:
     """One model of the demo: its name, config file (under ``configs/``) and a one-line description; a row of
     the paper's tables also has its row config (``configs/paper/rows/<id>.yaml``) applied after
-    ``configs/paper/ablation.yaml``."""
+    ``configs/paper/ablation.yaml``. ``paper`` is the row of ``configs/paper/tables.yaml`` the model IS (the
+    demo's own models are three of them: asking for those rows reuses them instead of training them again)."""
 
     name: str
     config: str
     label: str
     row: str | None = None
+    paper: str | None = None
 
     def configs(self) -> list[str]:
         """The config files of a ``stamlane fit`` of this model, in order (relative to ``configs/``)."""
@@ -72,15 +74,17 @@ class DemoModel:
         if not (CONFIG_DIR / "paper" / "rows" / f"{row}.yaml").is_file():
             known = sorted(p.stem for p in (CONFIG_DIR / "paper" / "rows").glob("*.yaml"))
             raise DemoError(f"no paper row {row!r}; known rows: {' '.join(known)}")
-        return cls(row, "demo.yaml", f"paper row {row}", row=row)
+        return cls(row, "demo.yaml", f"paper row {row}", row=row, paper=row)
 
 
 PRETRAIN = DemoModel("pretrain", "demo_single.yaml", "1 frame, stage 1 (every model starts here)")
 """Stage 1: the single-frame network trained from scratch; its final weights start every model of stage 2."""
 MODELS = (
-    DemoModel("stam4", "demo.yaml", "4 frames, pre-aligned, STAM"),
-    DemoModel("single", "demo_single.yaml", "1 frame (baseline)"),
-    DemoModel("stam4_noalign", "demo_noalign.yaml", "4 frames, no alignment, STAM"),
+    DemoModel("stam4", "demo.yaml", "4 frames, pre-aligned, STAM", paper="f4_mixed_cs_features"),
+    DemoModel("single", "demo_single.yaml", "1 frame (baseline)", paper="f1_keyonly"),
+    DemoModel(
+        "stam4_noalign", "demo_noalign.yaml", "4 frames, no alignment, STAM", paper="f4_noalign_mixed_cs_features"
+    ),
 )
 SPLITS = ("test", "challenging")
 """The splits the demo scores: the clean test split and the challenging one (val only picks checkpoints)."""
@@ -492,7 +496,8 @@ def run(args: argparse.Namespace) -> dict:
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
     skip_noalign = args.no_noalign or args.quick  # the quick run checks the machinery, not the ablation
     models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
-    models += [DemoModel.paper_row(row) for row in dict.fromkeys(args.rows) if row not in {m.name for m in models}]
+    have = {m.name for m in models} | {m.paper for m in models}
+    models += [DemoModel.paper_row(row) for row in dict.fromkeys(args.rows) if row not in have]
     out = args.out
     if out.exists() and not out.is_dir():
         raise DemoError(f"--out {out} is a file, not a folder")
@@ -513,7 +518,13 @@ def run(args: argparse.Namespace) -> dict:
     rates: dict[str, dict[str, list[np.ndarray]]] = {m.name: {split: [] for split in SPLITS} for m in models}
     clips: dict[str, list[str]] = {}
     entries = {
-        m.name: {"name": m.name, "label": m.label, "configs": [f"configs/{c}" for c in m.configs()], "runs": []}
+        m.name: {
+            "name": m.name,
+            "label": m.label,
+            "paper_row": m.paper,
+            "configs": [f"configs/{c}" for c in m.configs()],
+            "runs": [],
+        }
         for m in models
     }
     start_all = time.perf_counter()
