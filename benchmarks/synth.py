@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from stamlane_eval.cli_tools import parse_wxh
 
 from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
 
@@ -43,12 +44,12 @@ def content(clips: list, stride: int) -> dict[str, float]:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--clips", type=int, default=20)
-    p.add_argument("--size", default="640x360")
+    p.add_argument("--size", default="640x360", help="frame size WxH")
     p.add_argument("--out", default=None)
     p.add_argument("--set", nargs="*", default=[], help="SynthConfig overrides, e.g. fps=10 grain=0")
     args = p.parse_args()
     overrides = parse_overrides(args.set)
-    w, h = (int(v) for v in args.size.split("x"))
+    h, w = parse_wxh(args.size)
     results: dict[str, dict] = {}
     splits = (
         ("normal", SynthConfig(width=w, height=h, **overrides)),

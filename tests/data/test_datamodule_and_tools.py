@@ -202,7 +202,7 @@ def test_synth_never_writes_over_a_set_and_show_never_into_the_data(
     assert (synthetic_root / "train.json").read_bytes() == before
     frame = synthetic_root / "clips" / "train-0000" / "1.jpg"
     picture = frame.read_bytes()
-    argv = ["--root", str(synthetic_root), "--labels", "train.json", "--out", str(frame), "--size", "48x80"]
+    argv = ["--root", str(synthetic_root), "--labels", "train.json", "--out", str(frame), "--size", "80x48"]
     assert show_main(argv) == 2
     err = capsys.readouterr().err
     assert "would overwrite or write into the input" in err and err.count("\n") == 1
@@ -223,7 +223,7 @@ def test_show_tool_writes_a_grid(synthetic_root: Path, tmp_path: Path, capsys: p
                 "--n",
                 "2",
                 "--size",
-                "48x80",
+                "80x48",
                 "--align",
                 "true",
             ]

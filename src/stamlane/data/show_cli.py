@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from stamlane.data.alignment import ALIGN_MODES
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status, parse_wxh
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform
@@ -59,7 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--format", default="tusimple", choices=("tusimple", "culane", "apollo", "vil100"))
     p.add_argument("--num-frames", type=int, default=4)
     p.add_argument("--stride", type=int, default=1)
-    p.add_argument("--size", default="128x256", help="network size HxW (default 128x256)")
+    p.add_argument("--size", type=parse_wxh, default=(128, 256), help="network size WxH (default 256x128)")
     p.add_argument("--align", default="none", choices=ALIGN_MODES)
     p.add_argument("--cache-dir", default=None)
     p.add_argument("--label-dir", default=None, help="ApolloScape: folder mirroring the images with .lines.txt")
@@ -70,11 +70,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    try:
-        h, w = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        print(f"stamlane show: --size must look like 128x256 (HxW), got {args.size!r}", file=sys.stderr)
-        return 2
     if args.n < 1:
         print(f"stamlane show: --n must be >= 1, got {args.n}", file=sys.stderr)
         return 2
@@ -86,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     common = {
         "num_frames": args.num_frames,
         "stride": args.stride,
-        "image_size": (h, w),
+        "image_size": args.size,
         "align": args.align,
         "cache_dir": args.cache_dir,
     }
