@@ -65,7 +65,11 @@ def tables(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-STAM_ROW, SINGLE_ROW = "f4_mixed_cs_features", "f1_keyonly"
+def _paper_row(name: str) -> str:
+    """The row of the paper's tables that the demo model ``name`` is."""
+    from stamlane.demo import MODELS
+
+    return next(m.paper for m in MODELS if m.name == name)
 
 
 def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
@@ -80,6 +84,8 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
         if a is None or b is None or a == b:
             return "–"
         return " / ".join(_diff(diffs.get((a, b, split))) for split in ("test", "challenging"))
+
+    single, stam = _paper_row("single"), _paper_row("stam4")
 
     lines = []
     for key in which:
@@ -101,7 +107,7 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
                 continue
             lines.append(
                 f"| {r['label']} (`{r['id']}`) | {paper} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
-                f"{versus(r['id'], SINGLE_ROW)} | {versus(r['id'], STAM_ROW)} |"
+                f"{versus(r['id'], single)} | {versus(r['id'], stam)} |"
             )
         lines.append("")
     return "\n".join(lines)
