@@ -94,7 +94,7 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
             continue
         run = [r for r in table["rows"] if r["id"] in by_row]
         lines += [
-            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seeds} seeds)",
+            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seeds} seed{'s' if seeds != 1 else ''})",
             "",
             "| row | paper F1 | test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
             "|---|---|---|---|---|---|",

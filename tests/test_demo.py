@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -9,12 +10,14 @@ from pathlib import Path
 import cv2
 import pytest
 import torch
+import yaml
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
 from stamlane.synth.generator import FACTORS
 
 torch.set_num_threads(1)
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -161,3 +164,15 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert rescored["scoring"] == "no-time-limit" and rescored["test"]["late"] == 1
     assert json.loads(preds.read_text().splitlines()[0])["run_time"] == 500.0  # not predicted again
     assert rescored["test"]["f1"] == before["test"]["f1"] and before["test"]["late"] == 0
+    # the paper's Table 4 from this summary (benchmarks/demo_tables.py, as docs/results.md is made)
+    spec = importlib.util.spec_from_file_location("demo_tables", REPO / "benchmarks" / "demo_tables.py")
+    demo_tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo_tables)
+    index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
+    table = demo_tables.paper_tables(summary, index, ["4"]).splitlines()
+    assert "(2 of 7 rows run, 1 seed)" in table[0]
+    add = next(line for line in table if "`f4_add`" in line)
+    assert f"{100 * row['test']['f1_mean']:.1f}" in add and add.count("[") >= 4  # F1 and both paired differences
+    assert "| not run |" in next(line for line in table if "`f4_convlstm`" in line)
+    stam = next(line for line in table if "`f4_mixed_cs_features`" in line)
+    assert "not run" not in stam and stam.endswith("| – |")  # STAM against itself: no difference
