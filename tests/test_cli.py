@@ -293,6 +293,24 @@ def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: 
     assert not any("Traceback" in line for line in err)
 
 
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ("--trainer.max_stepz=3", "unrecognized arguments: --trainer.max_stepz=3"),
+        ("--data.num_frames=abc", 'Parser key "data.num_frames": Expected'),
+        ("--config=/nonexistent/x.yaml", "File does not exist"),
+    ],
+)
+def test_bad_options_are_one_line_not_the_usage(
+    tiny_set: Path, tmp_path: Path, capsys, extra: str, message: str
+) -> None:
+    """jsonargparse would print its whole usage (about a hundred lines) before the error."""
+    assert main(["fit", *_args(tiny_set, tmp_path, extra)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("stamlane fit: ") and message in err[0], err[:3]
+    assert err[0].endswith("(see stamlane fit --help)")
+
+
 def test_a_data_error_in_a_dataloader_worker_is_one_line(tiny_set: Path, tmp_path: Path, capsys) -> None:
     import shutil
 

@@ -163,7 +163,10 @@ def one_line(err: BaseException) -> str:
         last = lines[-1]
         name, sep, message = last.partition(": ")
         return message if sep and name.replace(".", "").replace("_", "").isalnum() else last
-    return "; ".join(lines)
+    text = lines[0]
+    for line in lines[1:]:  # a line ending in ":" introduces the next one (jsonargparse's nested messages)
+        text += (" " if text.endswith(":") else "; ") + line
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -183,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
+        from jsonargparse import ArgumentError
         from lightning.fabric.utilities.exceptions import MisconfigurationException
 
         from stamlane.data.labels import DataError
@@ -191,8 +195,15 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             with _config_from_checkpoint(command, rest) as extra:
-                # args=None when they are sys.argv's own (LightningCLI warns when given both)
-                build_cli(None if argv == sys.argv[1:] and not extra else [command, *extra, *rest])
+                # args=None when they are sys.argv's own (LightningCLI warns when given both); a bad option or
+                # config raises instead of printing jsonargparse's hundred-line usage
+                build_cli(
+                    None if argv == sys.argv[1:] and not extra else [command, *extra, *rest],
+                    parser_kwargs={"exit_on_error": False},
+                )
+        except ArgumentError as err:
+            print(f"stamlane {command}: {one_line(err)} (see stamlane {command} --help)", file=sys.stderr)
+            return 2
         except (DataError, FileNotFoundError, ValueError, MisconfigurationException) as err:  # bad input: status 2
             print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
             return 2
