@@ -40,7 +40,7 @@ def parse_wxh(text: str, max_side: int | None = None) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH such as 1640x590, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected WxH such as 640x360, got {text!r}") from None
     if w <= 0 or h <= 0 or (max_side is not None and max(w, h) > max_side):
         sides = f"sides in 1..{max_side}" if max_side is not None else "positive sides"
         raise argparse.ArgumentTypeError(f"expected WxH with {sides}, got {text!r}")
