@@ -79,11 +79,18 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
     diffs = {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
     seeds = len(summary["seeds"])
 
+    def paired(a: str, b: str, split: str) -> dict | None:
+        """F1(a) - F1(b), from the comparison of (a, b) or, negated, of (b, a)."""
+        if (a, b, split) in diffs:
+            return diffs[a, b, split]
+        c = diffs.get((b, a, split))
+        return None if c is None else {"f1_diff": -c["f1_diff"], "ci95": [-c["ci95"][1], -c["ci95"][0]]}
+
     def versus(row: str, other: str) -> str:
         a, b = name_of.get(row), name_of.get(other)
         if a is None or b is None or a == b:
             return "–"
-        return " / ".join(_diff(diffs.get((a, b, split))) for split in ("test", "challenging"))
+        return " / ".join(_diff(paired(a, b, split)) for split in ("test", "challenging"))
 
     single, stam = _paper_row("single"), _paper_row("stam4")
 
