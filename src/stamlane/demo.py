@@ -103,10 +103,12 @@ class DemoError(Exception):
 
 
 def _parser() -> argparse.ArgumentParser:
+    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+
     parser = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder")
     parser.add_argument(
-        "--data", type=Path, default=None, help="synthetic set (default data/synthetic; made if missing)"
+        "--data", type=Path, default=None, help=f"synthetic set (default {DEFAULT_SYNTHETIC_ROOT}; made if missing)"
     )
     parser.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
     parser.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
@@ -148,7 +150,7 @@ def _make_data(root: Path | None, out: Path, quick: bool) -> Path:
             generate_dataset(root, train=4, val=2, test=2, challenging=hard, seed=0, config=cfg, progress=False)
         return root
     if root is None:
-        ClipDataModule(root=None).prepare_data()  # generates data/synthetic when missing (progress bar)
+        ClipDataModule(root=None).prepare_data()  # generates it when missing (progress bar)
         return Path(DEFAULT_SYNTHETIC_ROOT)
     if root.exists() and not root.is_dir():
         raise DemoError(f"--data {root} is not a folder")

@@ -17,14 +17,17 @@ from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleC
 from stamlane.data.collate import collate_clips
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
 from stamlane.data.labels import DataError
-from stamlane.synth.generator import EVAL_KEY_STEP, FORMAT_VERSION, TRAIN_KEY_STEP, SynthConfig, generate_dataset
+from stamlane.synth.generator import (
+    DEFAULT_SYNTHETIC_ROOT,
+    EVAL_KEY_STEP,
+    FORMAT_VERSION,
+    TRAIN_KEY_STEP,
+    SynthConfig,
+    generate_dataset,
+)
 from stamlane.data.transforms import ClipTransform
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
-
-DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
-"""Where ``root=None`` points (relative to the working directory); generated there when missing. Named by the
-generator's format version, so a newer generator never reuses (or overwrites) an older set."""
 
 FORMATS = ("tusimple", "culane", "apollo", "vil100")
 
@@ -35,7 +38,7 @@ class ClipDataModule(LightningDataModule):
     """Clips of T frames (key frame last) with key-frame targets, for every stage.
 
     Args:
-        root: data root. ``None``: the synthetic set at ``data/synthetic``, generated when missing (with
+        root: data root. ``None``: the synthetic set at ``DEFAULT_SYNTHETIC_ROOT`` (``data/synthetic-v<format>``), generated when missing (with
             a progress bar) from the ``synth_*`` options; the default label files are then
             ``train.json``/``val.json``/``test.json`` (``predict`` uses ``test.json``).
         format: ``"tusimple"`` (also the synthetic sets and custom data), ``"culane"``, ``"apollo"``,

@@ -39,6 +39,8 @@ _SETTINGS = "settings.json"
 
 
 def _parser() -> argparse.ArgumentParser:
+    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+
     p = OneLineParser(
         prog="stamlane ablate",
         description="Run the paper's ablation tables (configs/paper/tables.yaml) over seeds; write CSV, "
@@ -47,7 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--table", nargs="+", metavar="N", help="table number(s): 1 2 3 4 7 8")
     p.add_argument("--rows", nargs="+", metavar="ID", help="only these rows (ids as in --list)")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="S", help="seeds (default 0 1 2)")
-    p.add_argument("--data-root", help="data root (default: the base config's; synthetic data/synthetic)")
+    p.add_argument(
+        "--data-root", help=f"data root (default: the base config's; for synthetic clips {DEFAULT_SYNTHETIC_ROOT})"
+    )
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--max-steps", type=int, help="training steps per run (default: the base config's)")
     budget.add_argument("--minutes", type=float, help="training wall-clock limit per run (trainer.max_time)")

@@ -62,6 +62,10 @@ FORMAT_VERSION = 4
 """4: the challenging split is made of labelled factors (`FACTORS`, one per clip; train, val and test are format
 3's, byte for byte); 3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
 prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
+DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
+"""Where ``ClipDataModule(root=None)`` and ``stamlane demo`` read the synthetic set (relative to the working
+directory; generated there when missing). Named by the format version, so a newer generator never reuses (or
+overwrites) an older set."""
 TRAIN_KEY_STEP = 1
 """Default key frames of the train split: every frame from ``FIRST_KEY`` on (13 of a 20-frame clip)."""
 EVAL_KEY_STEP = 3
