@@ -121,6 +121,20 @@ def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, ca
     assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first
 
 
+def test_demo_precision_is_passed_recorded_and_never_mixed(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--no-noalign", "--bf16", "true", "--out", str(out)]) == 0
+    assert json.loads((out / "summary.json").read_text())["bf16"] is True
+    for run in ("pretrain-s0", "stam4-s0", "single-s0"):
+        assert "  bf16: true" in (out / run / "run" / "config.yaml").read_text().splitlines()
+        assert json.loads((out / run / "done.json").read_text())["bf16"] is True
+    capsys.readouterr()
+    # float32 results are not mixed into a bfloat16 folder: one line, exit 2
+    assert main(["demo", "--quick", "--no-noalign", "--bf16", "false", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "was made with other settings" in err and "'bf16': True" in err and len(err.splitlines()) == 1
+
+
 def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0

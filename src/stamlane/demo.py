@@ -91,7 +91,6 @@ SPLITS = ("test", "challenging")
 QUICK_OVERRIDES = [
     "--data.image_size=[64, 128]",
     "--model.encoder.width=0.125",
-    "--model.bf16=false",
     "--model.channels_last=false",
     "--data.batch_size=2",
     "--data.num_workers=0",
@@ -113,6 +112,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
     parser.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
     parser.add_argument("--seeds", type=int, default=1, help="training seeds per model (F1 as mean ± std)")
+    parser.add_argument(
+        "--bf16",
+        choices=("auto", "true", "false"),
+        default="auto",
+        help="bfloat16 autocast: auto = where the CPU runs it natively (AMX, AVX512-BF16); false = float32, "
+        "to compare with results trained on an AVX2-only CPU (default auto)",
+    )
     parser.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
     parser.add_argument(
         "--rows",
@@ -169,23 +175,26 @@ def _cli(args: list[str], **kwargs: Any) -> Any:
         sys.argv = argv
 
 
-def _common(model: DemoModel, root: Path, out: Path, quick: bool) -> list[str]:
+def _common(model: DemoModel, root: Path, out: Path, quick: bool, bf16: bool) -> list[str]:
     return [
         *(arg for config in model.configs() for arg in ("--config", str(CONFIG_DIR / config))),
         f"--data.root={root}",
+        f"--model.bf16={str(bf16).lower()}",
         "--trainer.enable_progress_bar=false" if quick else "--trainer.enable_progress_bar=true",
         *(QUICK_OVERRIDES if quick else []),
     ]
 
 
-def _train(model: DemoModel, root: Path, out: Path, steps: int, quick: bool, seed: int, init: Path | None) -> Path:
-    """Fit ``model`` for ``steps`` steps with ``seed``, from the weights of checkpoint ``init`` when given;
-    returns its run folder (config.yaml, metrics.csv, checkpoints: ``last.ckpt`` holds the final weights)."""
+def _train(
+    model: DemoModel, root: Path, out: Path, steps: int, quick: bool, seed: int, init: Path | None, bf16: bool
+) -> Path:
+    """Fit ``model`` for ``steps`` steps with ``seed`` (in bfloat16 autocast if ``bf16``), from the weights of
+    checkpoint ``init`` when given; returns its run folder (config.yaml, metrics.csv, checkpoints: ``last.ckpt`` holds the final weights)."""
     val_every = max(1, steps // (2 if init else 4))  # stage 2: twice (a 4-frame validation costs ~10 s)
     name = f"{model.name}-s{seed}"
     args = [
         "fit",
-        *_common(model, root, out, quick),
+        *_common(model, root, out, quick, bf16),
         *([f"--model.init_weights={init}"] if init else []),
         f"--seed_everything={seed}",
         f"--trainer.max_steps={steps}",
@@ -495,6 +504,8 @@ def run(args: argparse.Namespace) -> dict:
     _require_pieces()
     import torch
 
+    from stamlane.hardware import resolve_bf16
+
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
     skip_noalign = args.no_noalign or args.quick  # the quick run checks the machinery, not the ablation
     models = [m for m in MODELS if not (skip_noalign and m.name == "stam4_noalign")]
@@ -506,6 +517,8 @@ def run(args: argparse.Namespace) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     root = _make_data(args.data, out, args.quick)
     pre_steps, ft_steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
+    quick_fp32 = args.quick and args.bf16 == "auto"  # the smoke run in float32 unless asked otherwise
+    bf16 = False if quick_fp32 else resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16))
     seeds = list(range(args.seeds))
     summary: dict[str, Any] = {
         "data": str(root),
@@ -513,6 +526,7 @@ def run(args: argparse.Namespace) -> dict:
         "pretrain_steps": pre_steps,
         "finetune_steps": ft_steps,
         "steps": pre_steps + ft_steps,
+        "bf16": bf16,
         "models": [],
     }
     curves: dict[str, list[tuple[int, float]]] = {}
@@ -530,14 +544,14 @@ def run(args: argparse.Namespace) -> dict:
         for m in models
     }
     start_all = time.perf_counter()
-    settings = {"data": str(root.resolve()), "pretrain_steps": pre_steps, "finetune_steps": ft_steps}
+    settings = {"data": str(root.resolve()), "pretrain_steps": pre_steps, "finetune_steps": ft_steps, "bf16": bf16}
     for seed in seeds:
         base_dir = out / f"pretrain-s{seed}"
         done = _finished(base_dir, settings)
         if done is None:
             print(f"[demo] seed {seed}, stage 1: {PRETRAIN.label}, {pre_steps} steps", flush=True)
             start = time.perf_counter()
-            _train(PRETRAIN, root, out, pre_steps, args.quick, seed, init=None)
+            _train(PRETRAIN, root, out, pre_steps, args.quick, seed, init=None, bf16=bf16)
             done = settings | {"train_minutes": round((time.perf_counter() - start) / 60, 2)}
             _write_atomic(base_dir / DONE, json.dumps(done, indent=2))
         else:
@@ -552,7 +566,7 @@ def run(args: argparse.Namespace) -> dict:
             if record is None:
                 print(f"[demo] seed {seed}, stage 2: {model.label}, {ft_steps} steps", flush=True)
                 start = time.perf_counter()
-                run_dir = _train(model, root, out, ft_steps, args.quick, seed, init=init)
+                run_dir = _train(model, root, out, ft_steps, args.quick, seed, init=init, bf16=bf16)
                 record = settings | {
                     "seed": seed,
                     "train_minutes": round(done["train_minutes"] + (time.perf_counter() - start) / 60, 2),
