@@ -2,6 +2,7 @@
 
     python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
     python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4]
+    python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml   # two run sets
 
 Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % interval]; the paired
 differences; per factor of the challenging split, each model's F1 and the paired differences against the single
@@ -72,27 +73,38 @@ def _paper_row(name: str) -> str:
     return next(m.paper for m in MODELS if m.name == name)
 
 
-def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
-    """The paper's tables ``which`` (keys of ``configs/paper/tables.yaml``) from a demo summary with ``--rows``."""
-    by_row = {m.get("paper_row") or m["name"]: m for m in summary["models"]}
-    name_of = {row: m["name"] for row, m in by_row.items()}
-    diffs = {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
-    seeds = len(summary["seeds"])
+def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) -> str:
+    """The paper's tables ``which`` (keys of ``configs/paper/tables.yaml``) from demo summaries with ``--rows``.
 
-    def paired(a: str, b: str, split: str) -> dict | None:
-        """F1(a) - F1(b), from the comparison of (a, b) or, negated, of (b, a)."""
-        if (a, b, split) in diffs:
-            return diffs[a, b, split]
-        c = diffs.get((b, a, split))
+    With several summaries (run sets: each trained its own stage-1 weights, one frame and STAM), a row comes from
+    the first summary that has it and is compared with one frame and STAM OF THAT SUMMARY (the pairs are the same
+    key frames and the same stage-1 weights); a column then says which run set each row is from."""
+    summaries = [summaries] if isinstance(summaries, dict) else summaries
+    by_row: dict[str, tuple[int, dict]] = {}
+    for i, summary in enumerate(summaries):
+        for m in summary["models"]:
+            by_row.setdefault(m.get("paper_row") or m["name"], (i, m))
+    name_of = [{m.get("paper_row") or m["name"]: m["name"] for m in summary["models"]} for summary in summaries]
+    diffs = [{(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]} for summary in summaries]
+    seeds = sorted({len(summary["seeds"]) for summary in summaries})
+    several = len(summaries) > 1
+
+    def paired(i: int, a: str, b: str, split: str) -> dict | None:
+        """F1(a) - F1(b) in run set ``i``, from the comparison of (a, b) or, negated, of (b, a)."""
+        if (a, b, split) in diffs[i]:
+            return diffs[i][a, b, split]
+        c = diffs[i].get((b, a, split))
         return None if c is None else {"f1_diff": -c["f1_diff"], "ci95": [-c["ci95"][1], -c["ci95"][0]]}
 
-    def versus(row: str, other: str) -> str:
-        a, b = name_of.get(row), name_of.get(other)
+    def versus(i: int, row: str, other: str) -> str:
+        a, b = name_of[i].get(row), name_of[i].get(other)
         if a is None or b is None or a == b:
             return "–"
-        return " / ".join(_diff(paired(a, b, split)) for split in ("test", "challenging"))
+        return " / ".join(_diff(paired(i, a, b, split)) for split in ("test", "challenging"))
 
     single, stam = _paper_row("single"), _paper_row("stam4")
+    seed_text = "/".join(map(str, seeds)) + f" seed{'s' if seeds != [1] else ''}"
+    set_head, set_rule = (" run set |", "---|") if several else ("", "")
 
     lines = []
     for key in which:
@@ -101,20 +113,21 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
             continue
         run = [r for r in table["rows"] if r["id"] in by_row]
         lines += [
-            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seeds} seed{'s' if seeds != 1 else ''})",
+            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seed_text})",
             "",
-            "| row | paper F1 | test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
-            "|---|---|---|---|---|---|",
+            f"| row | paper F1 |{set_head} test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
+            f"|---|---|{set_rule}---|---|---|---|",
         ]
         for r in table["rows"]:
-            m = by_row.get(r["id"])
             paper = f"{100 * r['paper']['f1']:.2f}"
-            if m is None:
-                lines.append(f"| {r['label']} (`{r['id']}`) | {paper} | not run | | | |")
+            if r["id"] not in by_row:
+                lines.append(f"| {r['label']} (`{r['id']}`) | {paper} |{' |' if several else ''} not run | | | |")
                 continue
+            i, m = by_row[r["id"]]
+            where = f" {i + 1} |" if several else ""
             lines.append(
-                f"| {r['label']} (`{r['id']}`) | {paper} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
-                f"{versus(r['id'], single)} | {versus(r['id'], stam)} |"
+                f"| {r['label']} (`{r['id']}`) | {paper} |{where} {_f1(m['test'])} | {_f1(m['challenging'])} | "
+                f"{versus(i, r['id'], single)} | {versus(i, r['id'], stam)} |"
             )
         lines.append("")
     return "\n".join(lines)
@@ -122,18 +135,20 @@ def paper_tables(summary: dict, index: dict, which: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("summary", type=Path)
+    p.add_argument("summary", type=Path, nargs="+", help="summary.json; with --paper, several run sets")
     p.add_argument("--out", type=Path)
     p.add_argument("--paper", type=Path, help="configs/paper/tables.yaml: print the paper's tables instead")
     p.add_argument("--tables", nargs="+", default=["2", "3", "4"], help="which of the paper's tables (--paper)")
     args = p.parse_args(argv)
-    summary = json.loads(args.summary.read_text())
+    summaries = [json.loads(path.read_text()) for path in args.summary]
     if args.paper:
         import yaml
 
-        text = paper_tables(summary, yaml.safe_load(args.paper.read_text()), args.tables)
+        text = paper_tables(summaries, yaml.safe_load(args.paper.read_text()), args.tables)
+    elif len(summaries) > 1:
+        p.error("several summaries go with --paper only")
     else:
-        text = tables(summary)
+        text = tables(summaries[0])
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text)

@@ -179,9 +179,7 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert json.loads(preds.read_text().splitlines()[0])["run_time"] == 500.0  # not predicted again
     assert rescored["test"]["f1"] == before["test"]["f1"] and before["test"]["late"] == 0
     # the paper's Table 4 from this summary (benchmarks/demo_tables.py, as docs/results.md is made)
-    spec = importlib.util.spec_from_file_location("demo_tables", REPO / "benchmarks" / "demo_tables.py")
-    demo_tables = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(demo_tables)
+    demo_tables = _demo_tables()
     index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
     table = demo_tables.paper_tables(summary, index, ["4"]).splitlines()
     assert "(2 of 7 rows run, 1 seed)" in table[0]
@@ -190,3 +188,57 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert "| not run |" in next(line for line in table if "`f4_convlstm`" in line)
     stam = next(line for line in table if "`f4_mixed_cs_features`" in line)
     assert "not run" not in stam and stam.endswith("| – |")  # STAM against itself: no difference
+
+
+def _demo_tables():
+    spec = importlib.util.spec_from_file_location("demo_tables", REPO / "benchmarks" / "demo_tables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _summary(rows: dict[str, float], diffs: dict[tuple[str, str], float]) -> dict:
+    """A demo summary with one seed: ``rows`` = paper row -> F1 (test = challenging), ``diffs`` = paired F1
+    differences (interval +-0.01)."""
+    score = {"f1_mean": 0.0, "f1_std": None, "f1_ci95": None}
+    models = [
+        {"name": r, "paper_row": r, "test": score | {"f1_mean": f}, "challenging": score | {"f1_mean": f}}
+        for r, f in rows.items()
+    ]
+    comparisons = [
+        {"a": a, "b": b, "split": split, "f1_diff": d, "ci95": [d - 0.01, d + 0.01]}
+        for (a, b), d in diffs.items()
+        for split in ("test", "challenging")
+    ]
+    return {"seeds": [0], "models": models, "comparisons": comparisons}
+
+
+def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() -> None:
+    first = _summary(
+        {"f1_keyonly": 0.90, "f4_mixed_cs_features": 0.92, "f4_add": 0.95},
+        {
+            ("f4_mixed_cs_features", "f1_keyonly"): 0.02,
+            ("f4_add", "f1_keyonly"): 0.05,
+            ("f4_add", "f4_mixed_cs_features"): 0.03,
+        },
+    )
+    second = _summary(  # another run set: its own one frame and STAM, and a row the first has not got
+        {"f1_keyonly": 0.80, "f4_mixed_cs_features": 0.81, "f4_parallel_features": 0.86},
+        {("f4_parallel_features", "f1_keyonly"): 0.06, ("f4_parallel_features", "f4_mixed_cs_features"): 0.05},
+    )
+    index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
+    table = _demo_tables().paper_tables([first, second], index, ["3", "4"]).splitlines()
+    row = {line.split("`")[1]: line for line in table if line.startswith("| ") and "`" in line}
+    assert "| run set |" in table[2]
+    # STAM, one frame and the sum come from set 1, the parallel mode from set 2, compared with set 2's rows
+    assert "| 1 | 92.0 | 92.0 |" in row["f4_mixed_cs_features"]
+    assert row["f4_add"].endswith(
+        "| **+5.0 [+4.0, +6.0]** / **+5.0 [+4.0, +6.0]** | **+3.0 [+2.0, +4.0]** / **+3.0 [+2.0, +4.0]** |"
+    )
+    assert "| 2 | 86.0 | 86.0 |" in row["f4_parallel_features"]
+    assert row["f4_parallel_features"].endswith(
+        "| **+6.0 [+5.0, +7.0]** / **+6.0 [+5.0, +7.0]** | **+5.0 [+4.0, +6.0]** / **+5.0 [+4.0, +6.0]** |"
+    )
+    assert "| | not run |" in row["f4_serial_cs_features"]
+    # one summary: no run-set column
+    assert "run set" not in _demo_tables().paper_tables(first, index, ["4"])
