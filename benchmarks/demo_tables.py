@@ -5,8 +5,9 @@
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml   # two run sets
 
 Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % interval]; the paired
-differences; per factor of the challenging split, each model's F1 and the paired differences against the single
-frame (and aligned against unaligned), an interval that excludes 0 in bold. With ``--paper``: the paper's
+differences as ``+d [clips] s[seeds]`` (95 % intervals with the test clips resampled and over the training
+seeds, Student t; bold where both exclude 0); per factor of the challenging split, each model's F1 and the
+paired differences against the single frame (and aligned against unaligned). With ``--paper``: the paper's
 tables instead, each row's F1 beside the paper's and its paired differences against one frame and against
 pre-aligned STAM (mixed C-S, the paper's choice); rows not in the summary are listed as not run.
 """
@@ -14,6 +15,7 @@ pre-aligned STAM (mixed C-S, the paper's choice); rows not in the summary are li
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 from pathlib import Path
@@ -27,14 +29,35 @@ def _f1(m: dict) -> str:
 
 
 def _diff(c: dict | None) -> str:
+    """``+d [clips] s[seeds]`` in F1 points: the difference, its interval with the test clips resampled and, where
+    there are several seeds, its interval over the training seeds; bold when every interval excludes 0."""
     if c is None:
         return "–"
-    low, high = c["ci95"]
-    text = f"{100 * c['f1_diff']:+.1f} [{100 * low:+.1f}, {100 * high:+.1f}]"
-    return f"**{text}**" if not low <= 0 <= high else text
+    intervals = [c["ci95"]] + ([c["seed_ci95"]] if c.get("seed_ci95") else [])
+    text = f"{100 * c['f1_diff']:+.1f} [{100 * c['ci95'][0]:+.1f}, {100 * c['ci95'][1]:+.1f}]"
+    if c.get("seed_ci95"):
+        text += f" s[{100 * c['seed_ci95'][0]:+.1f}, {100 * c['seed_ci95'][1]:+.1f}]"
+    return f"**{text}**" if all(not low <= 0 <= high for low, high in intervals) else text
+
+
+def _with_seed_interval(summary: dict) -> dict:
+    """``summary`` whose comparisons of whole splits all carry ``seed_ci95``: a summary written before the demo
+    kept per-seed differences gets them from its runs' own scores (per factor there are none to get)."""
+    from stamlane_eval.stats import seed_interval
+
+    summary = copy.deepcopy(summary)
+    runs = {m["name"]: {r["seed"]: r for r in m.get("runs", [])} for m in summary["models"]}
+    for c in summary["comparisons"]:
+        if "seed_ci95" in c or c["split"] not in ("test", "challenging") or len(summary["seeds"]) < 2:
+            continue
+        a, b = runs[c["a"]], runs[c["b"]]
+        c["seed_diffs"] = [a[s][c["split"]]["f1"] - b[s][c["split"]]["f1"] for s in sorted(a)]
+        c["seed_ci95"] = list(seed_interval(c["seed_diffs"]).interval)
+    return summary
 
 
 def tables(summary: dict) -> str:
+    summary = _with_seed_interval(summary)
     models = summary["models"]
     seeds = len(summary["seeds"])
     lines = [
@@ -78,13 +101,15 @@ def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) ->
 
     With several summaries (run sets: each trained its own stage-1 weights, one frame and STAM), a row comes from
     the first summary that has it and is compared with one frame and STAM OF THAT SUMMARY (the pairs are the same
-    key frames and the same stage-1 weights); a column then says which run set each row is from."""
-    summaries = [summaries] if isinstance(summaries, dict) else summaries
+    key frames and the same stage-1 weights); a column then says which run set each row is from, and one frame and
+    STAM are shown once for each run set a table's other rows come from."""
+    summaries = [_with_seed_interval(s) for s in ([summaries] if isinstance(summaries, dict) else summaries)]
+    models = [{m.get("paper_row") or m["name"]: m for m in summary["models"]} for summary in summaries]
     by_row: dict[str, tuple[int, dict]] = {}
-    for i, summary in enumerate(summaries):
-        for m in summary["models"]:
-            by_row.setdefault(m.get("paper_row") or m["name"], (i, m))
-    name_of = [{m.get("paper_row") or m["name"]: m["name"] for m in summary["models"]} for summary in summaries]
+    for i, found in enumerate(models):
+        for row, m in found.items():
+            by_row.setdefault(row, (i, m))
+    name_of = [{row: m["name"] for row, m in found.items()} for found in models]
     diffs = [{(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]} for summary in summaries]
     seeds = sorted({len(summary["seeds"]) for summary in summaries})
     several = len(summaries) > 1
@@ -94,7 +119,14 @@ def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) ->
         if (a, b, split) in diffs[i]:
             return diffs[i][a, b, split]
         c = diffs[i].get((b, a, split))
-        return None if c is None else {"f1_diff": -c["f1_diff"], "ci95": [-c["ci95"][1], -c["ci95"][0]]}
+        if c is None:
+            return None
+        seeds = c.get("seed_ci95")
+        return {
+            "f1_diff": -c["f1_diff"],
+            "ci95": [-c["ci95"][1], -c["ci95"][0]],
+            "seed_ci95": [-seeds[1], -seeds[0]] if seeds else None,
+        }
 
     def versus(i: int, row: str, other: str) -> str:
         a, b = name_of[i].get(row), name_of[i].get(other)
@@ -118,17 +150,23 @@ def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) ->
             f"| row | paper F1 |{set_head} test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
             f"|---|---|{set_rule}---|---|---|---|",
         ]
+        references = (single, stam)
+        used = {by_row[r["id"]][0] for r in run if r["id"] not in references}
         for r in table["rows"]:
             paper = f"{100 * r['paper']['f1']:.2f}"
             if r["id"] not in by_row:
                 lines.append(f"| {r['label']} (`{r['id']}`) | {paper} |{' |' if several else ''} not run | | | |")
                 continue
-            i, m = by_row[r["id"]]
-            where = f" {i + 1} |" if several else ""
-            lines.append(
-                f"| {r['label']} (`{r['id']}`) | {paper} |{where} {_f1(m['test'])} | {_f1(m['challenging'])} | "
-                f"{versus(i, r['id'], single)} | {versus(i, r['id'], stam)} |"
-            )
+            places = [by_row[r["id"]][0]]
+            if r["id"] in references:  # the reference of every run set the table's rows are compared inside
+                places = sorted({*used, *places} & {i for i, found in enumerate(models) if r["id"] in found})
+            for i in places:
+                m = models[i][r["id"]]
+                where = f" {i + 1} |" if several else ""
+                lines.append(
+                    f"| {r['label']} (`{r['id']}`) | {paper} |{where} {_f1(m['test'])} | {_f1(m['challenging'])} | "
+                    f"{versus(i, r['id'], single)} | {versus(i, r['id'], stam)} |"
+                )
         lines.append("")
     return "\n".join(lines)
 

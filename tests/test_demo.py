@@ -11,6 +11,7 @@ import cv2
 import pytest
 import torch
 import yaml
+from stamlane_eval.stats import seed_interval
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
@@ -114,6 +115,11 @@ def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, ca
     assert [r["seed"] for r in runs["stam4"]] == [0, 1]
     assert runs["stam4"][0]["test"] == first["test"]
     assert summary["models"][0]["test"]["f1_std"] is not None  # two seeds: a spread
+    # the difference per seed is that of the two runs' own scores; its interval is the t interval over seeds
+    diff = next(c for c in summary["comparisons"] if (c["a"], c["b"], c["split"]) == ("stam4", "single", "test"))
+    f1 = {(m, s): runs[m][s]["test"]["f1"] for m in ("stam4", "single") for s in (0, 1)}
+    assert diff["seed_diffs"] == pytest.approx([f1["stam4", s] - f1["single", s] for s in (0, 1)], abs=1e-12)
+    assert diff["seed_ci95"] == pytest.approx(list(seed_interval(diff["seed_diffs"]).interval), abs=1e-12)
     # the same folder with another budget: one line, exit 2, nothing overwritten
     assert main(["demo", "--out", str(out), "--data", str(out / "quick_data"), "--finetune-steps", "7"]) == 2
     err = capsys.readouterr().err.strip()
@@ -240,5 +246,39 @@ def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() ->
         "| **+6.0 [+5.0, +7.0]** / **+6.0 [+5.0, +7.0]** | **+5.0 [+4.0, +6.0]** / **+5.0 [+4.0, +6.0]** |"
     )
     assert "| | not run |" in row["f4_serial_cs_features"]
+    # Table 3's rows are from set 2 and STAM (from set 1) is shown for both sets; Table 4's from set 1 only
+    three = table[: table.index(next(line for line in table if line.startswith("**Table 4")))]
+    stam = [line for line in three if "`f4_mixed_cs_features`" in line]
+    assert len(stam) == 2 and "| 1 | 92.0 |" in stam[0] and "| 2 | 81.0 |" in stam[1]
+    assert stam[0].endswith("| 1 | 92.0 | 92.0 | **+2.0 [+1.0, +3.0]** / **+2.0 [+1.0, +3.0]** | – |")
+    assert stam[1].endswith("| 2 | 81.0 | 81.0 | – / – | – |")  # set 2 compared no STAM with one frame
     # one summary: no run-set column
     assert "run set" not in _demo_tables().paper_tables(first, index, ["4"])
+
+
+def test_paper_tables_show_the_interval_over_seeds_and_claim_only_what_both_intervals_support() -> None:
+    """A summary written before the demo kept per-seed differences: the interval over seeds comes from its runs."""
+    runs = {"f1_keyonly": [0.90, 0.91, 0.92], "f4_mixed_cs_features": [0.93, 0.91, 0.95]}  # diffs 3, 0, 3 points
+    score = {"f1_mean": 0.9, "f1_std": 0.01, "f1_ci95": None}
+    summary = {
+        "seeds": [0, 1, 2],
+        "models": [
+            {
+                "name": row,
+                "paper_row": row,
+                "test": score,
+                "challenging": score,
+                "runs": [{"seed": s, "test": {"f1": f}, "challenging": {"f1": f}} for s, f in enumerate(f1)],
+            }
+            for row, f1 in runs.items()
+        ],
+        "comparisons": [
+            {"a": "f4_mixed_cs_features", "b": "f1_keyonly", "split": split, "f1_diff": 0.02, "ci95": [0.01, 0.03]}
+            for split in ("test", "challenging")
+        ],
+    }
+    index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
+    line = next(ln for ln in _demo_tables().paper_tables(summary, index, ["1"]).splitlines() if "`f4_mixed_cs_f" in ln)
+    # mean 2.0, std 1.732, t(0.975, 2) = 4.303: 2.0 -+ 4.30 -> [-2.3, +6.3]; the clip interval alone excludes 0
+    assert line.endswith("| +2.0 [+1.0, +3.0] s[-2.3, +6.3] / +2.0 [+1.0, +3.0] s[-2.3, +6.3] | – |")
+    assert "seed_ci95" not in summary["comparisons"][0]  # the caller's summary is left as it was

@@ -425,10 +425,12 @@ PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noal
 
 
 def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list[dict]:
-    """Paired bootstrap of every pair in ``PAIRS`` present, and of each paper row (``--rows``) against the single
-    frame and against the pre-aligned STAM model (the paper's choice, against which Tables 2-4 set every other row),
-    per view: F1(A) - F1(B) on the same images."""
-    from stamlane_eval.stats import f1_of_rates, paired_bootstrap
+    """Every pair in ``PAIRS`` present, and each paper row (``--rows``) against the single frame and against the
+    pre-aligned STAM model (the paper's choice, against which Tables 2-4 set every other row), per view:
+    F1(A) - F1(B) of the seed-averaged rates on the same images with its paired bootstrap interval (clips
+    resampled: ``ci95``), and the per-seed differences (A and B of one seed share stage 1) with their Student-t
+    interval (``seed_diffs``, ``seed_ci95``: what training randomness does to the difference; None for one seed)."""
+    from stamlane_eval.stats import f1_of_rates, paired_bootstrap, seed_interval
 
     present = {m["name"] for m in summary["models"]}
     extra = [m["name"] for m in summary["models"] if m["name"] not in {n.name for n in MODELS}]
@@ -441,13 +443,23 @@ def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list
             groups = [clips[split][i] for i in rows]
             if len(set(groups)) < 2:  # no interval from a single clip
                 continue
-            est = paired_bootstrap(
-                np.mean([r[rows] for r in rates[a][split]], axis=0),
-                np.mean([r[rows] for r in rates[b][split]], axis=0),
-                f1_of_rates,
-                groups=groups,
+            per_seed_a, per_seed_b = [r[rows] for r in rates[a][split]], [r[rows] for r in rates[b][split]]
+            est = paired_bootstrap(np.mean(per_seed_a, axis=0), np.mean(per_seed_b, axis=0), f1_of_rates, groups=groups)
+            diffs = [
+                f1_of_rates(ra.mean(axis=0)) - f1_of_rates(rb.mean(axis=0)) for ra, rb in zip(per_seed_a, per_seed_b)
+            ]
+            seeds = seed_interval(diffs) if len(diffs) > 1 else None
+            found.append(
+                {
+                    "a": a,
+                    "b": b,
+                    "split": name,
+                    "f1_diff": est.value,
+                    "ci95": [est.low, est.high],
+                    "seed_diffs": diffs,
+                    "seed_ci95": [seeds.low, seeds.high] if seeds else None,
+                }
             )
-            found.append({"a": a, "b": b, "split": name, "f1_diff": est.value, "ci95": [est.low, est.high]})
     return found
 
 
@@ -458,6 +470,11 @@ def _cell(value: float, ci: list[float] | None, signed: bool = False) -> str:
         return fmt.format(100 * value)
     text = f"{fmt.format(100 * value)} [{fmt.format(100 * ci[0])}, {fmt.format(100 * ci[1])}]"
     return text + ("*" if signed and not ci[0] <= 0 <= ci[1] else "")
+
+
+def _interval(ci: list[float]) -> str:
+    """A signed interval ``[low, high]`` in percent points; ``*`` when it excludes 0."""
+    return f"[{100 * ci[0]:+.1f}, {100 * ci[1]:+.1f}]" + ("" if ci[0] <= 0 <= ci[1] else "*")
 
 
 def _table(summary: dict) -> str:
@@ -476,9 +493,16 @@ def _table(summary: dict) -> str:
         lines.append(line)
     splits = [c for c in summary["comparisons"] if ":" not in c["split"]]
     if splits:
-        lines += ["", "paired differences of F1 (same images; 95 % CI, clips resampled; * = excludes 0):"]
+        lines += [
+            "",
+            "paired differences of F1 (same images; 95 % CI with clips resampled, and over the training seeds;",
+            "* = the interval excludes 0):",
+        ]
         for c in splits:
-            lines.append(f"  {c['a']:>13} - {c['b']:<13} {c['split']:<12} {_cell(c['f1_diff'], c['ci95'], True)}")
+            seeds = f"   seeds {_interval(c['seed_ci95'])}" if c.get("seed_ci95") else ""
+            lines.append(
+                f"  {c['a']:>13} - {c['b']:<13} {c['split']:<12} {_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
+            )
     factors = list(summary["models"][0].get("factors", {})) if summary["models"] else []
     if factors:
         names = [m["name"] for m in summary["models"]]

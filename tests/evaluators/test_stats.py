@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stamlane_eval.stats import bootstrap, f1_of_rates, paired_bootstrap, tusimple_rates
+from stamlane_eval.stats import bootstrap, f1_of_rates, paired_bootstrap, seed_interval, tusimple_rates
 from stamlane_eval.tusimple import TuSimpleImageResult, paper_f1
 
 
@@ -74,3 +74,19 @@ def test_bad_input_is_refused() -> None:
         bootstrap(np.array([0.1, 0.2]), _mean, groups=["a"])
     with pytest.raises(ValueError, match="level"):
         bootstrap(np.array([0.1, 0.2]), _mean, level=1.5)
+
+
+def test_seed_interval_is_the_student_t_interval_of_the_mean() -> None:
+    est = seed_interval([0.004, 0.009, 0.012])  # three seeds' differences
+    # mean 0.00833, std 0.004041, t(0.975, 2) = 4.3027: half-width 0.010039
+    assert est.value == pytest.approx(0.0083333, abs=1e-6)
+    assert est.interval == pytest.approx((0.0083333 - 0.0100393, 0.0083333 + 0.0100393), abs=1e-6)
+    assert est.groups == 3 and est.resamples == 0 and not est.excludes_zero()
+    five = seed_interval([0.004, 0.009, 0.012, 0.006, 0.010], level=0.9)  # t(0.95, 4) = 2.1318
+    assert five.high - five.value == pytest.approx(
+        2.131847 * np.std([4, 9, 12, 6, 10], ddof=1) / 1000 / np.sqrt(5), abs=1e-7
+    )
+    assert five.excludes_zero()
+    for bad in ([0.01], [0.01, float("nan")]):
+        with pytest.raises(ValueError):
+            seed_interval(bad)
