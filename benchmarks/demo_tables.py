@@ -3,6 +3,7 @@
     python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
     python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4]
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml   # two run sets
+    python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml --replication
 
 Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % interval]; the paired
 differences as ``+d [clips] s[seeds]`` (95 % intervals with the test clips resampled and over the training
@@ -171,18 +172,50 @@ def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) ->
     return "\n".join(lines)
 
 
+def replication(summaries: list[dict], index: dict) -> str:
+    """The paper's rows trained in more than one run set, set beside set: F1 and the difference from one frame
+    (``+d [clips] s[seeds]``) in each. What a second training of the same rows says about the intervals."""
+    summaries = [_with_seed_interval(s) for s in summaries]
+    label = {r["id"]: r["label"] for table in index["tables"].values() for r in table["rows"]}
+    models = [{m.get("paper_row") or m["name"]: m for m in summary["models"]} for summary in summaries]
+    single = _paper_row("single")
+    lines = [
+        "| row | run set | test F1 | challenging F1 | − 1 frame (test / chall.) |",
+        "|---|---|---|---|---|",
+    ]
+    for row in dict.fromkeys(r for found in models for r in found):
+        places = [i for i, found in enumerate(models) if row in found]
+        if len(places) < 2:
+            continue
+        for i in places:
+            m, name_of = models[i][row], {r: m["name"] for r, m in models[i].items()}
+            diffs = {(c["a"], c["b"], c["split"]): c for c in summaries[i]["comparisons"]}
+            versus = " / ".join(
+                _diff(diffs.get((m["name"], name_of.get(single), split))) for split in ("test", "challenging")
+            )
+            lines.append(
+                f"| {label.get(row, row)} (`{row}`) | {i + 1} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
+                f"{'–' if row == single else versus} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("summary", type=Path, nargs="+", help="summary.json; with --paper, several run sets")
     p.add_argument("--out", type=Path)
     p.add_argument("--paper", type=Path, help="configs/paper/tables.yaml: print the paper's tables instead")
     p.add_argument("--tables", nargs="+", default=["2", "3", "4"], help="which of the paper's tables (--paper)")
+    p.add_argument(
+        "--replication", action="store_true", help="with --paper: the rows of several run sets, side by side"
+    )
     args = p.parse_args(argv)
     summaries = [json.loads(path.read_text()) for path in args.summary]
     if args.paper:
         import yaml
 
-        text = paper_tables(summaries, yaml.safe_load(args.paper.read_text()), args.tables)
+        index = yaml.safe_load(args.paper.read_text())
+        text = replication(summaries, index) if args.replication else paper_tables(summaries, index, args.tables)
     elif len(summaries) > 1:
         p.error("several summaries go with --paper only")
     else:

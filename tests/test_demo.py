@@ -252,6 +252,11 @@ def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() ->
     assert len(stam) == 2 and "| 1 | 92.0 |" in stam[0] and "| 2 | 81.0 |" in stam[1]
     assert stam[0].endswith("| 1 | 92.0 | 92.0 | **+2.0 [+1.0, +3.0]** / **+2.0 [+1.0, +3.0]** | – |")
     assert stam[1].endswith("| 2 | 81.0 | 81.0 | – / – | – |")  # set 2 compared no STAM with one frame
+    # the rows trained in both sets, set beside set; a row of one set only is not listed
+    both = _demo_tables().replication([first, second], index).splitlines()[2:]
+    assert [line.split("`")[1] for line in both] == ["f1_keyonly"] * 2 + ["f4_mixed_cs_features"] * 2
+    assert both[2].startswith("| 4 frames (features) (`f4_mixed_cs_features`) | 1 | 92.0 | 92.0 | **+2.0")
+    assert both[3].endswith("| 2 | 81.0 | 81.0 | – / – |")
     # one summary: no run-set column
     assert "run set" not in _demo_tables().paper_tables(first, index, ["4"])
 
