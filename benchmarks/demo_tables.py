@@ -1,6 +1,7 @@
 """Markdown tables of a ``stamlane demo`` summary (the ones in docs/results.md are made with this).
 
     python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
+    python benchmarks/demo_tables.py outputs/demo/summary.json --models stam4 single   # only these, and their pairs
     python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4]
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml   # two run sets
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml --replication
@@ -57,8 +58,15 @@ def _with_seed_interval(summary: dict) -> dict:
     return summary
 
 
-def tables(summary: dict) -> str:
+def tables(summary: dict, only: list[str] | None = None) -> str:
+    """The demo's tables; ``only``: just these models (names in the summary) and the comparisons among them."""
     summary = _with_seed_interval(summary)
+    if only:
+        unknown = sorted(set(only) - {m["name"] for m in summary["models"]})
+        if unknown:
+            raise SystemExit(f"demo_tables: no model {' '.join(unknown)} in the summary")
+        summary["models"] = [m for m in summary["models"] if m["name"] in only]
+        summary["comparisons"] = [c for c in summary["comparisons"] if c["a"] in only and c["b"] in only]
     models = summary["models"]
     seeds = len(summary["seeds"])
     lines = [
@@ -206,6 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path)
     p.add_argument("--paper", type=Path, help="configs/paper/tables.yaml: print the paper's tables instead")
     p.add_argument("--tables", nargs="+", default=["2", "3", "4"], help="which of the paper's tables (--paper)")
+    p.add_argument("--models", nargs="+", metavar="NAME", help="without --paper: only these models of the summary")
     p.add_argument(
         "--replication", action="store_true", help="with --paper: the rows of several run sets, side by side"
     )
@@ -219,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
     elif len(summaries) > 1:
         p.error("several summaries go with --paper only")
     else:
-        text = tables(summaries[0])
+        text = tables(summaries[0], args.models)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text)
