@@ -196,11 +196,9 @@ def replication(summaries: list[dict], index: dict) -> str:
         if len(places) < 2:
             continue
         for i in places:
-            m, name_of = models[i][row], {r: m["name"] for r, m in models[i].items()}
+            m, reference = models[i][row], models[i].get(single, {}).get("name")
             diffs = {(c["a"], c["b"], c["split"]): c for c in summaries[i]["comparisons"]}
-            versus = " / ".join(
-                _diff(diffs.get((m["name"], name_of.get(single), split))) for split in ("test", "challenging")
-            )
+            versus = " / ".join(_diff(diffs.get((m["name"], reference, split))) for split in ("test", "challenging"))
             lines.append(
                 f"| {label.get(row, row)} (`{row}`) | {i + 1} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
                 f"{'–' if row == single else versus} |"

@@ -38,8 +38,8 @@ class ClipDataModule(LightningDataModule):
     """Clips of T frames (key frame last) with key-frame targets, for every stage.
 
     Args:
-        root: data root. ``None``: the synthetic set at ``DEFAULT_SYNTHETIC_ROOT`` (``data/synthetic-v<format>``), generated when missing (with
-            a progress bar) from the ``synth_*`` options; the default label files are then
+        root: data root. ``None``: the synthetic set at ``DEFAULT_SYNTHETIC_ROOT`` (``data/synthetic-v<format>``),
+            generated when missing (with a progress bar) from the ``synth_*`` options; the default label files are then
             ``train.json``/``val.json``/``test.json`` (``predict`` uses ``test.json``).
         format: ``"tusimple"`` (also the synthetic sets and custom data), ``"culane"``, ``"apollo"``,
             ``"vil100"``.
