@@ -189,7 +189,8 @@ def _train(
     model: DemoModel, root: Path, out: Path, steps: int, quick: bool, seed: int, init: Path | None, bf16: bool
 ) -> Path:
     """Fit ``model`` for ``steps`` steps with ``seed`` (in bfloat16 autocast if ``bf16``), from the weights of
-    checkpoint ``init`` when given; returns its run folder (config.yaml, metrics.csv, checkpoints: ``last.ckpt`` holds the final weights)."""
+    checkpoint ``init`` when given; returns its run folder (config.yaml, metrics.csv, checkpoints: ``last.ckpt``
+    holds the final weights)."""
     val_every = max(1, steps // (2 if init else 4))  # stage 2: twice (a 4-frame validation costs ~10 s)
     name = f"{model.name}-s{seed}"
     args = [
@@ -465,15 +466,14 @@ def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list
 
 def _cell(value: float, ci: list[float] | None, signed: bool = False) -> str:
     """``value [low, high]`` in percent; ``*`` when a signed difference's interval excludes 0."""
-    fmt = "{:+.1f}" if signed else "{:.1f}"
-    if ci is None:
-        return fmt.format(100 * value)
-    text = f"{fmt.format(100 * value)} [{fmt.format(100 * ci[0])}, {fmt.format(100 * ci[1])}]"
-    return text + ("*" if signed and not ci[0] <= 0 <= ci[1] else "")
+    text = f"{100 * value:+.1f}" if signed else f"{100 * value:.1f}"
+    return text if ci is None else f"{text} {_interval(ci, signed)}"
 
 
-def _interval(ci: list[float]) -> str:
-    """A signed interval ``[low, high]`` in percent points; ``*`` when it excludes 0."""
+def _interval(ci: list[float], signed: bool = True) -> str:
+    """``[low, high]`` in percent; signed: with signs, and ``*`` when it excludes 0."""
+    if not signed:
+        return f"[{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
     return f"[{100 * ci[0]:+.1f}, {100 * ci[1]:+.1f}]" + ("" if ci[0] <= 0 <= ci[1] else "*")
 
 
