@@ -105,14 +105,42 @@ def _paper_row(name: str) -> str:
     return next(m.paper for m in MODELS if m.name == name)
 
 
+METRIC_COLUMNS = {"tusimple": (("tusimple", "f1"),), "iou": (("iou@0.5", "f1@0.5"), ("iou@0.3", "f1@0.3"))}
+"""Per metric kind of the paper's tables: the demo's metric keys and the paper's column each is set beside."""
+
+
+def _as_metric(summary: dict, key: str) -> dict:
+    """``summary`` seen through the metric ``key``: each model's splits and factors and the comparisons are
+    those of that metric (``"tusimple"``: the summary as it is; ``"iou@0.5"``: the IoU F1 at 0.5); models not
+    scored with it (summaries written before the demo scored IoU) are left out."""
+    if key == "tusimple":
+        return summary
+    view = copy.deepcopy(summary)
+    view["models"] = [m | m[key] for m in summary["models"] if key in m]
+    view["comparisons"] = [c for c in summary.get("iou_comparisons", []) if c["metric"] == key]
+    return view
+
+
 def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) -> str:
-    """The paper's tables ``which`` (keys of ``configs/paper/tables.yaml``) from demo summaries with ``--rows``.
+    """The paper's tables ``which`` (keys of ``configs/paper/tables.yaml``) from demo summaries with ``--rows``;
+    a table of IoU F1 (the paper's ApolloScape Tables 7 and 8) comes twice, at IoU 0.5 and at 0.3.
 
     With several summaries (run sets: each trained its own stage-1 weights, one frame and STAM), a row comes from
     the first summary that has it and is compared with one frame and STAM OF THAT SUMMARY (the pairs are the same
     key frames and the same stage-1 weights); a column then says which run set each row is from, and one frame and
-    STAM are shown once for each run set a table's other rows come from."""
+    STAM are shown once for each run set a table's other rows come from. A table with a ``baseline`` row (Tables
+    2 and 8) also has each row's difference from it."""
     summaries = [_with_seed_interval(s) for s in ([summaries] if isinstance(summaries, dict) else summaries)]
+    lines = []
+    for key in which:
+        table = index["tables"][key]
+        for metric, paper_key in METRIC_COLUMNS[table["metrics"]]:
+            lines += _paper_table(key, table, [_as_metric(s, metric) for s in summaries], metric, paper_key)
+    return "\n".join(lines)
+
+
+def _paper_table(key: str, table: dict, summaries: list[dict], metric: str, paper_key: str) -> list[str]:
+    """One of `paper_tables`, in one metric."""
     models = [{m.get("paper_row") or m["name"]: m for m in summary["models"]} for summary in summaries]
     by_row: dict[str, tuple[int, dict]] = {}
     for i, found in enumerate(models):
@@ -144,40 +172,41 @@ def paper_tables(summaries: dict | list[dict], index: dict, which: list[str]) ->
         return " / ".join(_diff(paired(i, a, b, split)) for split in ("test", "challenging"))
 
     single, stam = _paper_row("single"), _paper_row("stam4")
+    baseline = table.get("baseline")
+    references = tuple(r for r in (single, stam, baseline) if r)
     seed_text = "/".join(map(str, seeds)) + f" seed{'s' if seeds != [1] else ''}"
     set_head, set_rule = (" run set |", "---|") if several else ("", "")
-
-    lines = []
-    for key in which:
-        table = index["tables"][key]
-        if table["metrics"] != "tusimple":
+    base_head, base_rule = (" − baseline (test / chall.) |", "---|") if baseline else ("", "")
+    what = "F1" if metric == "tusimple" else f"IoU F1 @{metric.split('@')[1]}"
+    run = [r for r in table["rows"] if r["id"] in by_row]
+    lines = [
+        f"**Table {key}: {table['title']}**{'' if metric == 'tusimple' else ', ' + what} "
+        f"({len(run)} of {len(table['rows'])} rows run, {seed_text})",
+        "",
+        f"| row | paper {what} |{set_head} test | challenging | − 1 frame (test / chall.) | − STAM (test / chall.) "
+        f"|{base_head}",
+        f"|---|---|{set_rule}---|---|---|---|{base_rule}",
+    ]
+    used = {by_row[r["id"]][0] for r in run if r["id"] not in references}
+    for r in table["rows"]:
+        paper = f"{100 * r['paper'][paper_key]:.2f}"
+        if r["id"] not in by_row:
+            lines.append(
+                f"| {r['label']} (`{r['id']}`) | {paper} |{' |' if several else ''} not run | | | |{' |' * bool(baseline)}"
+            )
             continue
-        run = [r for r in table["rows"] if r["id"] in by_row]
-        lines += [
-            f"**Table {key}: {table['title']}** ({len(run)} of {len(table['rows'])} rows run, {seed_text})",
-            "",
-            f"| row | paper F1 |{set_head} test F1 | challenging F1 | − 1 frame (test / chall.) | − STAM (test / chall.) |",
-            f"|---|---|{set_rule}---|---|---|---|",
-        ]
-        references = (single, stam)
-        used = {by_row[r["id"]][0] for r in run if r["id"] not in references}
-        for r in table["rows"]:
-            paper = f"{100 * r['paper']['f1']:.2f}"
-            if r["id"] not in by_row:
-                lines.append(f"| {r['label']} (`{r['id']}`) | {paper} |{' |' if several else ''} not run | | | |")
-                continue
-            places = [by_row[r["id"]][0]]
-            if r["id"] in references:  # the reference of every run set the table's rows are compared inside
-                places = sorted({*used, *places} & {i for i, found in enumerate(models) if r["id"] in found})
-            for i in places:
-                m = models[i][r["id"]]
-                where = f" {i + 1} |" if several else ""
-                lines.append(
-                    f"| {r['label']} (`{r['id']}`) | {paper} |{where} {_f1(m['test'])} | {_f1(m['challenging'])} | "
-                    f"{versus(i, r['id'], single)} | {versus(i, r['id'], stam)} |"
-                )
-        lines.append("")
-    return "\n".join(lines)
+        places = [by_row[r["id"]][0]]
+        if r["id"] in references:  # the reference of every run set the table's rows are compared inside
+            places = sorted({*used, *places} & {i for i, found in enumerate(models) if r["id"] in found})
+        for i in places:
+            m = models[i][r["id"]]
+            where = f" {i + 1} |" if several else ""
+            base = f" {versus(i, r['id'], baseline)} |" if baseline else ""
+            lines.append(
+                f"| {r['label']} (`{r['id']}`) | {paper} |{where} {_f1(m['test'])} | {_f1(m['challenging'])} | "
+                f"{versus(i, r['id'], single)} | {versus(i, r['id'], stam)} |{base}"
+            )
+    return [*lines, ""]
 
 
 def replication(summaries: list[dict], index: dict) -> str:

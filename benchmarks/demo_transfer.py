@@ -54,8 +54,8 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
             run_name = run.parent.name
             for split in SPLITS:
                 pred = predict_split(run_name, run, out, split, max_overlays=4, root=root)
-                scores, split_rates, groups[split] = score_split(pred, root / f"{split}.json")
-                per_split[split].append((scores["f1"], split_rates))
+                scores, per_image, groups[split] = score_split(pred, root / f"{split}.json")
+                per_split[split].append((scores["f1"], per_image["tusimple"]))
         rates[name] = {split: np.mean([r for _, r in per_split[split]], axis=0) for split in SPLITS}
         results["models"][name] = {
             split: {

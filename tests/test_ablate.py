@@ -187,6 +187,23 @@ def test_index_covers_the_paper_tables() -> None:
             assert t.f1_key in r.paper, (t.name, r.id)
     with pytest.raises(ValueError, match="no row"):
         index.table("3").select(["f1_keyonly"])
+    # the paper measures Tables 2 and 8 from unaligned frames summed; the others have no baseline row
+    assert {name: t.baseline for name, t in index.tables.items() if t.baseline} == {
+        "2": "f4_noalign_add",
+        "8": "f2_noalign_add",
+    }
+
+
+def test_a_baseline_must_be_a_row_of_its_table(tmp_path: Path) -> None:
+    text = (PAPER / "tables.yaml").read_text().replace("baseline: f2_noalign_add", "baseline: f4_noalign_add")
+    paper = tmp_path / "paper"  # the index, beside what it names
+    paper.mkdir()
+    (paper / "rows").symlink_to(PAPER / "rows")
+    (paper / "ablation.yaml").write_text((PAPER / "ablation.yaml").read_text())
+    (tmp_path / "demo.yaml").write_text((PAPER.parent / "demo.yaml").read_text())
+    (paper / "tables.yaml").write_text(text)
+    with pytest.raises(ValueError, match="table 8: baseline 'f4_noalign_add' is not one of its rows"):
+        load_tables(paper / "tables.yaml")
 
 
 def test_unfinished_run_resumes_from_its_last_checkpoint(tiny_set: Path, two_row_index: Path, tmp_path: Path) -> None:

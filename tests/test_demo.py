@@ -15,6 +15,7 @@ from stamlane_eval.stats import seed_interval
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
+from stamlane.demo import SCORING, _pairs, iou_width, score_split
 from stamlane.synth.generator import FACTORS
 
 torch.set_num_threads(1)
@@ -66,15 +67,25 @@ def test_demo_quick_writes_summary_plot_predictions(tmp_path: Path, capsys: pyte
             found = entry["factors"][factor]
             assert found["images"] == 2 and found["f1_mean"] == pytest.approx(paper_f1(fp, fn))
             assert found["f1_ci95"] is not None
+        # the IoU F1 of each split: the run's own totals (one seed), at both thresholds
+        for key, t in (("iou@0.5", "0.5"), ("iou@0.3", "0.3")):
+            for split in ("test", "challenging"):
+                assert entry[key][split]["f1_mean"] == pytest.approx(run[split]["iou"][t]["f1"], abs=1e-12)
+            assert list(entry[key]["factors"]) == list(FACTORS)
     pairs = {(c["a"], c["b"], c["split"]) for c in summary["comparisons"]}
     views = ["test", "challenging", *(f"challenging:{f}" for f in FACTORS)]
     assert pairs == {("stam4", "single", view) for view in views}
+    assert {(c["metric"], c["split"]) for c in summary["iou_comparisons"]} == {
+        (metric, view) for metric in ("iou@0.5", "iou@0.3") for view in views
+    }
+    assert summary["iou_width"] == 5  # 30 px at 1640 px wide, at the quick set's 256
     plot = cv2.imread(str(out / "val_f1.png"))
     assert plot.shape == (480, 720, 3) and plot.std() > 10  # 6x4 in at 120 dpi, not a blank page
     grid = cv2.imread(str(out / "comparison.jpg"))  # 2 challenging key frames (rows) x 2 models (columns)
     assert grid.shape == (3 * 144, 2 * 256, 3) and grid.std() > 10
     table = capsys.readouterr().out
     assert "1 frame (baseline)" in table and "challenging F1 % [95% CI]" in table and "stam4 - single" in table
+    assert "IoU F1 % (CULane-style, 5 px lines)" in table
     assert "challenging split per factor" in table and all(f in table for f in FACTORS)
 
 
@@ -181,7 +192,7 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert again["challenging"]["images"] == len(FACTORS) and again["test"] == first["test"]
     assert again["labels"]["test"] == first["labels"]["test"] != again["labels"]["challenging"]
     rescored = json.loads(done.read_text())
-    assert rescored["scoring"] == "no-time-limit" and rescored["test"]["late"] == 1
+    assert rescored["scoring"] == SCORING and rescored["test"]["late"] == 1
     assert json.loads(preds.read_text().splitlines()[0])["run_time"] == 500.0  # not predicted again
     assert rescored["test"]["f1"] == before["test"]["f1"] and before["test"]["late"] == 0
     # the paper's Table 4 from this summary (benchmarks/demo_tables.py, as docs/results.md is made)
@@ -287,3 +298,102 @@ def test_paper_tables_show_the_interval_over_seeds_and_claim_only_what_both_inte
     # mean 2.0, std 1.732, t(0.975, 2) = 4.303: 2.0 -+ 4.30 -> [-2.3, +6.3]; the clip interval alone excludes 0
     assert line.endswith("| +2.0 [+1.0, +3.0] s[-2.3, +6.3] / +2.0 [+1.0, +3.0] s[-2.3, +6.3] | – |")
     assert "seed_ci95" not in summary["comparisons"][0]  # the caller's summary is left as it was
+
+
+def test_score_split_iou_is_what_stamlane_eval_culane_says(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The demo's IoU F1 of a split equals ``stamlane-eval culane pred.json gt.json`` at the demo's line width,
+    per image and in total; a lane moved by a line width is no longer a match, one moved by a pixel still is."""
+    from stamlane_eval.cli import main as eval_main
+
+    root = tmp_path / "set"
+    root.mkdir()
+    (root / "dataset.json").write_text(json.dumps({"config": {"height": 360, "width": 640}}))
+    rows = list(range(160, 360, 10))
+    gts, preds = [], []
+    for i in range(6):
+        lanes = [[100 + 20 * i + k * (j - 10) for j in range(len(rows))] for k in (-3, 0, 3)]
+        lanes[0][:4] = [-2] * 4  # a lane absent on the far rows
+        gts.append({"raw_file": f"clips/test-{i:04d}/8.jpg", "lanes": lanes, "h_samples": rows})
+        moved = {0: 0, 1: 1, 2: 14, 3: 40}.get(i, 0)  # px
+        found = [[x + moved if x >= 0 else x for x in lane] for lane in lanes]
+        if i == 4:
+            found = found[1:]  # a lane missed
+        elif i == 5:
+            found.append([600] * len(rows))  # a lane too many
+        preds.append({"raw_file": gts[-1]["raw_file"], "lanes": found, "h_samples": rows, "run_time": 10.0})
+    (root / "test.json").write_text("".join(json.dumps(g) + "\n" for g in gts))
+    pred_dir = tmp_path / "pred"
+    pred_dir.mkdir()
+    (pred_dir / "predictions.json").write_text("".join(json.dumps(p) + "\n" for p in preds))
+    scores, per_image, clips = score_split(pred_dir, root / "test.json")
+    assert iou_width((360, 640)) == scores["iou"]["width"] == 12
+    assert clips == [f"clips/test-{i:04d}" for i in range(6)]
+    tp5 = [int(r[0]) for r in per_image["iou@0.5"]]
+    assert tp5[:2] == [3, 3] and tp5[3] == 0 and tp5[4] == 2  # 1 px: still a match; 40 px: none is
+    capsys.readouterr()
+    argv = ["culane", str(pred_dir / "predictions.json"), str(root / "test.json"), "--size", "640x360"]
+    assert eval_main([*argv, "--width", "12", "--format", "json", "--per-image", str(tmp_path / "cu.jsonl")]) == 0
+    official = json.loads(capsys.readouterr().out)
+    for t in ("0.3", "0.5"):
+        totals = {k: official[t][k] for k in ("tp", "fp", "fn", "precision", "recall", "f1")}
+        assert {k: scores["iou"][t][k] for k in totals} == totals
+    cu = [json.loads(line) for line in (tmp_path / "cu.jsonl").read_text().splitlines()]
+    assert [r["0.5"] for r in cu] == per_image["iou@0.5"].astype(int).tolist()
+    assert [r["0.3"] for r in cu] == per_image["iou@0.3"].astype(int).tolist()
+    saved = [json.loads(line) for line in (pred_dir / "per_image.jsonl").read_text().splitlines()]
+    assert [r["iou"]["0.5"] for r in saved] == [r["0.5"] for r in cu]
+
+
+def test_rows_of_a_table_with_a_baseline_are_compared_with_it() -> None:
+    """Table 8's rows against its baseline (2 unaligned frames summed) besides one frame and STAM; the baseline
+    itself and rows of tables without one are not."""
+    models = {
+        "stam4": "f4_mixed_cs_features",
+        "single": "f1_keyonly",
+        "f2_noalign_add": "f2_noalign_add",
+        "f2_add": "f2_add",
+        "f2_mixed_cs_gates": "f2_mixed_cs_gates",
+        "f4_stpsa": "f4_stpsa",
+    }
+    pairs = _pairs(models)
+    assert [p for p in pairs if p[1] == "f2_noalign_add"] == [
+        ("f2_add", "f2_noalign_add"),
+        ("f2_mixed_cs_gates", "f2_noalign_add"),
+    ]
+    assert ("f4_stpsa", "single") in pairs and ("f4_stpsa", "stam4") in pairs and len(pairs) == 1 + 4 * 2 + 2
+    assert ("stam4", "f4_noalign_add") not in _pairs(models)  # Table 2's baseline was not trained
+
+
+def test_paper_iou_tables_come_at_both_thresholds_with_the_difference_from_the_baseline() -> None:
+    summary = _summary({"f1_keyonly": 0.90, "f4_mixed_cs_features": 0.92, "f2_noalign_add": 0.91, "f2_add": 0.93}, {})
+    for m, f1 in zip(summary["models"], (0.40, 0.45, 0.42, 0.47)):
+        for key, more in (("iou@0.5", 0.0), ("iou@0.3", 0.2)):
+            m[key] = {
+                split: {"f1_mean": f1 + more, "f1_std": None, "f1_ci95": None} for split in ("test", "challenging")
+            }
+    summary["iou_comparisons"] = [
+        {
+            "a": "f2_add",
+            "b": "f2_noalign_add",
+            "split": split,
+            "metric": key,
+            "f1_diff": d,
+            "ci95": [d - 0.01, d + 0.01],
+        }
+        for key, d in (("iou@0.5", 0.05), ("iou@0.3", -0.02))
+        for split in ("test", "challenging")
+    ]
+    index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
+    table = _demo_tables().paper_tables(summary, index, ["8"]).splitlines()
+    headings = [line for line in table if line.startswith("**Table 8")]
+    assert [h.split("**")[2].split(" (")[0] for h in headings] == [", IoU F1 @0.5", ", IoU F1 @0.3"]
+    assert "| row | paper IoU F1 @0.5 |" in table[2] and table[2].endswith("| − baseline (test / chall.) |")
+    at_05, at_03 = (line for line in table if "`f2_add`" in line)
+    assert at_05.startswith("| alignment, sum (`f2_add`) | 50.12 | 47.0 | 47.0 |")  # the paper's 0.5012
+    assert at_05.endswith("| **+5.0 [+4.0, +6.0]** / **+5.0 [+4.0, +6.0]** |")
+    assert at_03.startswith("| alignment, sum (`f2_add`) | 67.12 | 67.0 | 67.0 |")
+    assert at_03.endswith("| **-2.0 [-3.0, -1.0]** / **-2.0 [-3.0, -1.0]** |")
+    assert "| not run |" in next(line for line in table if "`f2_noalign_mixed_cs_gates`" in line)
+    # a summary written before the demo scored IoU: its rows are not in the IoU tables
+    old = _summary({"f1_keyonly": 0.90, "f2_add": 0.93}, {})
+    assert "(0 of 6 rows run" in _demo_tables().paper_tables(old, index, ["8"])

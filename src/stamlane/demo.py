@@ -37,12 +37,15 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+from stamlane_eval.culane import CULANE_SIZE, IOU_THRESHOLDS, LANE_WIDTH
+from stamlane_eval.stats import f1_of_counts, f1_of_rates
 
 __all__ = ["MODELS", "SPLITS", "DemoModel", "main", "predict_split", "score_split"]
 
@@ -88,6 +91,41 @@ MODELS = (
 )
 SPLITS = ("test", "challenging")
 """The splits the demo scores: the clean test split and the challenging one (val only picks checkpoints)."""
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A number the demo reports for every split, factor and pair of models, made of per-image quantities.
+
+    Attributes:
+        key: ``"tusimple"``, the paper's TuSimple F1 (kept where the summary always kept it: ``entry[split]`` and
+            ``summary["comparisons"]``), or ``"iou@0.5"`` / ``"iou@0.3"``, the CULane-style lane F1 of the
+            paper's ApolloScape tables (``entry[key][split]``, ``summary["iou_comparisons"]``).
+        columns: the quantities of one row of ``per_image.jsonl`` (``(fp, fn)`` rates or ``(tp, fp, fn)`` lanes).
+        statistic: their means -> F1.
+    """
+
+    key: str
+    columns: Callable[[dict], list[float]]
+    statistic: Callable[[np.ndarray], float]
+
+
+def _iou_metric(threshold: float) -> Metric:
+    return Metric(f"iou@{threshold:g}", lambda row: row["iou"][f"{threshold:g}"], f1_of_counts)
+
+
+TUSIMPLE = Metric("tusimple", lambda row: [row["fp"], row["fn"]], f1_of_rates)
+METRICS = (TUSIMPLE, *(_iou_metric(t) for t in sorted(IOU_THRESHOLDS, reverse=True)))
+"""What the demo scores each split with: TuSimple F1, then the IoU F1 at 0.5 and at 0.3."""
+
+
+def iou_width(size: tuple[int, int]) -> int:
+    """The CULane metric's line thickness for images of ``size`` (H, W): the protocol's 30 px on CULane's
+    1640-px-wide frames, scaled with the image width (12 px at 640), so that a lane covers the same fraction of
+    the image as in the benchmark."""
+    return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
+
+
 QUICK_OVERRIDES = [
     "--data.image_size=[64, 128]",
     "--model.encoder.width=0.125",
@@ -240,32 +278,61 @@ def predict_split(name: str, run: Path, out: Path, split: str, max_overlays: int
     return pred_dir
 
 
-def score_split(pred_dir: Path, labels: Path) -> tuple[dict, np.ndarray, list[str]]:
-    """Score ``pred_dir/predictions.json`` against ``labels`` as ``stamlane-eval tusimple`` does and write
-    ``pred_dir/per_image.jsonl``. Returns the numbers, the per-image ``(fp, fn)`` rates in LABEL order and
-    each image's clip (the bootstrap's unit)."""
-    from stamlane_eval.io import read_tusimple
+def score_split(pred_dir: Path, labels: Path) -> tuple[dict, dict[str, np.ndarray], list[str]]:
+    """Score ``pred_dir/predictions.json`` against ``labels`` as ``stamlane-eval tusimple --no-time-limit`` does,
+    and with the CULane-style IoU F1 as ``stamlane-eval culane predictions.json labels.json --size WxH --width
+    <iou_width>`` does (the official C++ variant, IoU 0.3 and 0.5); write ``pred_dir/per_image.jsonl``. Returns the
+    numbers, the per-image quantities of every metric of `METRICS` in LABEL order and each image's clip (the
+    bootstrap's unit)."""
+    from stamlane_eval import culane
+    from stamlane_eval.io import read_tusimple, tusimple_points
     from stamlane_eval.tusimple import MAX_RUN_TIME_MS, evaluate
 
     preds, gts = read_tusimple(pred_dir / "predictions.json"), read_tusimple(labels)
     result = evaluate(preds, gts, time_limit=False)
-    by_name = {p["raw_file"]: r for p, r in zip(preds, result.per_image)}
+    by_name = {p["raw_file"]: (p, r) for p, r in zip(preds, result.per_image)}
+    size = _image_size(labels.parent)
+    width = iou_width(size)
+    iou = culane.evaluate(
+        [tusimple_points(by_name[gt["raw_file"]][0]["lanes"], gt["h_samples"]) for gt in gts],
+        [tusimple_points(gt["lanes"], gt["h_samples"]) for gt in gts],
+        IOU_THRESHOLDS,
+        width,
+        size,
+    )
     rows = []
-    for gt in gts:
-        r = by_name[gt["raw_file"]]
-        rows.append({"raw_file": gt["raw_file"], "clip": _clip_of(gt["raw_file"]), **asdict(r)})
+    for gt, counts in zip(gts, iou.per_image):
+        r = by_name[gt["raw_file"]][1]
+        row = {"raw_file": gt["raw_file"], "clip": _clip_of(gt["raw_file"]), **asdict(r)}
+        row["iou"] = {f"{t:g}": list(counts.counts[t]) for t in IOU_THRESHOLDS}
+        rows.append(row)
     _write_atomic(pred_dir / "per_image.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
-    rates = np.array([[row["fp"], row["fn"]] for row in rows], dtype=np.float64)
     scores = {k: result.as_dict()[k] for k in ("accuracy", "fp", "fn", "f1", "images")}
     scores["late"] = sum(p["run_time"] > MAX_RUN_TIME_MS for p in preds)
-    return scores, rates, [row["clip"] for row in rows]
+    scores["iou"] = {f"{t:g}": c.as_dict() for t, c in iou.totals.items()} | {"width": width}
+    return scores, _quantities(rows), [row["clip"] for row in rows]
+
+
+def _image_size(root: Path) -> tuple[int, int]:
+    """(H, W) of a synthetic set's frames, from its ``dataset.json``."""
+    info = root / "dataset.json"
+    if not info.is_file():
+        raise DemoError(f"{root}: no dataset.json (the demo scores synthetic sets, which have one)")
+    config = json.loads(info.read_text())["config"]
+    return int(config["height"]), int(config["width"])
+
+
+def _quantities(rows: list[dict]) -> dict[str, np.ndarray]:
+    """Per metric of `METRICS`, its per-image quantities from the rows of ``per_image.jsonl``, (N, k)."""
+    return {m.key: np.array([m.columns(row) for row in rows], dtype=np.float64) for m in METRICS}
 
 
 DONE = "done.json"
 """Written in a run's folder when it is trained and scored: a later ``stamlane demo`` with the same ``--out`` and
 settings reuses it (more seeds, or a run that was killed midway continues where it stopped)."""
-SCORING = "no-time-limit"
-"""How `score_split` scores (kept in ``done.json``): a run scored otherwise is scored again from its predictions."""
+SCORING = "no-time-limit+iou"
+"""How `score_split` scores (kept in ``done.json``): a run scored otherwise is scored again from its predictions
+(``no-time-limit``: TuSimple F1 only, before the IoU F1 was added)."""
 
 
 def _score_run(record: dict, name: str, out: Path, root: Path, max_overlays: int) -> None:
@@ -308,10 +375,11 @@ def _finished(folder: Path, settings: dict) -> dict | None:
     return record
 
 
-def _read_rates(pred_dir: Path) -> tuple[np.ndarray, list[str]]:
-    """Per-image ``(fp, fn)`` rates and clips of a scored split (its ``per_image.jsonl``, in label order)."""
+def _read_quantities(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Per metric, the per-image quantities, and the clips, of a scored split (its ``per_image.jsonl``, in label
+    order)."""
     rows = [json.loads(line) for line in (pred_dir / "per_image.jsonl").read_text().splitlines()]
-    return np.array([[r["fp"], r["fn"]] for r in rows], dtype=np.float64), [r["clip"] for r in rows]
+    return _quantities(rows), [r["clip"] for r in rows]
 
 
 def _clip_of(raw_file: str) -> str:
@@ -395,20 +463,23 @@ def _views(root: Path, clips: dict[str, list[str]]) -> list[View]:
     return views
 
 
-def _aggregate(entry: dict, rates: dict[str, list[np.ndarray]], clips: dict[str, list[str]], views: list[View]) -> None:
-    """Per view: F1 mean and std over the seeds, and the 95 % interval (clips resampled) of the F1 of the
-    seed-averaged per-image rates. Splits go to ``entry[split]``, factors to ``entry["factors"][factor]``."""
-    from stamlane_eval.stats import bootstrap, f1_of_rates
+def _aggregate(
+    metric: Metric, quantities: dict[str, list[np.ndarray]], clips: dict[str, list[str]], views: list[View]
+) -> dict:
+    """Per view, the ``metric``'s F1: mean and std over the seeds, and the 95 % interval (clips resampled) of the
+    F1 of the seed-averaged per-image quantities. Splits go to ``[split]``, factors to ``["factors"][factor]``."""
+    from stamlane_eval.stats import bootstrap
 
+    found: dict[str, Any] = {}
     for name, split, rows in views:
-        per_seed = [r[rows] for r in rates[split]]
-        f1 = np.array([f1_of_rates(r.mean(axis=0)) for r in per_seed])
+        per_seed = [q[rows] for q in quantities[split]]
+        f1 = np.array([metric.statistic(q.mean(axis=0)) for q in per_seed])
         groups = [clips[split][i] for i in rows]
         ci = None
         if len(set(groups)) >= 2:  # else no interval (a tiny set)
-            est = bootstrap(np.mean(per_seed, axis=0), f1_of_rates, groups=groups)
+            est = bootstrap(np.mean(per_seed, axis=0), metric.statistic, groups=groups)
             ci = [est.low, est.high]
-        found = {
+        view = {
             "f1_mean": float(f1.mean()),
             "f1_std": float(f1.std(ddof=1)) if len(f1) > 1 else None,
             "f1_ci95": ci,
@@ -416,45 +487,60 @@ def _aggregate(entry: dict, rates: dict[str, list[np.ndarray]], clips: dict[str,
             "images": len(rows),
         }
         if ":" in name:
-            entry.setdefault("factors", {})[name.split(":", 1)[1]] = found
+            found.setdefault("factors", {})[name.split(":", 1)[1]] = view
         else:
-            entry[name] = found
+            found[name] = view
+    return found
 
 
 PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noalign"))
 """The demo's comparisons, A against B: what the history frames bring, with and without alignment."""
 
 
-def _compare(summary: dict, rates: dict, clips: dict, views: list[View]) -> list[dict]:
-    """Every pair in ``PAIRS`` present, and each paper row (``--rows``) against the single frame and against the
-    pre-aligned STAM model (the paper's choice, against which Tables 2-4 set every other row), per view:
-    F1(A) - F1(B) of the seed-averaged rates on the same images with its paired bootstrap interval (clips
-    resampled: ``ci95``), and the per-seed differences (A and B of one seed share stage 1) with their Student-t
-    interval (``seed_diffs``, ``seed_ci95``: what training randomness does to the difference; None for one seed)."""
-    from stamlane_eval.stats import f1_of_rates, paired_bootstrap, seed_interval
+def _pairs(models: dict[str, str | None]) -> list[tuple[str, str]]:
+    """The pairs (A, B) the demo compares, of ``models`` (name -> the paper row it is): every pair of `PAIRS`,
+    each paper row asked for (``--rows``) against the single frame and against the pre-aligned STAM model (the
+    paper's choice, against which Tables 2-4 set every other row), and every model of a table with a
+    ``baseline`` (``configs/paper/tables.yaml``: Tables 2 and 8) against that baseline."""
+    from stamlane.experiments.tables import load_tables
 
-    present = {m["name"] for m in summary["models"]}
-    extra = [m["name"] for m in summary["models"] if m["name"] not in {n.name for n in MODELS}]
-    row_pairs = [(name, other) for name in extra for other in ("single", "stam4")]
+    own = {m.name for m in MODELS}
+    pairs = [*PAIRS, *((name, other) for name in models if name not in own for other in ("single", "stam4"))]
+    by_row = {row: name for name, row in models.items() if row}
+    for table in load_tables(CONFIG_DIR / "paper" / "tables.yaml").tables.values():
+        base = by_row.get(table.baseline)
+        pairs += [(by_row[r.id], base) for r in table.rows if base and r.id in by_row and by_row[r.id] != base]
+    return [(a, b) for a, b in dict.fromkeys(pairs) if a in models and b in models]
+
+
+def _compare(
+    metric: Metric, pairs: list[tuple[str, str]], quantities: dict[str, dict], clips: dict, views: list[View]
+) -> list[dict]:
+    """For each pair (A, B) (`_pairs`), per view: the ``metric``'s F1(A) - F1(B) of the seed-averaged per-image
+    quantities on the same images with its paired bootstrap interval (clips resampled: ``ci95``), and the
+    per-seed differences (A and B of one seed share stage 1) with their Student-t interval (``seed_diffs``,
+    ``seed_ci95``: what training randomness does to the difference; None for one seed). IoU comparisons name
+    their ``metric``."""
+    from stamlane_eval.stats import paired_bootstrap, seed_interval
+
+    f1 = metric.statistic
     found = []
-    for a, b in (*PAIRS, *row_pairs):
-        if a not in present or b not in present:
-            continue
+    for a, b in pairs:
         for name, split, rows in views:
             groups = [clips[split][i] for i in rows]
             if len(set(groups)) < 2:  # no interval from a single clip
                 continue
-            per_seed_a, per_seed_b = [r[rows] for r in rates[a][split]], [r[rows] for r in rates[b][split]]
-            est = paired_bootstrap(np.mean(per_seed_a, axis=0), np.mean(per_seed_b, axis=0), f1_of_rates, groups=groups)
-            diffs = [
-                f1_of_rates(ra.mean(axis=0)) - f1_of_rates(rb.mean(axis=0)) for ra, rb in zip(per_seed_a, per_seed_b)
-            ]
+            per_seed_a = [q[rows] for q in quantities[a][split]]
+            per_seed_b = [q[rows] for q in quantities[b][split]]
+            est = paired_bootstrap(np.mean(per_seed_a, axis=0), np.mean(per_seed_b, axis=0), f1, groups=groups)
+            diffs = [f1(qa.mean(axis=0)) - f1(qb.mean(axis=0)) for qa, qb in zip(per_seed_a, per_seed_b)]
             seeds = seed_interval(diffs) if len(diffs) > 1 else None
             found.append(
                 {
                     "a": a,
                     "b": b,
                     "split": name,
+                    **({} if metric is TUSIMPLE else {"metric": metric.key}),
                     "f1_diff": est.value,
                     "ci95": [est.low, est.high],
                     "seed_diffs": diffs,
@@ -503,6 +589,7 @@ def _table(summary: dict) -> str:
             lines.append(
                 f"  {c['a']:>13} - {c['b']:<13} {c['split']:<12} {_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
             )
+    lines += _iou_table(summary)
     factors = list(summary["models"][0].get("factors", {})) if summary["models"] else []
     if factors:
         names = [m["name"] for m in summary["models"]]
@@ -521,6 +608,25 @@ def _table(summary: dict) -> str:
                 line += f" | {_cell(c['f1_diff'], c['ci95'], True) if c else 'n/a (one clip)':>28}"
             lines.append(line)
     return "\n".join(lines)
+
+
+def _iou_table(summary: dict) -> list[str]:
+    """The IoU F1 (%) per model at each threshold and split, mean [95 % CI], and its paired differences."""
+    keys = [m.key for m in METRICS if m is not TUSIMPLE]
+    head = f"{'IoU F1 % (CULane-style, ' + str(summary['iou_width']) + ' px lines)':<45}"
+    head += "".join(f" | {split + ' @' + key.split('@')[1]:>22}" for key in keys for split in SPLITS)
+    lines = ["", head, "-" * len(head)]
+    for entry in summary["models"]:
+        cells = [_cell(entry[key][split]["f1_mean"], entry[key][split]["f1_ci95"]) for key in keys for split in SPLITS]
+        lines.append(f"{entry['label']:<45}" + "".join(f" | {cell:>22}" for cell in cells))
+    for c in summary["iou_comparisons"]:
+        if ":" not in c["split"]:
+            seeds = f"   seeds {_interval(c['seed_ci95'])}" if c.get("seed_ci95") else ""
+            lines.append(
+                f"  {c['a']:>13} - {c['b']:<13} {c['metric']:<8} {c['split']:<12} "
+                f"{_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
+            )
+    return lines
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -555,7 +661,8 @@ def run(args: argparse.Namespace) -> dict:
     }
     curves: dict[str, list[tuple[int, float]]] = {}
     curve_labels: dict[str, str] = {}
-    rates: dict[str, dict[str, list[np.ndarray]]] = {m.name: {split: [] for split in SPLITS} for m in models}
+    # per metric, model and split: the per-image quantities of every seed
+    quantities = {metric.key: {m.name: {split: [] for split in SPLITS} for m in models} for metric in METRICS}
     clips: dict[str, list[str]] = {}
     entries = {
         m.name: {
@@ -604,8 +711,9 @@ def run(args: argparse.Namespace) -> dict:
                 print(f"[demo] seed {seed}, stage 2: {model.label}: done before, reused", flush=True)
                 _score_run(record, name, out, root, args.max_overlays)  # splits whose labels changed
             for split in SPLITS:
-                split_rates, clips[split] = _read_rates(out / "predictions" / name / split)
-                rates[model.name][split].append(split_rates)
+                per_image, clips[split] = _read_quantities(out / "predictions" / name / split)
+                for key, values in per_image.items():
+                    quantities[key][model.name][split].append(values)
             entries[model.name]["frames"] = record["frames"]
             entries[model.name]["runs"].append({k: v for k, v in record.items() if k not in settings})
             curves[name] = [(pre_steps + step, f1) for step, f1 in _val_curve(Path(record["run"]))]
@@ -615,9 +723,18 @@ def run(args: argparse.Namespace) -> dict:
     for model in models:
         entry = entries[model.name]
         entry["steps"] = pre_steps + ft_steps
-        _aggregate(entry, rates[model.name], clips, views)
+        for metric in METRICS:
+            found = _aggregate(metric, quantities[metric.key][model.name], clips, views)
+            if metric is TUSIMPLE:  # where the summary always kept it
+                entry.update(found)
+            else:
+                entry[metric.key] = found
         summary["models"].append(entry)
-    summary["comparisons"] = _compare(summary, rates, clips, views)
+    pairs = _pairs({m.name: m.paper for m in models})
+    compared = {metric.key: _compare(metric, pairs, quantities[metric.key], clips, views) for metric in METRICS}
+    summary["comparisons"] = compared.pop(TUSIMPLE.key)
+    summary["iou_comparisons"] = [c for found in compared.values() for c in found]
+    summary["iou_width"] = iou_width(_image_size(root))
     summary["minutes"] = round((time.perf_counter() - start_all) / 60, 2)
     _plot(curves, curve_labels, out / "val_f1.png", pre_steps)
     summary["val_f1_plot"] = str(out / "val_f1.png")

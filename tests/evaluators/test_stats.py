@@ -4,7 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stamlane_eval.stats import bootstrap, f1_of_rates, paired_bootstrap, seed_interval, tusimple_rates
+from stamlane_eval import culane
+from stamlane_eval.stats import (
+    bootstrap,
+    culane_counts,
+    f1_of_counts,
+    f1_of_rates,
+    paired_bootstrap,
+    seed_interval,
+    tusimple_rates,
+)
 from stamlane_eval.tusimple import TuSimpleImageResult, paper_f1
 
 
@@ -61,6 +70,19 @@ def test_tusimple_rates_and_f1() -> None:
     rates = tusimple_rates(per_image)
     np.testing.assert_array_equal(rates, [[0.0, 0.0], [0.5, 0.25]])
     assert f1_of_rates(rates.mean(0)) == pytest.approx(paper_f1(0.25, 0.125))
+
+
+def test_culane_counts_and_f1_give_the_evaluators_totals() -> None:
+    lane = np.array([[100.0, 500.0], [300.0, 200.0]])
+    moved = lane + np.array([40.0, 0.0])  # 40 px to the right: beyond a 30-px line
+    images = [([lane], [lane]), ([moved, lane], [lane]), ([], [lane, moved])]  # a TP; a TP + FP; two FN
+    result = culane.evaluate([p for p, _ in images], [g for _, g in images])
+    counts = culane_counts(result.per_image, 0.5)
+    np.testing.assert_array_equal(counts, [[1, 0, 0], [1, 1, 0], [0, 0, 2]])
+    assert f1_of_counts(counts.mean(0)) == pytest.approx(result.totals[0.5].f1, abs=1e-12)  # 2TP / (2TP + FP + FN)
+    assert f1_of_counts(np.array([0.0, 3.0, 2.0])) == 0.0  # no match at all, as the tool says
+    est = bootstrap(counts, f1_of_counts, resamples=200)
+    assert est.low <= est.value <= est.high and est.value == pytest.approx(4 / 7)
 
 
 def test_bad_input_is_refused() -> None:

@@ -40,6 +40,7 @@ from stamlane_eval.io import (
     read_culane_lines,
     read_tusimple,
     read_vil100_json,
+    tusimple_points,
     video_frames,
 )
 
@@ -230,14 +231,11 @@ def _xs_to_points(recs: list[dict], rows: dict[str, list], path: Path) -> dict[s
         h = rows.get(rec["raw_file"])
         if h is None:
             raise LaneFileError(f"{path}: line {i}: raw_file {rec['raw_file']!r} is not in the ground truth")
-        lanes = []
         for lane in rec["lanes"]:
             xs = np.asarray(lane) if isinstance(lane, list) else np.zeros(0, dtype=object)
             if xs.shape != (len(h),) or xs.dtype.kind not in "iuf" or not np.isfinite(xs).all():
                 raise LaneFileError(f"{path}: line {i}: a lane is not {len(h)} finite numbers (one per h_sample)")
-            keep = xs >= 0
-            lanes.append(np.stack([xs[keep], np.asarray(h, dtype=np.float64)[keep]], axis=1).astype(np.float64))
-        out[rec["raw_file"]] = lanes
+        out[rec["raw_file"]] = tusimple_points(rec["lanes"], h)
     return out
 
 

@@ -27,6 +27,7 @@ __all__ = [
     "read_culane_lines",
     "read_tusimple",
     "read_vil100_json",
+    "tusimple_points",
     "tusimple_record_error",
     "video_frames",
 ]
@@ -226,6 +227,20 @@ def tusimple_record_error(rec: object, role: str) -> str | None:
         if rows is not None and len(lane) != len(rows):
             return f"lane {k} has {len(lane)} x values, h_samples has {len(rows)}"
     return None
+
+
+def tusimple_points(lanes: list, h_samples: list) -> list[np.ndarray]:
+    """TuSimple lanes (one x per row of ``h_samples``, ``x < 0`` where the lane is absent) as ``(N, 2)`` float
+    arrays of ``(x, y)`` points, one per lane, in order. A lane absent on every row becomes a lane of 0 points:
+    the CULane metric counts it as a lane, as the C++ tool counts an empty line of a ``.lines.txt`` (callers
+    that want only visible lanes drop them). The lanes are assumed checked (`tusimple_record_error`)."""
+    ys = np.asarray(h_samples, dtype=np.float64)
+    points = []
+    for lane in lanes:
+        xs = np.asarray(lane, dtype=np.float64)
+        keep = xs >= 0
+        points.append(np.stack([xs[keep], ys[keep]], axis=1))
+    return points
 
 
 def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:

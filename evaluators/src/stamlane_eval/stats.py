@@ -21,6 +21,9 @@ the synthetic benchmark it was the larger of the two (docs/results.md), so a dif
 when both intervals exclude 0.
 
     >>> seed_interval([f1_a[s] - f1_b[s] for s in seeds]).interval
+
+The CULane / ApolloScape F1 is a function of the summed lane counts: ``culane_counts(result.per_image, 0.5)`` with
+``f1_of_counts`` goes through the same functions.
 """
 
 from __future__ import annotations
@@ -30,9 +33,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stamlane_eval.culane import CULaneImageResult
 from stamlane_eval.tusimple import TuSimpleImageResult, paper_f1
 
-__all__ = ["Estimate", "bootstrap", "f1_of_rates", "paired_bootstrap", "seed_interval", "tusimple_rates"]
+__all__ = [
+    "Estimate",
+    "bootstrap",
+    "culane_counts",
+    "f1_of_counts",
+    "f1_of_rates",
+    "paired_bootstrap",
+    "seed_interval",
+    "tusimple_rates",
+]
 
 RESAMPLES = 2000
 """Bootstrap resamples: the 2.5 % / 97.5 % percentiles then move by well under 0.1 F1 point between seeds."""
@@ -87,6 +100,18 @@ def tusimple_rates(per_image: Sequence[TuSimpleImageResult]) -> np.ndarray:
 def f1_of_rates(means: np.ndarray) -> float:
     """The paper's TuSimple F1 from the mean ``(fp, fn)`` rates (what `tusimple_rates` gives per image)."""
     return paper_f1(float(means[0]), float(means[1]))
+
+
+def culane_counts(per_image: Sequence[CULaneImageResult], iou_threshold: float) -> np.ndarray:
+    """Per-image ``(tp, fp, fn)`` lane counts of a CULane / ApolloScape evaluation at one IoU threshold, (N, 3)."""
+    return np.array([r.counts[float(iou_threshold)] for r in per_image], dtype=np.float64).reshape(-1, 3)
+
+
+def f1_of_counts(means: np.ndarray) -> float:
+    """The CULane F1 from the mean ``(tp, fp, fn)`` counts (what `culane_counts` gives per image): 2TP / (2TP + FP
+    + FN), which the means give as the sums do; 0 where there is no lane at all (as the official tool)."""
+    tp, fp, fn = (float(v) for v in means[:3])
+    return 2 * tp / (2 * tp + fp + fn) if tp > 0 else 0.0
 
 
 def _weights(n: int, groups: Sequence | None, resamples: int, seed: int) -> tuple[np.ndarray, int]:

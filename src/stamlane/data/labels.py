@@ -14,7 +14,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 from stamlane_eval import io as eval_io
-from stamlane_eval.io import LaneFileError, iter_tusimple
+from stamlane_eval.io import LaneFileError, iter_tusimple, tusimple_points
 
 __all__ = [
     "DataError",
@@ -82,15 +82,7 @@ def tusimple_lanes(rec: dict) -> list[np.ndarray]:
 
     A lane with no point at all (every x is -2) is an absent lane and is dropped here, silently.
     """
-    ys = np.asarray(rec["h_samples"], dtype=np.float64)
-    lanes = []
-    for xs in rec["lanes"]:
-        xs = np.asarray(xs, dtype=np.float64)
-        keep = xs >= 0
-        if not keep.any():
-            continue
-        lanes.append(np.stack([xs[keep], ys[keep]], axis=1))
-    return lanes
+    return [lane for lane in tusimple_points(rec["lanes"], rec["h_samples"]) if len(lane)]
 
 
 def read_culane_lines(path: Path) -> list[np.ndarray]:

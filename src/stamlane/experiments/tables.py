@@ -57,12 +57,14 @@ class PaperRow:
 
 @dataclass(frozen=True)
 class PaperTable:
-    """A paper table: number (``"1"``), title, metric kind and rows in the paper's order."""
+    """A paper table: number (``"1"``), title, metric kind, rows in the paper's order and, where the paper measures
+    the other rows from one of them, that row's id (``baseline``: Tables 2 and 8, unaligned frames summed)."""
 
     name: str
     title: str
     kind: str
     rows: tuple[PaperRow, ...]
+    baseline: str | None = None
 
     @property
     def f1_key(self) -> str:
@@ -152,5 +154,8 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
         ids = [r.id for r in rows]
         if len(set(ids)) != len(ids) or not ids:
             raise ValueError(f"{path}: table {name}: rows must be unique and non-empty, got {ids}")
-        tables[name] = PaperTable(name, str(spec.get("title", f"Table {name}")), kind, tuple(rows))
+        baseline = spec.get("baseline")
+        if baseline is not None and baseline not in ids:
+            raise ValueError(f"{path}: table {name}: baseline {baseline!r} is not one of its rows")
+        tables[name] = PaperTable(name, str(spec.get("title", f"Table {name}")), kind, tuple(rows), baseline)
     return TableIndex(path.resolve(), default_base, layers, tables)
