@@ -326,7 +326,7 @@ def test_score_split_iou_is_what_stamlane_eval_culane_says(tmp_path: Path, capsy
     pred_dir.mkdir()
     (pred_dir / "predictions.json").write_text("".join(json.dumps(p) + "\n" for p in preds))
     scores, per_image, clips = score_split(pred_dir, root / "test.json")
-    assert iou_width((360, 640)) == scores["iou"]["width"] == 12
+    assert iou_width((360, 640)) == scores["iou_width"] == 12
     assert clips == [f"clips/test-{i:04d}" for i in range(6)]
     tp5 = [int(r[0]) for r in per_image["iou@0.5"]]
     assert tp5[:2] == [3, 3] and tp5[3] == 0 and tp5[4] == 2  # 1 px: still a match; 40 px: none is

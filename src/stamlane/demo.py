@@ -13,12 +13,13 @@
 3. predicts the ``test`` (clean) and ``challenging`` (one factor per clip) splits with each model's FINAL weights (TuSimple
    json-lines, per-image results and overlay pictures under ``<out>/predictions/<model>-s<seed>/<split>``)
    and scores them with ``stamlane_eval.tusimple`` as ``stamlane-eval tusimple --no-time-limit`` would (the
-   benchmark's 200 ms rule measures the machine, not the model: the images over it are counted as ``late``);
+   benchmark's 200 ms rule measures the machine, not the model: the images over it are counted as ``late``),
+   and with the CULane-style IoU F1 at 0.5 and 0.3 of the paper's ApolloScape tables (`iou_width`);
 4. writes ``<out>/val_f1.png`` (validation F1 over training), ``<out>/comparison.jpg`` (the same challenging
    key frames side by side, one column per model), ``<out>/summary.json`` (per model and seed: steps, minutes,
-   checkpoints, accuracy / FP / FN / F1 per split; per model, per split and per factor of the challenging
-   split: F1 mean ± std over seeds and its 95 % bootstrap interval; paired differences between models) and
-   prints the tables.
+   checkpoints, accuracy / FP / FN / F1 and IoU F1 per split; per model, per split and per factor of the
+   challenging split: F1 mean ± std over seeds and its 95 % bootstrap interval, in both metrics; paired
+   differences between models, `_pairs`) and prints the tables.
 
 A finished run (``done.json``) is reused; a split whose labels changed since it was scored is predicted and
 scored again with the run's final weights, one scored under other rules (`SCORING`) is scored again from its
@@ -309,7 +310,8 @@ def score_split(pred_dir: Path, labels: Path) -> tuple[dict, dict[str, np.ndarra
     _write_atomic(pred_dir / "per_image.jsonl", "".join(json.dumps(row) + "\n" for row in rows))
     scores = {k: result.as_dict()[k] for k in ("accuracy", "fp", "fn", "f1", "images")}
     scores["late"] = sum(p["run_time"] > MAX_RUN_TIME_MS for p in preds)
-    scores["iou"] = {f"{t:g}": c.as_dict() for t, c in iou.totals.items()} | {"width": width}
+    scores["iou"] = {f"{t:g}": c.as_dict() for t, c in iou.totals.items()}
+    scores["iou_width"] = width
     return scores, _quantities(rows), [row["clip"] for row in rows]
 
 
