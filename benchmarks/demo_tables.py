@@ -2,7 +2,7 @@
 
     python benchmarks/demo_tables.py outputs/demo/summary.json [--out docs/results/demo-cpu-recipe/tables.md]
     python benchmarks/demo_tables.py outputs/demo/summary.json --models stam4 single   # only these, and their pairs
-    python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4]
+    python benchmarks/demo_tables.py outputs/demo/summary.json --paper configs/paper/tables.yaml [--tables 2 3 4 7 8]
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml   # two run sets
     python benchmarks/demo_tables.py SUMMARY_1 SUMMARY_2 --paper configs/paper/tables.yaml --replication
 
@@ -10,8 +10,10 @@ Prints, in F1 %: each model's test and challenging F1 as mean ± seed std [95 % 
 differences as ``+d [clips] s[seeds]`` (95 % intervals with the test clips resampled and over the training
 seeds, Student t; bold where both exclude 0); per factor of the challenging split, each model's F1 and the
 paired differences against the single frame (and aligned against unaligned). With ``--paper``: the paper's
-tables instead, each row's F1 beside the paper's and its paired differences against one frame and against
-pre-aligned STAM (mixed C-S, the paper's choice); rows not in the summary are listed as not run.
+tables instead, each row's F1 beside the paper's and its paired differences against one frame, against
+pre-aligned STAM (mixed C-S, the paper's choice) and, in Tables 2 and 8, against the table's baseline row
+(unaligned frames summed); Tables 7 and 8 (the paper's ApolloScape tables) in the demo's IoU F1, once at IoU 0.5
+and once at 0.3. Rows not in the summary are listed as not run.
 """
 
 from __future__ import annotations
