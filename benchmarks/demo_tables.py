@@ -234,7 +234,50 @@ def replication(summaries: list[dict], index: dict) -> str:
                 f"| {label.get(row, row)} (`{row}`) | {i + 1} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
                 f"{'–' if row == single else versus} |"
             )
-    return "\n".join(lines) + "\n"
+    return "\n".join([*lines, "", *_agreement(summaries, models, single)]) + "\n"
+
+
+def _agreement(summaries: list[dict], models: list[dict], single: str) -> list[str]:
+    """How far the first two run sets agree on each row's difference from one frame on the challenging clips:
+    their correlation over the rows trained in both, how often the sign is the same, and how many differences
+    claimed in either set (both intervals exclude 0) are claimed in the other."""
+    import numpy as np
+
+    if len(summaries) < 2:
+        return []
+    pairs, claims = [], []
+    for row in set(models[0]) & set(models[1]) - {single}:
+        found = []
+        for i in (0, 1):
+            reference = models[i].get(single, {}).get("name")
+            c = next(
+                (
+                    c
+                    for c in summaries[i]["comparisons"]
+                    if (c["a"], c["b"], c["split"]) == (models[i][row]["name"], reference, "challenging")
+                ),
+                None,
+            )
+            found.append(c)
+        if None in found:
+            continue
+        pairs.append([c["f1_diff"] for c in found])
+        claimed = [
+            all(not lo <= 0 <= hi for lo, hi in [c["ci95"], *([c["seed_ci95"]] if c.get("seed_ci95") else [])])
+            for c in found
+        ]
+        if any(claimed):
+            claims.append(all(claimed) and np.sign(pairs[-1][0]) == np.sign(pairs[-1][1]))
+    if len(pairs) < 3:
+        return []
+    d = np.array(pairs)
+    r = float(np.corrcoef(d[:, 0], d[:, 1])[0, 1])
+    same = int((np.sign(d[:, 0]) == np.sign(d[:, 1])).sum())
+    return [
+        f"Rows trained in run sets 1 and 2: {len(d)}. Their difference from one frame on the challenging clips, set 1 "
+        f"against set 2: correlation {r:+.2f}, the same sign in {same} of {len(d)}, and {sum(claims)} of "
+        f"{len(claims)} differences claimed in one set (both intervals exclude 0) claimed in the other."
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

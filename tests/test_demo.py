@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 import torch
 import yaml
@@ -264,7 +265,7 @@ def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() ->
     assert stam[0].endswith("| 1 | 92.0 | 92.0 | **+2.0 [+1.0, +3.0]** / **+2.0 [+1.0, +3.0]** | – |")
     assert stam[1].endswith("| 2 | 81.0 | 81.0 | – / – | – |")  # set 2 compared no STAM with one frame
     # the rows trained in both sets, set beside set; a row of one set only is not listed
-    both = _demo_tables().replication([first, second], index).splitlines()[2:]
+    both = [line for line in _demo_tables().replication([first, second], index).splitlines()[2:] if "`" in line]
     assert [line.split("`")[1] for line in both] == ["f1_keyonly"] * 2 + ["f4_mixed_cs_features"] * 2
     assert both[2].startswith("| 4 frames (features) (`f4_mixed_cs_features`) | 1 | 92.0 | 92.0 | **+2.0")
     assert both[3].endswith("| 2 | 81.0 | 81.0 | – / – |")
@@ -397,3 +398,21 @@ def test_paper_iou_tables_come_at_both_thresholds_with_the_difference_from_the_b
     # a summary written before the demo scored IoU: its rows are not in the IoU tables
     old = _summary({"f1_keyonly": 0.90, "f2_add": 0.93}, {})
     assert "(0 of 6 rows run" in _demo_tables().paper_tables(old, index, ["8"])
+
+
+def test_replication_says_how_far_two_run_sets_agree() -> None:
+    rows = ("f4_add", "f4_cosine", "f4_stpsa")
+    first = _summary(
+        {"f1_keyonly": 0.9, **dict.fromkeys(rows, 0.9)},
+        dict(zip(((r, "f1_keyonly") for r in rows), (0.05, 0.02, -0.01))),
+    )
+    second = _summary(
+        {"f1_keyonly": 0.9, **dict.fromkeys(rows, 0.9)},
+        dict(zip(((r, "f1_keyonly") for r in rows), (0.04, -0.03, -0.02))),
+    )
+    index = yaml.safe_load((REPO / "configs" / "paper" / "tables.yaml").read_text())
+    last = _demo_tables().replication([first, second], index).splitlines()[-1]
+    r = np.corrcoef([0.05, 0.02, -0.01], [0.04, -0.03, -0.02])[0, 1]
+    assert last.startswith("Rows trained in run sets 1 and 2: 3.") and f"correlation {r:+.2f}" in last
+    # the sum: claimed in both, same sign; the weighted sum: claimed in both, opposite signs; ST-PSA: in set 2 only
+    assert "the same sign in 2 of 3, and 1 of 3 differences claimed in one set" in last
