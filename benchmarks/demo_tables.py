@@ -37,11 +37,21 @@ def _diff(c: dict | None) -> str:
     there are several seeds, its interval over the training seeds; bold when every interval excludes 0."""
     if c is None:
         return "–"
-    intervals = [c["ci95"]] + ([c["seed_ci95"]] if c.get("seed_ci95") else [])
     text = f"{100 * c['f1_diff']:+.1f} [{100 * c['ci95'][0]:+.1f}, {100 * c['ci95'][1]:+.1f}]"
     if c.get("seed_ci95"):
         text += f" s[{100 * c['seed_ci95'][0]:+.1f}, {100 * c['seed_ci95'][1]:+.1f}]"
-    return f"**{text}**" if all(not low <= 0 <= high for low, high in intervals) else text
+    return f"**{text}**" if _supported(c) else text
+
+
+def _supported(c: dict) -> bool:
+    """A difference every interval of which (clips; seeds, where there are several) excludes 0: one we claim."""
+    intervals = [c["ci95"], *([c["seed_ci95"]] if c.get("seed_ci95") else [])]
+    return all(not low <= 0 <= high for low, high in intervals)
+
+
+def _by_pair(summary: dict) -> dict[tuple[str, str, str], dict]:
+    """The comparisons of a summary by (A, B, split)."""
+    return {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
 
 
 def _with_seed_interval(summary: dict) -> dict:
@@ -80,7 +90,7 @@ def tables(summary: dict, only: list[str] | None = None) -> str:
         "|---|---|---|---|",
     ]
     lines += [f"| {m['label']} | {m['frames']} | {_f1(m['test'])} | {_f1(m['challenging'])} |" for m in models]
-    by = {(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]}
+    by = _by_pair(summary)
     pairs = list(dict.fromkeys((c["a"], c["b"]) for c in summary["comparisons"]))
     label = {m["name"]: m["label"] for m in models}
     lines += ["", "| paired difference (F1 points) | test | challenging |", "|---|---|---|"]
@@ -149,7 +159,7 @@ def _paper_table(key: str, table: dict, summaries: list[dict], metric: str, pape
         for row, m in found.items():
             by_row.setdefault(row, (i, m))
     name_of = [{row: m["name"] for row, m in found.items()} for found in models]
-    diffs = [{(c["a"], c["b"], c["split"]): c for c in summary["comparisons"]} for summary in summaries]
+    diffs = [_by_pair(summary) for summary in summaries]
     seeds = sorted({len(summary["seeds"]) for summary in summaries})
     several = len(summaries) > 1
 
@@ -228,7 +238,7 @@ def replication(summaries: list[dict], index: dict) -> str:
             continue
         for i in places:
             m, reference = models[i][row], models[i].get(single, {}).get("name")
-            diffs = {(c["a"], c["b"], c["split"]): c for c in summaries[i]["comparisons"]}
+            diffs = _by_pair(summaries[i])
             versus = " / ".join(_diff(diffs.get((m["name"], reference, split))) for split in ("test", "challenging"))
             lines.append(
                 f"| {label.get(row, row)} (`{row}`) | {i + 1} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
@@ -245,27 +255,16 @@ def _agreement(summaries: list[dict], models: list[dict], single: str) -> list[s
 
     if len(summaries) < 2:
         return []
+    diffs = [_by_pair(summary) for summary in summaries[:2]]
     pairs, claims = [], []
     for row in set(models[0]) & set(models[1]) - {single}:
-        found = []
-        for i in (0, 1):
-            reference = models[i].get(single, {}).get("name")
-            c = next(
-                (
-                    c
-                    for c in summaries[i]["comparisons"]
-                    if (c["a"], c["b"], c["split"]) == (models[i][row]["name"], reference, "challenging")
-                ),
-                None,
-            )
-            found.append(c)
+        found = [
+            diffs[i].get((models[i][row]["name"], models[i].get(single, {}).get("name"), "challenging")) for i in (0, 1)
+        ]
         if None in found:
             continue
         pairs.append([c["f1_diff"] for c in found])
-        claimed = [
-            all(not lo <= 0 <= hi for lo, hi in [c["ci95"], *([c["seed_ci95"]] if c.get("seed_ci95") else [])])
-            for c in found
-        ]
+        claimed = [_supported(c) for c in found]
         if any(claimed):
             claims.append(all(claimed) and np.sign(pairs[-1][0]) == np.sign(pairs[-1][1]))
     if len(pairs) < 3:
