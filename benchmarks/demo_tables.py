@@ -237,14 +237,22 @@ def replication(summaries: list[dict], index: dict) -> str:
         if len(places) < 2:
             continue
         for i in places:
-            m, reference = models[i][row], models[i].get(single, {}).get("name")
-            diffs = _by_pair(summaries[i])
-            versus = " / ".join(_diff(diffs.get((m["name"], reference, split))) for split in ("test", "challenging"))
+            m = models[i][row]
+            versus = " / ".join(
+                _diff(_from_single(summaries[i], models[i], row, split)) for split in ("test", "challenging")
+            )
             lines.append(
                 f"| {label.get(row, row)} (`{row}`) | {i + 1} | {_f1(m['test'])} | {_f1(m['challenging'])} | "
                 f"{'–' if row == single else versus} |"
             )
     return "\n".join([*lines, "", *_agreement(summaries, models, single)]) + "\n"
+
+
+def _from_single(summary: dict, models: dict, row: str, split: str) -> dict | None:
+    """The comparison of paper row ``row`` with one frame on ``split`` in ``summary`` (``models``: its models by
+    paper row), or None."""
+    reference = models.get(_paper_row("single"), {}).get("name")
+    return _by_pair(summary).get((models[row]["name"], reference, split))
 
 
 def _agreement(summaries: list[dict], models: list[dict], single: str) -> list[str]:
@@ -255,12 +263,9 @@ def _agreement(summaries: list[dict], models: list[dict], single: str) -> list[s
 
     if len(summaries) < 2:
         return []
-    diffs = [_by_pair(summary) for summary in summaries[:2]]
     pairs, claims = [], []
     for row in set(models[0]) & set(models[1]) - {single}:
-        found = [
-            diffs[i].get((models[i][row]["name"], models[i].get(single, {}).get("name"), "challenging")) for i in (0, 1)
-        ]
+        found = [_from_single(summaries[i], models[i], row, "challenging") for i in (0, 1)]
         if None in found:
             continue
         pairs.append([c["f1_diff"] for c in found])

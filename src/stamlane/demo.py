@@ -586,11 +586,7 @@ def _table(summary: dict) -> str:
             "paired differences of F1 (same images; 95 % CI with clips resampled, and over the training seeds;",
             "* = the interval excludes 0):",
         ]
-        for c in splits:
-            seeds = f"   seeds {_interval(c['seed_ci95'])}" if c.get("seed_ci95") else ""
-            lines.append(
-                f"  {c['a']:>13} - {c['b']:<13} {c['split']:<12} {_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
-            )
+        lines += [_difference_line(c) for c in splits]
     lines += _iou_table(summary)
     factors = list(summary["models"][0].get("factors", {})) if summary["models"] else []
     if factors:
@@ -621,14 +617,14 @@ def _iou_table(summary: dict) -> list[str]:
     for entry in summary["models"]:
         cells = [_cell(entry[key][split]["f1_mean"], entry[key][split]["f1_ci95"]) for key in keys for split in SPLITS]
         lines.append(f"{entry['label']:<45}" + "".join(f" | {cell:>22}" for cell in cells))
-    for c in summary["iou_comparisons"]:
-        if ":" not in c["split"]:
-            seeds = f"   seeds {_interval(c['seed_ci95'])}" if c.get("seed_ci95") else ""
-            lines.append(
-                f"  {c['a']:>13} - {c['b']:<13} {c['metric']:<8} {c['split']:<12} "
-                f"{_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
-            )
-    return lines
+    return lines + [_difference_line(c) for c in summary["iou_comparisons"] if ":" not in c["split"]]
+
+
+def _difference_line(c: dict) -> str:
+    """One printed paired difference: A - B, its metric (IoU ones), split, ``+d [clips]`` and ``seeds [...]``."""
+    metric = f"{c['metric']:<8} " if "metric" in c else ""
+    seeds = f"   seeds {_interval(c['seed_ci95'])}" if c.get("seed_ci95") else ""
+    return f"  {c['a']:>13} - {c['b']:<13} {metric}{c['split']:<12} {_cell(c['f1_diff'], c['ci95'], True)}{seeds}"
 
 
 def run(args: argparse.Namespace) -> dict:
