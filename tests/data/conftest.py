@@ -9,7 +9,6 @@ import cv2
 import numpy as np
 import pytest
 
-
 W, H = 96, 64
 """Size of the hand-made test images (original pixels)."""
 

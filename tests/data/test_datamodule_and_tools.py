@@ -20,7 +20,15 @@ from stamlane.synth.cli import main as synth_main
 from stamlane.synth.cli import split_counts
 from stamlane.synth.generator import SynthConfig, generate_dataset
 
-TINY_SYNTH = {"synth_train": 2, "synth_val": 1, "synth_test": 1, "synth_challenging": 0, "synth_size": (64, 96)}
+TINY_SYNTH = {
+    "synth_train": 2,
+    "synth_val": 1,
+    "synth_test": 1,
+    "synth_challenging": 0,
+    "synth_train_factors": 1,
+    "synth_val_factors": 0,
+    "synth_size": (64, 96),
+}
 
 
 def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
@@ -30,7 +38,7 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").is_file()
     # 20-frame clips: train key frames 8..20 (key step 1), the other splits 8, 11, 14, 17, 20 (key step 3)
     train_keys = (tmp_path / DEFAULT_SYNTHETIC_ROOT / "train.json").read_text().splitlines()
-    assert len(train_keys) == 2 * 13 and json.loads(train_keys[0])["raw_file"] == "clips/train-0000/8.jpg"
+    assert len(train_keys) == 3 * 13 and json.loads(train_keys[0])["raw_file"] == "clips/train-0000/8.jpg"
     val_keys = [
         json.loads(r)["raw_file"] for r in (tmp_path / DEFAULT_SYNTHETIC_ROOT / "val.json").read_text().splitlines()
     ]

@@ -74,7 +74,9 @@ def test_duplicates_and_far_points_are_refused(tusimple_root: Path) -> None:
 
 def test_one_json_document_is_not_json_lines(tusimple_root: Path) -> None:
     (tusimple_root / "pretty.json").write_text(json.dumps(_record(), indent=2))
-    with pytest.raises(DataError, match="one JSON document over .* lines; TuSimple files hold one JSON object per line"):
+    with pytest.raises(
+        DataError, match=r"one JSON document over .* lines; TuSimple files hold one JSON object per line"
+    ):
         TuSimpleClips(tusimple_root, "pretty.json", num_frames=1, image_size=SIZE)
 
 

@@ -25,12 +25,12 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-import cv2
 import numpy as np
 import torch
 from torch.utils.data import Dataset
 
 from stamlane.data.alignment import WARP_MODES, ClipAligner
+from stamlane.data.corruption import KeyFrameCorruption
 from stamlane.data.labels import (
     DataError,
     history_name,
@@ -42,10 +42,11 @@ from stamlane.data.labels import (
 )
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
-from stamlane.types import NET_HOMOGRAPHIES
 from stamlane.imageio import read_image
+from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [
+    "HISTORY_SOURCES",
     "IMAGE_SUFFIXES",
     "NET_HOMOGRAPHIES",
     "ApolloClips",
@@ -58,6 +59,9 @@ __all__ = [
 ]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+HISTORY_SOURCES = ("real", "key", "other_clip")
+"""What fills a clip's history slots (`ClipDataset`'s ``history_source``): its own frames, copies of its key frame,
+or another clip's history frames."""
 
 
 def frame_order(name: str) -> tuple[str | int, ...]:
@@ -68,7 +72,6 @@ def frame_order(name: str) -> tuple[str | int, ...]:
     compare a string with a number.
     """
     return tuple(int(part) if i % 2 else part for i, part in enumerate(re.split(r"(\d+)", name)))
-
 
 
 @dataclass
@@ -105,6 +108,12 @@ class ClipDataset(Dataset):
         align_strategy: ``"chain"`` or ``"direct"`` for ``align="fly"`` (see ``stamlane.data.alignment``).
         warp: where the alignment is applied (``WARP_MODES``): ``"image"`` warps the history frames onto the key
             frame; ``"feature"`` leaves them unwarped and adds ``key_from_hist_net`` (see the module docstring).
+        history_source: what fills the history slots (`HISTORY_SOURCES`), to measure whether a model reads its
+            history: ``"real"`` (default) the clip's own frames; ``"key"`` copies of the key frame (no temporal
+            information; alignment the identity); ``"other_clip"`` the history frames of another clip of the
+            split (`partner`), pre-aligned to that clip's own key frame (wrong history). Evaluation only.
+        key_corruption: corrupts the key frame alone of some samples, history intact
+            (`stamlane.data.corruption.KeyFrameCorruption`); training only.
     """
 
     format = ""
@@ -127,6 +136,8 @@ class ClipDataset(Dataset):
         horizon_row: int | None = None,
         align_strategy: str = "chain",
         warp: str = "image",
+        history_source: str = "real",
+        key_corruption: KeyFrameCorruption | None = None,
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -143,6 +154,10 @@ class ClipDataset(Dataset):
             raise ValueError(f"thickness must be >= 1, got {thickness}")
         if warp not in WARP_MODES:
             raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
+        if history_source not in HISTORY_SOURCES:
+            raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
+        self.history_source = history_source
+        self.key_corruption = key_corruption
         self.num_frames, self.stride = int(num_frames), int(stride)
         self.image_size = (int(image_size[0]), int(image_size[1]))
         self.transform = transform or ClipTransform(self.image_size)
@@ -227,8 +242,11 @@ class ClipDataset(Dataset):
         if not 0 <= index < len(self.entries):
             raise IndexError(f"index {index} out of range for {len(self.entries)} samples")
         for attempt in range(len(self.entries)):
-            entry = self.entries[(index + attempt) % len(self.entries)]
+            position = (index + attempt) % len(self.entries)
+            entry = self.entries[position]
             try:
+                if self.history_source == "other_clip":
+                    return self.load(entry, history_of=self.entries[self.partner(position)])
                 return self.load(entry)
             except DataError as err:
                 if self.on_error == "raise":
@@ -253,18 +271,47 @@ class ClipDataset(Dataset):
             frames.append(img)
         return frames
 
-    def load(self, entry: ClipEntry, rng: np.random.Generator | None = None) -> dict[str, Any]:
-        """Build the sample of one entry (see the module docstring); ``rng`` drives the augmentation."""
+    def partner(self, index: int) -> int:
+        """The sample whose history ``history_source="other_clip"`` gives sample ``index``: the first sample of
+        ANOTHER clip (another folder) from half the split away on, so every sample gets a fixed, distant clip."""
+        clip = PurePosixPath(self.entries[index].raw_file).parent
+        count = len(self.entries)
+        for step in range(count // 2, count // 2 + count):
+            other = (index + step) % count
+            if PurePosixPath(self.entries[other].raw_file).parent != clip:
+                return other
+        raise DataError(f"history_source 'other_clip' needs samples of two clips, {self.root} has one ({clip})")
+
+    def _history(self, entry: ClipEntry, history_of: ClipEntry | None) -> tuple[list[np.ndarray], np.ndarray]:
+        """The clip's frames (original size, key last) and ``key_from_hist`` as ``history_source`` asks."""
         frames = self.read_frames(entry)
+        if self.history_source == "key":
+            return [frames[-1]] * len(frames), np.repeat(np.eye(3)[None], len(frames), axis=0)
+        key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
+        if history_of is None or len(frames) == 1:
+            return frames, key_from_hist
+        other = self.read_frames(history_of)
+        if other[0].shape != frames[0].shape:
+            raise DataError(f"{history_of.label_file}: its frames are not the size of {entry.raw_file}'s")
+        other_from_hist, _ok = self.aligner(history_of.frame_paths, other)
+        return [*other[:-1], frames[-1]], np.concatenate([other_from_hist[:-1], key_from_hist[-1:]])
+
+    def load(
+        self, entry: ClipEntry, rng: np.random.Generator | None = None, history_of: ClipEntry | None = None
+    ) -> dict[str, Any]:
+        """Build the sample of one entry (see the module docstring); ``rng`` drives the augmentation;
+        ``history_of``: the entry whose history frames replace the entry's own (``history_source="other_clip"``)."""
+        frames, key_from_hist = self._history(entry, history_of)
         h0, w0 = frames[0].shape[:2]
         _check_inside(entry, w0, h0)
-        key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
         params = self.transform.draw((h0, w0), rng)
         feature = self.warp == "feature"
         applied = np.repeat(np.eye(3)[None], len(frames), axis=0) if feature else key_from_hist
         clip = self.transform.apply_frames(frames, applied, params)
+        if self.key_corruption is not None:
+            clip = self.key_corruption(clip, rng)
         lanes_net = ClipTransform.map_lanes(entry.lanes, params.net_from_orig)
         binary, instance = draw_lane_targets(lanes_net, self.image_size, self.thickness, source=entry.label_file)
         usable = [lane for lane in entry.lanes if len(lane) >= 2]
@@ -281,6 +328,7 @@ class ClipDataset(Dataset):
                 "net_from_orig": params.net_from_orig.tolist(),
                 "h_samples": entry.h_samples,
                 "frame_paths": list(entry.frame_paths),
+                "history_source": self.history_source,
                 "format": self.format,
             },
         }
@@ -330,7 +378,11 @@ class TuSimpleClips(ClipDataset):
                     continue
                 source = f"{path}:{number}"
                 if rec["raw_file"] in seen:  # two labels for one image: which one is right?
-                    out.append(DataError(f"{source}: duplicate raw_file {rec['raw_file']!r} (first at {seen[rec['raw_file']]})"))
+                    out.append(
+                        DataError(
+                            f"{source}: duplicate raw_file {rec['raw_file']!r} (first at {seen[rec['raw_file']]})"
+                        )
+                    )
                     continue
                 seen[rec["raw_file"]] = source
                 try:

@@ -13,10 +13,12 @@ from lightning import LightningDataModule
 from torch.utils.data import DataLoader
 
 from stamlane.data.alignment import WARP_MODES
-from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.clips import HISTORY_SOURCES, ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
+from stamlane.data.corruption import KeyFrameCorruption
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
 from stamlane.data.labels import DataError
+from stamlane.data.transforms import ClipTransform
 from stamlane.synth.generator import (
     DEFAULT_SYNTHETIC_ROOT,
     EVAL_KEY_STEP,
@@ -25,11 +27,16 @@ from stamlane.synth.generator import (
     SynthConfig,
     generate_dataset,
 )
-from stamlane.data.transforms import ClipTransform
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
 
 FORMATS = ("tusimple", "culane", "apollo", "vil100")
+
+SYNTH_TRAIN_FACTORS = 120
+"""Factor clips (15 per factor) beside the 120 clean train clips of the default synthetic set (docs/training.md:
+what makes the fusion read its history)."""
+SYNTH_VAL_FACTORS = 32
+"""Factor clips (4 per factor) beside the 20 clean val clips of the default synthetic set."""
 
 _DEFAULT_LABELS = {"train": ["train.json"], "val": ["val.json"], "test": ["test.json"], "predict": ["test.json"]}
 
@@ -69,7 +76,15 @@ class ClipDataModule(LightningDataModule):
         repeat_missing_history: reuse the nearest later frame when a history frame does not exist.
         horizon_row: first ground row for ``align="fly"`` (None: ``stamlane.align``'s default).
         align_strategy: ``"chain"`` (default) or ``"direct"`` matching for ``align="fly"``.
+        history_source: what fills the history slots of the val, test and predict samples
+            (`stamlane.data.clips.HISTORY_SOURCES`): ``"real"`` (default), ``"key"`` (copies of the key frame) or
+            ``"other_clip"`` (another clip's history): scoring one model three ways measures whether it reads its
+            history (docs/training.md).
+        key_corruption: chance that a training sample's key frame alone is corrupted, history intact
+            (`stamlane.data.corruption.KeyFrameCorruption`: dropped regions, glare, occluders); 0 = never.
         synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
+        synth_train_factors, synth_val_factors: clips with a challenging factor added to the train and val splits
+            of a generated set (`stamlane.synth.generate_dataset`'s ``train_factors`` / ``val_factors``).
         synth_train_key_step, synth_eval_key_step: labelled key frames per clip of the train split and of the
             others (``stamlane.synth.generator.key_frames``: 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         synth_seed: seed of a generated set.
@@ -105,10 +120,14 @@ class ClipDataModule(LightningDataModule):
         repeat_missing_history: bool = False,
         horizon_row: int | None = None,
         align_strategy: str = "chain",
+        history_source: str = "real",
+        key_corruption: float = 0.0,
         synth_train: int = 120,
         synth_val: int = 20,
         synth_test: int = 100,
         synth_challenging: int = 128,
+        synth_train_factors: int = SYNTH_TRAIN_FACTORS,
+        synth_val_factors: int = SYNTH_VAL_FACTORS,
         synth_train_key_step: int = TRAIN_KEY_STEP,
         synth_eval_key_step: int = EVAL_KEY_STEP,
         synth_seed: int = 0,
@@ -125,6 +144,9 @@ class ClipDataModule(LightningDataModule):
             raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
         if align_strategy not in ("chain", "direct"):
             raise ValueError(f"align_strategy must be 'chain' or 'direct', got {align_strategy!r}")
+        if history_source not in HISTORY_SOURCES:
+            raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
+        self.key_corruption = KeyFrameCorruption(key_corruption) if key_corruption > 0 else None
         self.save_hyperparameters()
         self.synthetic = root is None
         self.root = Path(root if root is not None else DEFAULT_SYNTHETIC_ROOT)
@@ -159,6 +181,7 @@ class ClipDataModule(LightningDataModule):
             wanted = json.loads(json.dumps(asdict(self._synth_config())))
             counts = {"train": hp.synth_train, "val": hp.synth_val, "test": hp.synth_test}
             counts["challenging"] = hp.synth_challenging
+            counts |= {"train_factors": hp.synth_train_factors, "val_factors": hp.synth_val_factors}
             if (
                 info.get("format_version") != FORMAT_VERSION
                 or info.get("config") != wanted
@@ -188,6 +211,8 @@ class ClipDataModule(LightningDataModule):
             val=hp.synth_val,
             test=hp.synth_test,
             challenging=hp.synth_challenging,
+            train_factors=hp.synth_train_factors,
+            val_factors=hp.synth_val_factors,
             seed=hp.synth_seed,
             config=self._synth_config(),
             train_key_step=hp.synth_train_key_step,
@@ -225,6 +250,8 @@ class ClipDataModule(LightningDataModule):
             "require_labels": split != "predict",
             "horizon_row": hp.horizon_row,
             "align_strategy": hp.align_strategy,
+            "history_source": "real" if split == "train" else hp.history_source,
+            "key_corruption": self.key_corruption if split == "train" else None,
         }
         files = self.split_labels(split)
         if self.format == "tusimple":

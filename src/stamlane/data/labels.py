@@ -7,7 +7,6 @@ evaluators' (``stamlane_eval.io``): a file the evaluator refuses is refused here
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Iterator
 from pathlib import Path, PurePosixPath

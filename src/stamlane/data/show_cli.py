@@ -14,9 +14,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status, parse_wxh
 
 from stamlane.data.alignment import ALIGN_MODES
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status, parse_wxh
 from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform

@@ -25,11 +25,15 @@ Layout written by ``generate_dataset`` (``<id>`` like ``train-0007``)::
     <root>/frame_labels/<id>.json               TuSimple-style labels of EVERY frame (+ "occluded" flags)
     <root>/homographies/<id>.json               true geometry: image_from_ground per frame, and
                                                 last_from_frame / next_from_frame (= key_from_hist)
+    <root>/visibility/{val,test,challenging}.json  per key frame of the split's labels, per labelled point: where
+                                                its paint is visible (key frame / history only / nowhere;
+                                                ``stamlane.synth.visibility``)
     <root>/dataset.json                         generator settings and statistics (written last)
 """
 
 from __future__ import annotations
 
+import copy
 import json
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
@@ -44,6 +48,7 @@ from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
 from stamlane.synth.vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
+from stamlane.synth.visibility import VISIBILITY_CLASSES, paint_visibility, visibility_class
 
 __all__ = [
     "FACTORS",
@@ -58,8 +63,10 @@ __all__ = [
 ]
 
 SPLITS = ("train", "val", "test", "challenging")
-FORMAT_VERSION = 4
-"""4: the challenging split is made of labelled factors (`FACTORS`, one per clip; train, val and test are format
+FORMAT_VERSION = 5
+"""5: factor clips added to the train and val splits (``train_factors``, ``val_factors``; the clean clips and the
+test and challenging splits are format 4's, byte for byte) and the paint visibility of every labelled key-frame
+point of the val, test and challenging splits (``visibility/<split>.json``); 4: the challenging split is made of labelled factors (`FACTORS`, one per clip; train, val and test are format
 3's, byte for byte); 3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
 prefiltering, vehicles 4-35 m ahead; 1: 10 fps, 3-30 m."""
 DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
@@ -75,6 +82,9 @@ FIRST_KEY = 7
 for the paper's longest clips (5 frames) and the 8-frame ones some video detectors use."""
 FAR_M = 120.0
 """Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
+VISIBILITY_DIR = "visibility"
+"""Folder of a set's visibility files: ``visibility/<split>.json``, one line per key frame of ``<split>.json``
+(``raw_file``, ``visibility``: per lane, per h_sample, the mask of `stamlane.synth.visibility.paint_visibility`)."""
 HAZE_PX = 0.04
 """Height of the haze band under the horizon, as a fraction of the image height."""
 
@@ -249,6 +259,9 @@ class SynthClip:
         image_from_ground: per frame, (3, 3) homography ground (X, Z, 1) metres -> pixels (w = depth).
         vehicle_masks: per frame, uint8 (H, W), 255 on pixels that hide the road: vehicles, and the windscreen's
             dirt and wiper.
+        paint_contrast: per frame, uint8 (H, W): how much the lane paint changes each pixel, the mean over the
+            colour channels of |frame - the same frame rendered without paint| (before JPEG), after every effect
+            (vehicles, shadows, windscreen, glare, night); None unless ``generate_clip(..., paint_contrast=True)``.
     """
 
     frames: list[np.ndarray]
@@ -257,6 +270,7 @@ class SynthClip:
     h_samples: list[int]
     image_from_ground: list[np.ndarray]
     vehicle_masks: list[np.ndarray]
+    paint_contrast: list[np.ndarray] | None = None
 
     def key_from_hist(self, key: int, hist: int) -> np.ndarray:
         """Exact ground-plane homography from frame ``hist`` pixels to frame ``key`` pixels (0-based), (3, 3)."""
@@ -341,12 +355,15 @@ def _sky(cfg: SynthConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.nda
     return np.clip(sky, 0, 255).astype(np.uint8), ridge
 
 
-def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
+def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast: bool = False) -> SynthClip:
     """Render one clip.
 
     Args:
         cfg: generator settings.
         rng: random generator; the clip is a deterministic function of its state.
+        paint_contrast: also render every frame without the lane paint (from a copy of ``rng``, so the frames
+            are the same with or without it) and keep the difference, ``SynthClip.paint_contrast``: where the
+            paint is visible (`stamlane.synth.visibility`). About doubles the rendering time.
 
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
@@ -367,7 +384,9 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
     )
     poses, track = _ego_poses(cfg, rng, road, ego_lane)
     n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
-    texture = render_texture(road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth)
+    # the unpainted texture is a by-product of the same draws: the painted one is what it always was
+    textures = render_texture(road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth, unpainted=paint_contrast)
+    texture, bare = textures if paint_contrast else (textures, None)
     vehicles: list[Vehicle] = []
     if rng.random() < cfg.occluder_prob:
         count = int(rng.integers(cfg.vehicles[0], cfg.vehicles[1] + 1))
@@ -388,20 +407,22 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
     sky, ridge = _sky(cfg, rng)
     haze = tuple(float(c) for c in sky[-1, 0])
     grain = GrainLayer(rng, cfg.grain) if cfg.grain > 0 else None
-    renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=7 if cfg.prefilter else 1)
+    levels = 7 if cfg.prefilter else 1
+    renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=levels)
     h_samples = cfg.h_samples()
     gains = 1.0 + 0.03 * rng.standard_normal(cfg.num_frames)
     # the factors' effects draw from rng only when used: the clean clips stay what they were
     windscreen = Windscreen.sample(rng, cfg.width, cfg.height) if cfg.windscreen else None
     night_light = NightLight.sample(rng) if cfg.night else None
+    bare_rng = copy.deepcopy(rng) if paint_contrast else None  # the unpainted frames draw what the painted ones do
 
-    frames, labels, occluded, homs, masks = [], [], [], [], []
-    for i, pose in enumerate(poses):
-        t = float(track[i, 0])
+    def render_frame(i: int, ground: GroundRenderer, frame_rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Frame ``i`` (BGR uint8) of the ground ``ground`` with everything above it, and its occluder mask."""
+        pose, t = poses[i], float(track[i, 0])
         img_from_ground = camera.image_from_ground(pose)
         horizon = camera.horizon_row(pose)
         sky_rows = int(np.clip(np.ceil(horizon + 1), 0, cfg.height))
-        frame = renderer.render(img_from_ground, (cfg.height, cfg.width), sky_rows, haze)
+        frame = ground.render(img_from_ground, (cfg.height, cfg.width), sky_rows, haze)
         frame[:sky_rows] = sky[:sky_rows]
         _haze(frame, sky_rows, haze)
         _draw_ridge(frame, ridge, horizon, pose, camera)
@@ -418,12 +439,17 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
         mask = np.zeros((cfg.height, cfg.width), np.uint8)
         draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
         if night_light is not None:
-            frame = night(frame, rng, night_light, horizon)
-        if cfg.glare_prob > 0 and rng.random() < cfg.glare_prob:
-            frame = glare(frame, rng, horizon)
+            frame = night(frame, frame_rng, night_light, horizon)
+        if cfg.glare_prob > 0 and frame_rng.random() < cfg.glare_prob:
+            frame = glare(frame, frame_rng, horizon)
         if windscreen is not None:
             mask |= windscreen.apply(frame, i)
-        frame = cv2.convertScaleAbs(frame, alpha=float(gains[i]))
+        return cv2.convertScaleAbs(frame, alpha=float(gains[i])), mask
+
+    frames, labels, occluded, homs, masks = [], [], [], [], []
+    for i, pose in enumerate(poses):
+        img_from_ground = camera.image_from_ground(pose)
+        frame, mask = render_frame(i, renderer, rng)
         lanes = _lane_labels(cfg, camera, road, pose, img_from_ground, h_samples)
         occ = [[bool(x >= 0 and mask[y, x] > 0) for x, y in zip(lane, h_samples)] for lane in lanes]
         frames.append(frame)
@@ -431,7 +457,15 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator) -> SynthClip:
         occluded.append(occ)
         homs.append(img_from_ground)
         masks.append(mask)
-    return SynthClip(frames, labels, occluded, h_samples, homs, masks)
+    contrast = None
+    if bare is not None and bare_rng is not None:
+        bare_renderer = GroundRenderer(bare, road.texture_from_ground(), grain, levels=levels)
+        contrast = []
+        for i, frame in enumerate(frames):
+            unpainted, _ = render_frame(i, bare_renderer, bare_rng)
+            diff = np.abs(frame.astype(np.int16) - unpainted.astype(np.int16)).mean(axis=2)
+            contrast.append(np.round(diff).astype(np.uint8))
+    return SynthClip(frames, labels, occluded, h_samples, homs, masks, contrast)
 
 
 def _haze(frame: np.ndarray, first_row: int, colour: tuple[float, ...]) -> None:
@@ -554,22 +588,71 @@ def clip_statistics(clip: SynthClip, num_frames: int = 4, stride: int = 1) -> di
 
 
 def challenging_factor(index: int) -> str:
-    """The factor (`FACTORS`) of clip ``index`` of the challenging split."""
+    """The factor (`FACTORS`) of clip ``index`` of the challenging split (and of the ``index``-th factor clip of the
+    train and val splits)."""
     return list(FACTORS)[index % len(FACTORS)]
+
+
+def key_frame_visibility(clip: SynthClip, key: int, reach: int = FIRST_KEY) -> list[list[int]]:
+    """`stamlane.synth.visibility.paint_visibility` of key frame ``key`` (0-based) of a clip rendered with
+    ``paint_contrast``, over the key frame and up to ``reach`` frames before it."""
+    if clip.paint_contrast is None:
+        raise ValueError("the clip was rendered without paint_contrast")
+    back = range(min(reach, key) + 1)
+    return paint_visibility(
+        clip.labels[key],
+        clip.h_samples,
+        [clip.paint_contrast[key - j] for j in back],
+        [clip.key_from_hist(key, key - j) for j in back],
+    )
 
 
 def _json_lines(records: list[dict]) -> str:
     return "".join(json.dumps(r) + "\n" for r in records)
 
 
-def _make_clip(job: tuple[Path, str, SynthConfig, int, int, int, int]) -> tuple[list[dict], dict[str, float]]:
-    """Render and write clip ``index`` of split ``split`` (a worker of `generate_dataset`): its key-frame
-    records and `clip_statistics`."""
-    root, split, cfg, seed, code, index, key_step = job
+@dataclass(frozen=True)
+class _ClipJob:
+    """What a worker of `generate_dataset` renders: clip ``index`` of ``split`` with ``config``."""
+
+    root: Path
+    split: str
+    config: SynthConfig
+    seed: int
+    code: int
+    index: int
+    key_step: int
+    visibility: bool
+
+
+def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]:
+    """Render and write one clip (a worker of `generate_dataset`): its key-frame records, `clip_statistics` and,
+    when asked, the visibility records of its key frames (`key_frame_visibility`)."""
     cv2.setNumThreads(1)  # the pool already runs one clip per core
-    clip = generate_clip(cfg, np.random.default_rng([seed, code, index]))
-    records = write_clip(clip, root, f"{split}-{index:04d}", cfg.jpeg_quality, key_step)
-    return records, clip_statistics(clip)
+    clip = generate_clip(
+        job.config, np.random.default_rng([job.seed, job.code, job.index]), paint_contrast=job.visibility
+    )
+    records = write_clip(clip, job.root, f"{job.split}-{job.index:04d}", job.config.jpeg_quality, job.key_step)
+    visibility = []
+    if job.visibility:
+        keys = key_frames(len(clip.frames), job.key_step)
+        visibility = [
+            {"raw_file": r["raw_file"], "visibility": key_frame_visibility(clip, k)} for r, k in zip(records, keys)
+        ]
+    return records, clip_statistics(clip), visibility
+
+
+def _visibility_shares(records: list[dict], num_frames: int = 4) -> dict[str, float]:
+    """The share of labelled key-frame points in each visibility class for ``num_frames`` frames at stride 1."""
+    counts = dict.fromkeys(VISIBILITY_CLASSES, 0)
+    for record in records:
+        for lane in record["visibility"]:
+            for mask in lane:
+                cls = visibility_class(mask, num_frames)
+                if cls is not None:
+                    counts[cls] += 1
+    total = max(sum(counts.values()), 1)
+    return {f"{cls}_fraction": n / total for cls, n in counts.items()}
 
 
 def generate_dataset(
@@ -579,12 +662,15 @@ def generate_dataset(
     val: int = 10,
     test: int = 10,
     challenging: int = 10,
+    train_factors: int = 0,
+    val_factors: int = 0,
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
     train_key_step: int = TRAIN_KEY_STEP,
     eval_key_step: int = EVAL_KEY_STEP,
     workers: int = 1,
+    visibility: bool = True,
 ) -> dict:
     """Write a synthetic clip set (layout in the module docstring).
 
@@ -593,6 +679,10 @@ def generate_dataset(
         train, val, test: clips per split with the normal settings.
         challenging: clips of the challenging split: clip ``i`` has the factor ``challenging_factor(i)`` on top
             of ``config`` (`FACTORS`); each factor's key frames also go to ``challenging-<factor>.json``.
+        train_factors, val_factors: clips with a challenging factor added to the train and val splits after
+            their clean clips (ids ``train-<train + i>``: factor ``challenging_factor(i)``), so that training has
+            a reason to read the history; they come from their own seeds (their split and index), never the
+            test or challenging clips', and leave the clean clips as they were.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``).
         progress: show a tqdm progress bar.
@@ -601,6 +691,8 @@ def generate_dataset(
         eval_key_step: key frames of the val, test and challenging clips (e.g. 3: frames 8, 11, 14, 17, 20 of
             20-frame clips, five fairly different views of each clip).
         workers: processes rendering clips in parallel (the files do not depend on it).
+        visibility: write ``visibility/<split>.json`` for the val, test and challenging splits: for every
+            labelled key-frame point, where its paint is visible (`key_frame_visibility`).
 
     Returns:
         the content of ``dataset.json``: settings, counts, key frames and statistics per split.
@@ -609,7 +701,8 @@ def generate_dataset(
     cfg = config or SynthConfig()
     factor_cfgs = {name: replace(cfg, **factor.overrides) for name, factor in FACTORS.items()}
     counts = {"train": train, "val": val, "test": test, "challenging": challenging}
-    for name, n in counts.items():
+    extra = {"train": train_factors, "val": val_factors}
+    for name, n in (counts | {f"{k}_factors": v for k, v in extra.items()}).items():
         if n < 0:
             raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
     if workers < 1:
@@ -620,38 +713,47 @@ def generate_dataset(
     stats: dict[str, dict[str, float]] = {}
     clip_factors: dict[str, str] = {}
     by_factor: dict[str, list[dict]] = {name: [] for name in FACTORS}
-    bar = tqdm(total=sum(counts.values()), desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
+    total = sum(counts.values()) + sum(extra.values())
+    bar = tqdm(total=total, desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
     try:
         for code, split in enumerate(SPLITS):
             jobs = []
-            for i in range(counts[split]):
+            for i in range(counts[split] + extra.get(split, 0)):
                 split_cfg = cfg
-                if split == "challenging":
-                    factor = challenging_factor(i)
+                factor_index = i if split == "challenging" else i - counts[split]
+                if factor_index >= 0:
+                    factor = challenging_factor(factor_index)
                     clip_factors[f"{split}-{i:04d}"] = factor
                     split_cfg = factor_cfgs[factor]
-                jobs.append((root, split, split_cfg, seed, code, i, steps[split]))
+                see = visibility and split != "train"
+                jobs.append(_ClipJob(root, split, split_cfg, seed, code, i, steps[split], see))
             records: list[dict] = []
+            seen: list[dict] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-            for i, (clip_records, clip_stats) in enumerate(
+            for i, (clip_records, clip_stats, clip_seen) in enumerate(
                 pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
             ):
                 records += clip_records
+                seen += clip_seen
                 if split == "challenging":
                     by_factor[challenging_factor(i)] += clip_records
                 for k, v in clip_stats.items():
                     totals[k] += v
                 bar.update(1)
             (root / f"{split}.json").write_text(_json_lines(records))
-            n = max(counts[split], 1)
+            n = max(len(jobs), 1)
             stats[split] = {
-                "clips": counts[split],
+                "clips": len(jobs),
                 "key_frames": len(records),
                 "hidden_fraction": totals["hidden"] / max(totals["key_points"], 1),
                 "revealed_fraction_of_hidden": totals["revealed"] / max(totals["hidden"], 1),
                 "unaligned_shift_px": totals["unaligned_shift"] / n,
             }
+            if seen:
+                (root / VISIBILITY_DIR).mkdir(exist_ok=True)
+                (root / VISIBILITY_DIR / f"{split}.json").write_text(_json_lines(seen))
+                stats[split]["paint_visibility_4_frames"] = _visibility_shares(seen)
         for name, records in by_factor.items():
             (root / f"challenging-{name}.json").write_text(_json_lines(records))
     finally:
@@ -665,7 +767,7 @@ def generate_dataset(
         "config": asdict(cfg),
         "factors": {name: asdict(factor) for name, factor in FACTORS.items()},
         "clip_factors": clip_factors,
-        "splits": counts,
+        "splits": counts | {f"{k}_factors": v for k, v in extra.items()},
         "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS},
         "statistics": stats,
     }

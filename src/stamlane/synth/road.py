@@ -164,7 +164,9 @@ def sample_road(
     return Road(kappa, dkappa, lane_width, marks, z_range, ppm), ego_lane
 
 
-def render_texture(road: Road, rng: np.random.Generator, *, shadows: int = 4, shadow_depth: float = 0.5) -> np.ndarray:
+def render_texture(
+    road: Road, rng: np.random.Generator, *, shadows: int = 4, shadow_depth: float = 0.5, unpainted: bool = False
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Render the top-down texture of a road.
 
     Args:
@@ -172,9 +174,13 @@ def render_texture(road: Road, rng: np.random.Generator, *, shadows: int = 4, sh
         rng: random generator (the texture is a deterministic function of its state).
         shadows: number of static shadow blobs (trees, poles, a bridge) to cast.
         shadow_depth: how dark the darkest shadow is, in [0, 1] (1 = black).
+        unpainted: also return the same texture without the lane paint (same asphalt, same shadows, the same
+            draws from ``rng``): rendered beside the painted one, it shows where the paint is visible
+            (`stamlane.synth.visibility`).
 
     Returns:
-        BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``.
+        BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``;
+        with ``unpainted``, the pair ``(texture, texture without paint)``.
     """
     h, w = road.texture_size()
     tex_from_ground = road.texture_from_ground()
@@ -259,6 +265,7 @@ def render_texture(road: Road, rng: np.random.Generator, *, shadows: int = 4, sh
         rng.random((max(h // 6, 2), max(w // 6, 2))).astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR
     )
     alpha = cv2.multiply(alpha, np.clip(0.55 + scuff, 0.0, 1.0), scale=0.92)
+    bare = planes
     planes = [cv2.add(cv2.multiply(pl, 1.0 - alpha), cv2.multiply(alpha, col)) for pl, col in zip(planes, colour)]
 
     # --- static shadows ------------------------------------------------------------------------------
@@ -284,5 +291,9 @@ def render_texture(road: Road, rng: np.random.Generator, *, shadows: int = 4, sh
         shade = cv2.GaussianBlur(np.minimum(shade, 1.0), (k, k), 0)
         light = 1.0 - shadow_depth * shade
         planes = [cv2.multiply(pl, light) for pl in planes]
+        bare = [cv2.multiply(pl, light) for pl in bare]
 
-    return cv2.merge([np.clip(pl, 0, 255).astype(np.uint8) for pl in planes])
+    texture = cv2.merge([np.clip(pl, 0, 255).astype(np.uint8) for pl in planes])
+    if not unpainted:
+        return texture
+    return texture, cv2.merge([np.clip(pl, 0, 255).astype(np.uint8) for pl in bare])
