@@ -115,6 +115,11 @@ class StamLaneModule(LightningModule):
             (``--ckpt_path``) keeps its own weights, and loading or testing the result never needs the file.
             The encoder and decoder must fit exactly; a fusion module other than the checkpoint's (another
             aggregator) keeps its own initialisation, which is printed.
+        fusion_lr_scale: the fusion modules' learning rate as a multiple of the optimizer's (their own parameter
+            group; the schedule scales both alike). A fusion that starts from scratch on a pretrained encoder
+            and decoder may need a larger one to catch up (docs/training.md).
+        skip_fusion: factory of a second fusion module over the second-deepest encoder stage (stride 8), whose
+            output replaces the key frame's skip there (`stamlane.models.LaneNet`); None: the deepest stage only.
     """
 
     def __init__(
@@ -133,6 +138,8 @@ class StamLaneModule(LightningModule):
         channels_last: bool = False,
         report_run_time: bool = True,
         init_weights: str | None = None,
+        fusion_lr_scale: float = 1.0,
+        skip_fusion: Callable[[int], nn.Module] | None = None,
     ) -> None:
         super().__init__()
         with warnings.catch_warnings():  # "Attribute 'encoder' is an instance of nn.Module": dropped just below
@@ -143,7 +150,7 @@ class StamLaneModule(LightningModule):
         drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
         if num_frames is not None and num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")
-        self.net = LaneNet(encoder, fusion, decoder)
+        self.net = LaneNet(encoder, fusion, decoder, skip_fusion)
         self.loss = loss if loss is not None else LaneLoss()
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
@@ -154,6 +161,9 @@ class StamLaneModule(LightningModule):
         self.channels_last = channels_last
         self.report_run_time = report_run_time
         self.init_weights = init_weights
+        if not fusion_lr_scale > 0:
+            raise ValueError(f"fusion_lr_scale must be > 0, got {fusion_lr_scale}")
+        self.fusion_lr_scale = float(fusion_lr_scale)
         if image_size is not None:
             stride = int(getattr(encoder, "total_stride", 1))
             height, width = image_size
@@ -175,18 +185,21 @@ class StamLaneModule(LightningModule):
             except CheckpointError as err:
                 raise ValueError(f"init_weights: {err}") from None
             own = self.state_dict()
-            fusion = "net.fusion."
+            for fusion in ("net.fusion.", "net.skip_fusion."):
 
-            def shapes(weights: dict[str, Tensor]) -> dict[str, tuple[int, ...]]:
-                return {k: tuple(v.shape) for k, v in weights.items() if k.startswith(fusion)}
+                def shapes(weights: dict[str, Tensor], prefix: str = fusion) -> dict[str, tuple[int, ...]]:
+                    return {k: tuple(v.shape) for k, v in weights.items() if k.startswith(prefix)}
 
-            if shapes(state) != shapes(own):  # another fusion (a row of the paper's tables): it starts afresh
+                if shapes(state) == shapes(own):
+                    continue
+                # another fusion (a row of the paper's tables, or one the checkpoint lacks): it starts afresh
                 state = {k: v for k, v in state.items() if not k.startswith(fusion)}
                 state |= {k: v for k, v in own.items() if k.startswith(fusion)}
+                name = fusion[len("net.") : -1]
                 rank_zero_info(
-                    f"init_weights: encoder and decoder from {self.init_weights}; the fusion module "
-                    f"({type(self.net.fusion).__name__}) differs from the checkpoint's and starts from its own "
-                    f"initialisation"
+                    f"init_weights: encoder and decoder from {self.init_weights}; the {name} module "
+                    f"({type(getattr(self.net, name)).__name__}) differs from the checkpoint's and starts from its "
+                    f"own initialisation"
                 )
             try:
                 self.load_state_dict(state)
@@ -305,7 +318,14 @@ class StamLaneModule(LightningModule):
 
     # ------------------------------------------------------------------ optimisation
     def configure_optimizers(self) -> Any:
-        optimizer = self.optimizer_factory(self.parameters())
+        fusion = [*self.net.fusion.parameters(), *(self.net.skip_fusion.parameters() if self.net.skip_fusion else ())]
+        if self.fusion_lr_scale == 1.0 or not fusion:
+            optimizer = self.optimizer_factory(self.parameters())
+        else:
+            owned = {id(p) for p in fusion}
+            others = [p for p in self.parameters() if id(p) not in owned]
+            optimizer = self.optimizer_factory([{"params": others}, {"params": fusion}])
+            optimizer.param_groups[1]["lr"] *= self.fusion_lr_scale  # before the schedule reads its base rates
         if self.scheduler_factory is None:
             return optimizer
         total = self.trainer.estimated_stepping_batches

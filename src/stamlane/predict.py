@@ -43,6 +43,7 @@ class LanePredictionWriter(BasePredictionWriter):
             ``"tusimple"`` (frames without ``h_samples`` are an error) or ``"culane"`` (always text).
         overlays: write overlay pictures.
         max_overlays: write at most this many overlays (``None``: all).
+        verbose: print what was written when prediction ends (the experiment engine turns it off).
     """
 
     def __init__(
@@ -51,8 +52,10 @@ class LanePredictionWriter(BasePredictionWriter):
         format: str = "auto",
         overlays: bool = True,
         max_overlays: int | None = None,
+        verbose: bool = True,
     ) -> None:
         super().__init__(write_interval="batch")
+        self.verbose = verbose
         if format not in _FORMATS:
             raise ValueError(f"format must be one of {_FORMATS}, got {format!r}")
         if max_overlays is not None and max_overlays < 0:
@@ -117,6 +120,6 @@ class LanePredictionWriter(BasePredictionWriter):
         if self._json is not None:
             self._json.close()
             self._json = None
-        if trainer.is_global_zero:
+        if trainer.is_global_zero and self.verbose:
             parts = [f"{n} {k}" for k, n in self.written.items() if n]
             print(f"stamlane predict: wrote {', '.join(parts) or 'nothing'} under {self.output_dir}")

@@ -682,7 +682,8 @@ def generate_dataset(
         train_factors, val_factors: clips with a challenging factor added to the train and val splits after
             their clean clips (ids ``train-<train + i>``: factor ``challenging_factor(i)``), so that training has
             a reason to read the history; they come from their own seeds (their split and index), never the
-            test or challenging clips', and leave the clean clips as they were.
+            test or challenging clips', and leave the clean clips as they were. With them, ``train-clean.json``
+            / ``val-clean.json`` list the clean clips' key frames alone.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``).
         progress: show a tqdm progress bar.
@@ -742,6 +743,9 @@ def generate_dataset(
                     totals[k] += v
                 bar.update(1)
             (root / f"{split}.json").write_text(_json_lines(records))
+            if extra.get(split):  # the clean clips alone too: the set as it was before factor clips
+                clean = [r for r in records if r["raw_file"].split("/")[1] not in clip_factors]
+                (root / f"{split}-clean.json").write_text(_json_lines(clean))
             n = max(len(jobs), 1)
             stats[split] = {
                 "clips": len(jobs),
