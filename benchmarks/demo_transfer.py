@@ -80,7 +80,8 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
 
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
-    from stamlane.checkpoints import load_module, read_checkpoint
+    from stamlane.checkpoints import read_checkpoint
+    from stamlane.module import StamLaneModule
     from stamlane.overlay import draw_lanes
     from stamlane.stream import StreamingPredictor
 
@@ -88,7 +89,7 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     predictors = []
     for name, runs in _runs(demo).items():
         ckpt = runs[0] / "checkpoints" / "last.ckpt"
-        module = load_module(ckpt)
+        module = StamLaneModule.from_checkpoint(ckpt)
         data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
         crop_top = module.hparams.get("crop_top") or data.get("crop_top") or 0.0  # older runs: the data's
         predictor = StreamingPredictor.from_module(module, crop_top=float(crop_top))

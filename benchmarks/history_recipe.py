@@ -57,14 +57,27 @@ CLEAN = ("--data.train_labels=[train-clean.json]",)
 FACTORS = ()  # train.json: the clean clips and as many factor clips
 CORRUPT = ("--data.key_corruption=0.5",)
 VAL = ("--data.val_labels=[val.json]",)
+TRUE = ("--data.align=true",)  # the generator's exact homographies: alignment taken out of the question
+STRIDE8 = (
+    "--model.skip_fusion=stamlane.models.STAM",
+    "--model.skip_fusion.init_args.reduction=4",
+    "--model.skip_fusion.init_args.history=features",
+)
 
 
-def _two_stage(name: str, description: str, data: tuple[str, ...], steps2: int = 300, extra: tuple = ()) -> Variant:
+def _two_stage(
+    name: str,
+    description: str,
+    data: tuple[str, ...],
+    steps2: int = 300,
+    extra: tuple = (),
+    stage1_data: tuple[str, ...] | None = None,
+) -> Variant:
     return Variant(
         name,
         description,
         Stage("demo.yaml", steps2, (*data, *VAL, *extra)),
-        Stage("demo_single.yaml", 1200, (*data, *VAL)),
+        Stage("demo_single.yaml", 1200, (*(data if stage1_data is None else stage1_data), *VAL)),
     )
 
 
@@ -86,22 +99,42 @@ VARIANTS = {
             "factors_corrupt_stride8",
             "factor clips and corruption, the stride-8 stage fused too (skip_fusion)",
             FACTORS + CORRUPT,
-            extra=(
-                "--model.skip_fusion=stamlane.models.STAM",
-                "--model.skip_fusion.init_args.reduction=4",
-                "--model.skip_fusion.init_args.history=features",
-            ),
+            extra=STRIDE8,
         ),
         _two_stage(
-            "factors_corrupt_stride8_long",
-            "the same with a stage 2 of 900 steps",
+            "factors_corrupt_stride8_long", "the same with a stage 2 of 900 steps", FACTORS + CORRUPT, 900, STRIDE8
+        ),
+        _two_stage(
+            "factors_corrupt2_stride8",
+            "the key frame corrupted in stage 2 only (stage 1: factor clips, no corruption), stride-8 fusion",
             FACTORS + CORRUPT,
-            steps2=900,
-            extra=(
-                "--model.skip_fusion=stamlane.models.STAM",
-                "--model.skip_fusion.init_args.reduction=4",
-                "--model.skip_fusion.init_args.history=features",
-            ),
+            extra=STRIDE8,
+            stage1_data=FACTORS,
+        ),
+        _two_stage(
+            "factors_blank2_stride8",
+            "stage 2 only: the near road of the key frame blanked or the frame overexposed in half the clips",
+            (*FACTORS, *CORRUPT, "--data.key_corruption_kinds=[blank, glare]"),
+            extra=STRIDE8,
+            stage1_data=FACTORS,
+        ),
+        _two_stage(
+            "factors_corrupt25_stride8",
+            "the key frame corrupted in a quarter of the clips (both stages), stride-8 fusion",
+            (*FACTORS, "--data.key_corruption=0.25"),
+            extra=STRIDE8,
+        ),
+        _two_stage(
+            "factors_corrupt_true",
+            "factor clips and corruption, exact alignment (the generator's homographies) in training and validation",
+            FACTORS + CORRUPT,
+            extra=TRUE,
+        ),
+        _two_stage(
+            "factors_corrupt_stride8_true",
+            "the same with the stride-8 stage fused too",
+            FACTORS + CORRUPT,
+            extra=(*TRUE, *STRIDE8),
         ),
         Variant(
             "end_to_end",

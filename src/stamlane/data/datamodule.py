@@ -15,7 +15,7 @@ from torch.utils.data import DataLoader
 from stamlane.data.alignment import WARP_MODES
 from stamlane.data.clips import HISTORY_SOURCES, ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.collate import collate_clips
-from stamlane.data.corruption import KeyFrameCorruption
+from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform
@@ -82,6 +82,7 @@ class ClipDataModule(LightningDataModule):
             history (docs/training.md).
         key_corruption: chance that a training sample's key frame alone is corrupted, history intact
             (`stamlane.data.corruption.KeyFrameCorruption`: dropped regions, glare, occluders); 0 = never.
+        key_corruption_kinds: the kinds drawn from (`stamlane.data.corruption.CORRUPTIONS`).
         synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
         synth_train_factors, synth_val_factors: clips with a challenging factor added to the train and val splits
             of a generated set (`stamlane.synth.generate_dataset`'s ``train_factors`` / ``val_factors``).
@@ -122,6 +123,7 @@ class ClipDataModule(LightningDataModule):
         align_strategy: str = "chain",
         history_source: str = "real",
         key_corruption: float = 0.0,
+        key_corruption_kinds: tuple[str, ...] = DEFAULT_KINDS,
         synth_train: int = 120,
         synth_val: int = 20,
         synth_test: int = 100,
@@ -146,7 +148,8 @@ class ClipDataModule(LightningDataModule):
             raise ValueError(f"align_strategy must be 'chain' or 'direct', got {align_strategy!r}")
         if history_source not in HISTORY_SOURCES:
             raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
-        self.key_corruption = KeyFrameCorruption(key_corruption) if key_corruption > 0 else None
+        corrupt = KeyFrameCorruption(key_corruption, tuple(key_corruption_kinds))  # checked even when unused
+        self.key_corruption = corrupt if key_corruption > 0 else None
         self.save_hyperparameters()
         self.synthetic = root is None
         self.root = Path(root if root is not None else DEFAULT_SYNTHETIC_ROOT)

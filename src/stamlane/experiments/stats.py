@@ -36,8 +36,8 @@ class View:
 
 
 def views(root: Path, clips: dict[str, list[str]]) -> list[View]:
-    """Every split whole, then each factor of the challenging split (``dataset.json``'s ``clip_factors``; none for
-    a set without them).
+    """Every split whole, then each factor of each split (``dataset.json``'s ``clip_factors``: the challenging
+    split's, and the factor clips of a format-5 val split; none for a set without them).
 
     Args:
         root: the data root.
@@ -46,10 +46,11 @@ def views(root: Path, clips: dict[str, list[str]]) -> list[View]:
     found = [View(split, split, np.arange(len(c))) for split, c in clips.items()]
     info = root / "dataset.json"
     clip_factors = json.loads(info.read_text()).get("clip_factors", {}) if info.is_file() else {}
-    of_row = [clip_factors.get(clip.rsplit("/", 1)[-1]) for clip in clips.get("challenging", [])]
-    for factor in dict.fromkeys(f for f in of_row if f is not None):
-        rows = np.array([i for i, f in enumerate(of_row) if f == factor])
-        found.append(View(f"challenging:{factor}", "challenging", rows))
+    for split, split_clips in clips.items():
+        of_row = [clip_factors.get(clip.rsplit("/", 1)[-1]) for clip in split_clips]
+        for factor in dict.fromkeys(f for f in of_row if f is not None):
+            rows = np.array([i for i, f in enumerate(of_row) if f == factor])
+            found.append(View(f"{split}:{factor}", split, rows))
     return found
 
 
