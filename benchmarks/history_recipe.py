@@ -58,11 +58,7 @@ FACTORS = ()  # train.json: the clean clips and as many factor clips
 CORRUPT = ("--data.key_corruption=0.5",)
 VAL = ("--data.val_labels=[val.json]",)
 TRUE = ("--data.align=true",)  # the generator's exact homographies: alignment taken out of the question
-STRIDE8 = (
-    "--model.skip_fusion=stamlane.models.STAM",
-    "--model.skip_fusion.init_args.reduction=4",
-    "--model.skip_fusion.init_args.history=features",
-)
+STRIDE8 = ("--model.fuse_skip=true",)  # measured as --model.skip_fusion=STAM (reduction 4, features): the same network
 
 
 def _two_stage(
@@ -116,6 +112,12 @@ VARIANTS = {
             "stage 2 only: the near road of the key frame blanked or the frame overexposed in half the clips",
             (*FACTORS, *CORRUPT, "--data.key_corruption_kinds=[blank, glare]"),
             extra=STRIDE8,
+            stage1_data=FACTORS,
+        ),
+        _two_stage(
+            "factors_blank2",
+            "the same without the stride-8 fusion",
+            (*FACTORS, *CORRUPT, "--data.key_corruption_kinds=[blank, glare]"),
             stage1_data=FACTORS,
         ),
         _two_stage(

@@ -69,7 +69,10 @@ def test_two_row_table_end_to_end_resume_and_lock(
     argv += ["--steps", "2", "--bf16", "false", "--out", str(out), "--", *SHRINK]
     assert ablate.main(argv) == 0
     summary = Summary.read(out / "summary.json")
-    assert summary.recipe == {"name": "paper", "pretrain_steps": 0, "steps": 2} and summary.seeds == [0, 1]
+    assert summary.recipe == {"name": "paper", "pretrain_steps": 0, "steps": 2, "row_args": []} and summary.seeds == [
+        0,
+        1,
+    ]
     assert {m.name: m.frames for m in summary.models} == {"f1_keyonly": 1, "f2_mixed_cs_features": 2}
     assert not (out / "pretrain-s0").exists()  # one stage: every row from scratch
     # the row's settings reached the model; the shrink arguments (given after the base) did not override them

@@ -15,7 +15,7 @@ from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
 from stamlane.demo import pairs
-from stamlane.experiments.engine import Row
+from stamlane.experiments.engine import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
 from stamlane.experiments.summary import Summary
 from stamlane.synth.generator import FACTORS
@@ -37,11 +37,15 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     summary = Summary.read(quick / "summary.json")
     assert [m.name for m in summary.models] == ["stam4", "single"]  # --quick leaves the no-alignment model out
     assert [m.frames for m in summary.models] == [4, 1] and summary.seeds == [0]
-    assert summary.recipe == {"name": "cpu", "pretrain_steps": 3, "steps": 2}
+    assert summary.recipe == {"name": "cpu", "pretrain_steps": 3, "steps": 2, "row_args": list(KEY_CORRUPTION)}
     assert set(summary.splits_sha256) == {"test", "challenging"} and summary.iou_width == 5  # 30 px at 256 of 1640
     # stage 2 starts from the final weights of stage 1
     ckpt = quick / "pretrain-s0" / "run" / "checkpoints" / "last.ckpt"
     assert f"init_weights: {ckpt}" in (quick / "stam4-s0" / "run" / "config.yaml").read_text()
+    # the recipe corrupts the key frames of stage 2 only, the single frame's as the others'
+    assert "key_corruption: 0.0" in (quick / "pretrain-s0" / "run" / "config.yaml").read_text()
+    for name in ("stam4", "single"):
+        assert "key_corruption: 0.5" in (quick / f"{name}-s0" / "run" / "config.yaml").read_text()
     for model in summary.models:
         (run,) = model.runs
         assert Path(run.last_ckpt).is_file()

@@ -120,8 +120,8 @@ class StamLaneModule(LightningModule):
         fusion_lr_scale: the fusion modules' learning rate as a multiple of the optimizer's (their own parameter
             group; the schedule scales both alike). A fusion that starts from scratch on a pretrained encoder
             and decoder may need a larger one to catch up (docs/training.md).
-        skip_fusion: factory of a second fusion module over the second-deepest encoder stage (stride 8), whose
-            output replaces the key frame's skip there (`stamlane.models.LaneNet`); None: the deepest stage only.
+        fuse_skip: fuse the second-deepest encoder stage (stride 8) over time too, with a second module of the
+            fusion's kind whose output replaces the key frame's skip there (`stamlane.models.LaneNet`).
     """
 
     def __init__(
@@ -141,7 +141,7 @@ class StamLaneModule(LightningModule):
         report_run_time: bool = True,
         init_weights: str | None = None,
         fusion_lr_scale: float = 1.0,
-        skip_fusion: Callable[[int], nn.Module] | None = None,
+        fuse_skip: bool = False,
     ) -> None:
         super().__init__()
         with warnings.catch_warnings():  # "Attribute 'encoder' is an instance of nn.Module": dropped just below
@@ -152,7 +152,7 @@ class StamLaneModule(LightningModule):
         drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
         if num_frames is not None and num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")
-        self.net = LaneNet(encoder, fusion, decoder, skip_fusion)
+        self.net = LaneNet(encoder, fusion, decoder, fuse_skip)
         self.loss = loss if loss is not None else LaneLoss()
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler

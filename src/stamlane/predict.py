@@ -23,9 +23,10 @@ import cv2
 import lightning.pytorch as pl
 import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
+from stamlane_eval.io import culane_lines_path
 
 from stamlane.overlay import draw_lanes
-from stamlane.writers import TusimpleWriter, culane_lines_path, write_culane_lines
+from stamlane.writers import TusimpleWriter, write_culane_lines
 
 __all__ = ["LanePredictionWriter"]
 

@@ -13,7 +13,7 @@ from lightning import LightningDataModule
 from torch.utils.data import DataLoader
 
 from stamlane.data.alignment import WARP_MODES
-from stamlane.data.clips import HISTORY_SOURCES, ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.clips import FORMATS, HISTORY_SOURCES, ClipDataset, make_clips
 from stamlane.data.collate import collate_clips
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
@@ -29,8 +29,6 @@ from stamlane.synth.generator import (
 )
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
-
-FORMATS = ("tusimple", "culane", "apollo", "vil100")
 
 SYNTH_TRAIN_FACTORS = 120
 """Factor clips (15 per factor) beside the 120 clean train clips of the default synthetic set (docs/training.md:
@@ -256,14 +254,8 @@ class ClipDataModule(LightningDataModule):
             "history_source": "real" if split == "train" else hp.history_source,
             "key_corruption": self.key_corruption if split == "train" else None,
         }
-        files = self.split_labels(split)
-        if self.format == "tusimple":
-            return TuSimpleClips(self.root, files, **common)
-        if self.format == "culane":
-            return CULaneClips(self.root, files, **common)
-        if self.format == "apollo":
-            return ApolloClips(self.root, files, label_dir=hp.label_dir, **common)
-        return VIL100Clips(self.root, files, **common)
+        label_dir = hp.label_dir if self.format == "apollo" else None
+        return make_clips(self.format, self.root, self.split_labels(split), label_dir, **common)
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {

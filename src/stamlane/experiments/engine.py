@@ -90,27 +90,38 @@ class Recipe:
         pretrain_steps: steps of stage 1, the single-frame network from scratch whose final weights start every
             row (0: one stage, every row from scratch).
         pretrain: the stage-1 model.
-        val_checks: validations per run (for the curves; stage 2 validates twice as often as it is long).
+        row_args: ``stamlane fit`` arguments of every row's training (not of stage 1), after its configs.
+        val_checks: validations per run (for the curves; stage 2 validates half as often as stage 1).
     """
 
     name: str
     steps: int
     pretrain_steps: int = 0
     pretrain: Row | None = None
+    row_args: tuple[str, ...] = ()
     val_checks: int = 4
 
     def settings(self) -> dict[str, Any]:
-        return {"recipe": self.name, "pretrain_steps": self.pretrain_steps, "steps": self.steps}
+        return {
+            "recipe": self.name,
+            "pretrain_steps": self.pretrain_steps,
+            "steps": self.steps,
+            "row_args": list(self.row_args),
+        }
 
 
 PRETRAIN = Row("pretrain", "1 frame, stage 1 (every model starts here)", ("demo_single.yaml",))
+KEY_CORRUPTION = ("--data.key_corruption=0.5", "--data.key_corruption_kinds=[blank, glare]")
+"""Stage 2 of the CPU recipe: half the training clips have their key frame's near road blanked or the frame
+overexposed, history intact (`stamlane.data.corruption`): the reason to read the history (docs/training.md)."""
 RECIPES = {
-    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN),
+    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_args=KEY_CORRUPTION),
     "paper": Recipe("paper", steps=1500),
 }
 """The named recipes (docs/training.md): ``cpu``, the demo's two stages (1,200 single-frame steps from scratch,
-then each row for 300 steps from those weights: every model gets 1,500 steps on the same data); ``paper``, every
-row from scratch for 1,500 steps (the paper's protocol at a CPU budget). Steps can be changed per call."""
+then each row for 300 steps from those weights with the key frame corrupted in half the clips: every model gets
+1,500 steps on the same data); ``paper``, every row from scratch for 1,500 steps (the paper's protocol at a CPU
+budget). Steps can be changed per call."""
 
 
 def _cli(args: list[str]) -> Any:
@@ -204,11 +215,13 @@ class Experiment:
         val_every = max(1, steps // max(checks, 1))
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
+        row_args = self.recipe.row_args if row is not self.recipe.pretrain else ()
         cli = _cli(
             [
                 "fit",
                 *([f"--ckpt_path={last}"] if last.is_file() else []),
                 *self._common(row),
+                *row_args,
                 *([f"--model.init_weights={init}"] if init else []),
                 f"--seed_everything={seed}",
                 f"--trainer.max_steps={steps}",
@@ -392,7 +405,12 @@ class Experiment:
             data=str(self.root),
             splits_sha256={split: _sha256(self.root / f"{split}.json") for split in self.splits},
             seeds=list(self.seeds),
-            recipe={"name": self.recipe.name, "pretrain_steps": self.recipe.pretrain_steps, "steps": self.recipe.steps},
+            recipe={
+                "name": self.recipe.name,
+                "pretrain_steps": self.recipe.pretrain_steps,
+                "steps": self.recipe.steps,
+                "row_args": list(self.recipe.row_args),
+            },
             bf16=self.bf16,
             iou_width=iou_width(image_size(self.root)),
             models=models,

@@ -25,11 +25,11 @@ class LaneNet(nn.Module):
             Either way the result maps (B, T, C, h, w) -> (B, C, h, w).
         decoder: a factory called as ``decoder(encoder.out_channels)`` (e.g. `LaneDecoder`) or a built module;
             ``decoder(fused, key_skips) -> (logits, embedding)``.
-        skip_fusion: optionally a second fusion (factory called with the channels of the second-deepest stage,
-            or a built module) that fuses that stage (stride 8 for `VGGEncoder`) over time too: the decoder's
-            skip at that stride then carries the aligned history as well, at twice the deepest stage's
-            resolution. Needs pre-aligned images (``LaneNet.forward``); feature-space alignment and the streaming
-            predictor fuse the deepest stage only and refuse such a network.
+        fuse_skip: fuse the second-deepest stage (stride 8 for `VGGEncoder`) over time too, with a second fusion
+            module of the same kind (``fusion`` called with that stage's channels; ``fusion`` must then be a
+            factory): the decoder's skip at that stride carries the aligned history as well, at twice the
+            deepest stage's resolution. Needs pre-aligned images (``LaneNet.forward``); feature-space alignment
+            and the streaming predictor fuse the deepest stage only and refuse such a network.
 
     For speed on CPUs with AMX: ``model.to(memory_format=torch.channels_last)`` (frames are converted to match
     inside `encode`) and ``torch.autocast("cpu", dtype=torch.bfloat16)`` around the forward pass.
@@ -40,7 +40,7 @@ class LaneNet(nn.Module):
         encoder: nn.Module,
         fusion: nn.Module | Callable[[int], nn.Module],
         decoder: nn.Module | Callable[[Sequence[int]], nn.Module],
-        skip_fusion: nn.Module | Callable[[int], nn.Module] | None = None,
+        fuse_skip: bool = False,
     ) -> None:
         super().__init__()
         if not hasattr(encoder, "out_channels"):
@@ -49,11 +49,14 @@ class LaneNet(nn.Module):
         channels = list(encoder.out_channels)
         self.fusion = fusion if isinstance(fusion, nn.Module) else fusion(channels[-1])
         self.decoder = decoder if isinstance(decoder, nn.Module) else decoder(channels)
-        if skip_fusion is not None and len(channels) < 2:
-            raise ValueError(f"skip_fusion needs an encoder of at least 2 stages, got {len(channels)}")
-        self.skip_fusion = (
-            skip_fusion if skip_fusion is None or isinstance(skip_fusion, nn.Module) else skip_fusion(channels[-2])
-        )
+        self.skip_fusion: nn.Module | None = None
+        if fuse_skip:
+            if isinstance(fusion, nn.Module) or len(channels) < 2:
+                raise ValueError(
+                    "fuse_skip needs the fusion as a factory (a class or partial, not a built module) and an encoder "
+                    f"of at least 2 stages, got {type(fusion).__name__} and {len(channels)} stage(s)"
+                )
+            self.skip_fusion = fusion(channels[-2])
 
     def _memory_format(self) -> torch.memory_format:
         """channels_last when the encoder's first conv weight is (and is not also plain contiguous)."""
@@ -93,7 +96,7 @@ class LaneNet(nn.Module):
             key_skips: the key frame's features of the shallower stages, shallow first, (B, C_i, h_i, w_i)
                 (the list `encode` returns for the key frame is accepted as is; its deepest entry is ignored).
             skip_stage_feats: the second-deepest stage of every frame, (B, T, C', 2h, 2w), aligned; required when
-                the network has a ``skip_fusion``, which replaces the key frame's skip at that stage.
+                the network fuses it too (``fuse_skip``): its fusion replaces the key frame's skip at that stage.
 
         Returns:
             ``(logits (B, 2, H, W), embedding (B, E, H, W))`` at input resolution.
@@ -102,7 +105,7 @@ class LaneNet(nn.Module):
         if self.skip_fusion is not None:
             if skip_stage_feats is None:
                 raise ValueError(
-                    "this network fuses the second-deepest stage too (skip_fusion): it needs that stage of every "
+                    "this network fuses the second-deepest stage too (fuse_skip): it needs that stage of every "
                     "frame, pre-aligned images (feature-space alignment and streaming fuse the deepest stage only)"
                 )
             skips = list(key_skips[: len(self.decoder.in_channels) - 1])
