@@ -9,10 +9,14 @@ set of format 5, and validates on its val split (clean and factor clips; never t
 with `stamlane.history_use.HistoryUseMonitor`: the TuSimple F1 with the real history minus with the key frame
 copied into every history slot, at every validation. A stage 1 shared by several variants is trained once.
 
-Writes ``<out>/history_recipe.json`` (per variant: settings, minutes, and per validation step the val F1, the
-key-copied F1, the history use in F1 and in segmentation loss) and ``<out>/history_recipe.png`` (history use and
-val F1 over steps, one line per variant), and prints the last validation of each variant. A finished variant is
-read back, not trained again.
+After training, the final weights are scored on the val split three ways by the experiment engine (real
+history, the key frame copied, another clip's history; `stamlane.experiments.engine.Experiment.predict`), per
+factor: history use and the damage another clip's history does, with clip intervals.
+
+Writes ``<out>/history_recipe.json`` (per variant: settings, minutes, per validation step the val F1, the
+key-copied F1, the history use in F1 and in segmentation loss, and the final probes per view) and
+``<out>/history_recipe.png`` (history use and val F1 over steps, one line per variant), and prints the last
+validation of each variant. A finished variant is read back, not trained again.
 """
 
 from __future__ import annotations
@@ -196,11 +200,46 @@ def _curve(run: Path, offset: int) -> list[dict]:
     return [{"step": step, **values} for step, values in sorted(found.items())]
 
 
+def probe(run: Path, root: Path, out: Path) -> dict:
+    """The final weights of ``run`` on the val split with the real history, the key frame copied and another clip's
+    history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
+    from dataclasses import asdict
+
+    from stamlane.experiments.engine import RECIPES, Experiment
+    from stamlane.experiments.metrics import TUSIMPLE
+    from stamlane.experiments.scoring import read_per_image, score_split
+    from stamlane.experiments.stats import Scores, views
+
+    experiment = Experiment([], RECIPES["cpu"], [], root, out, max_overlays=0)
+    scores = Scores()
+    for source in ("real", "key", "other_clip"):
+        pred = experiment.predict("final", run, "val", source)
+        score_split(pred, root, "val", 4)
+        per_image, clips = read_per_image(pred)
+        scores.add("final" if source == "real" else f"final@{source}", "val", 0, per_image, clips)
+    found = {}
+    for view in views(root, scores.clips):
+        value = scores.value("final", view, TUSIMPLE)
+        found[view.name] = {
+            "f1": value.mean,
+            "f1_ci95": value.ci95,
+            **{
+                f"minus_{source}": asdict(scores.difference("probe", "final", f"final@{source}", view, TUSIMPLE))
+                for source in ("key", "other_clip")
+            },
+        }
+    return found
+
+
 def run_variant(variant: Variant, out: Path, root: Path, seed: int, bf16: str, stage1_runs: dict) -> dict:
     folder = out / variant.name
     done = folder / "result.json"
     if done.is_file():
-        return json.loads(done.read_text())
+        result = json.loads(done.read_text())
+        if "probes" not in result:  # a variant trained before the probes were: probed now, not trained again
+            result["probes"] = probe(folder / "run", root, folder / "probes")
+            done.write_text(json.dumps(result, indent=2))
+        return result
     start = time.perf_counter()
     init, offset = None, 0
     if variant.stage1 is not None:
@@ -224,6 +263,7 @@ def run_variant(variant: Variant, out: Path, root: Path, seed: int, bf16: str, s
         "bf16": bf16,
         "minutes": round((time.perf_counter() - start) / 60, 2),
         "curve": _curve(run, offset),
+        "probes": probe(run, root, folder / "probes"),
     }
     done.write_text(json.dumps(result, indent=2))
     return result

@@ -10,7 +10,6 @@ data pipeline that feeds the key frame twice, a probe that changes nothing).
 
 from __future__ import annotations
 
-import functools
 import json
 from pathlib import Path
 
@@ -18,17 +17,13 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from lightning.pytorch import Trainer, seed_everything
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.data.datamodule import ClipDataModule
 from stamlane.history_use import HistoryUseMonitor
-from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import PolyLR, StamLaneModule
 from stamlane.postprocess import PostprocessConfig
+from tests.overfit import overfit, tiny_data, tiny_module
 
 torch.set_num_threads(1)
-SIZE = (64, 128)
 STEPS = 150
 """The 2-frame network reaches val F1 0.83 with its history and 0.0 with the key frame copied (6.5 s on one core)."""
 
@@ -46,44 +41,9 @@ def blanked(tiny_synthetic) -> Path:
 
 
 def _fit(root: Path, num_frames: int, tmp_path: Path) -> dict[str, float]:
-    seed_everything(0)
-    module = StamLaneModule(
-        VGGEncoder(width=0.125),
-        functools.partial(STAM, reduction=4, history="features"),
-        LaneDecoder,
-        optimizer=functools.partial(torch.optim.AdamW, lr=5e-3, weight_decay=1e-4),
-        scheduler=PolyLR,
-        postprocess=PostprocessConfig(min_cluster_pixels=10, min_samples=10, extend=True, degree=1),
-        num_frames=num_frames,
-        image_size=SIZE,
-        bf16=False,
-        report_run_time=False,
-    )
-    no_augmentation = {"crop_scale": (1.0, 1.0), "flip_prob": 0.0, "brightness": 0.0, "contrast": 0.0}
-    data = ClipDataModule(
-        root=str(root),
-        num_frames=num_frames,
-        image_size=SIZE,
-        align="true",
-        batch_size=2,
-        val_labels=["train.json"],
-        saturation=0.0,
-        **no_augmentation,
-    )
-    trainer = Trainer(
-        max_steps=STEPS,
-        val_check_interval=STEPS,
-        check_val_every_n_epoch=None,
-        num_sanity_val_steps=0,
-        logger=False,
-        enable_checkpointing=False,
-        enable_progress_bar=False,
-        enable_model_summary=False,
-        callbacks=[LaneEvalCallback(tusimple=True, culane=False), HistoryUseMonitor()],
-        default_root_dir=tmp_path,
-    )
-    trainer.fit(module, datamodule=data)
-    return {k: float(v) for k, v in trainer.callback_metrics.items()}
+    module = tiny_module(num_frames, PostprocessConfig(min_cluster_pixels=10, min_samples=10, extend=True, degree=1))
+    callbacks = [LaneEvalCallback(tusimple=True, culane=False), HistoryUseMonitor()]
+    return overfit(module, tiny_data(root, num_frames), STEPS, tmp_path, callbacks)
 
 
 def test_a_model_that_must_read_its_history_does(blanked: Path, tmp_path: Path) -> None:
