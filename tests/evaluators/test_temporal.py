@@ -112,25 +112,23 @@ def test_large_vil100_sized_lanes_match_full_image_drawing() -> None:
             assert temporal._iou_matrix([drawn[i]], [drawn[j]])[0, 0] == want
 
 
-def test_rows_with_two_runs_use_the_mask() -> None:
-    u_turn = np.array([[100, 300], [160, 200], [240, 180], [300, 220], [320, 300]], np.int32)
-    a = _draw(u_turn, SIZE)
-    assert a.mask is not None  # rows crossing both arms hold two runs
-    b = _draw(np.array([[90, 359], [330, 150]], np.int32), SIZE)
-    c = _draw(np.array([[110, 330], [330, 200]], np.int32), SIZE)
-    assert b.mask is None
+def test_intersections_of_crops_equal_full_images() -> None:
+    lanes = [
+        np.array([[100, 300], [160, 200], [240, 180], [300, 220], [320, 300]], np.int32),  # turns back
+        np.array([[90, 359], [330, 150]], np.int32),
+        np.array([[600, 350], [700, 300]], np.int32),  # leaves the image on the right
+        np.array([[-50, 10], [20, -40]], np.int32),  # mostly outside, top left
+    ]
+    drawn = [_draw(p, SIZE) for p in lanes]
 
     def full(d: temporal._Drawn) -> np.ndarray:
         img = np.zeros(SIZE, bool)
-        if d.mask is not None:
-            img[d.y0 : d.y0 + d.mask.shape[0], d.x0 : d.x0 + d.mask.shape[1]] = d.mask
-        else:
-            for r, (lo, hi) in enumerate(zip(d.lo, d.hi, strict=True)):
-                img[d.y0 + r, lo:hi] = True
+        img[d.y0 : d.y0 + d.mask.shape[0], d.x0 : d.x0 + d.mask.shape[1]] = d.mask > 0
         return img
 
-    for p, q in itertools.product([a, b, c], repeat=2):
+    for p, q in itertools.product(drawn, repeat=2):
         assert _inter(p, q) == np.count_nonzero(full(p) & full(q))
+    assert _draw(np.array([[900, 10], [950, 0]], np.int32), SIZE).area == 0  # entirely outside
 
 
 # ------------------------------------------------------------------------------------------------ quirks
@@ -251,3 +249,20 @@ def test_cli_temporal_list_order_and_errors(capsys: pytest.CaptureFixture[str], 
     assert main(base) == 2
     err = capsys.readouterr().err
     assert "clip frame 1" in err and "one place" in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_on_the_golden_set_gives_rvld_numbers(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    sizes = json.loads((GOLDEN / "sizes.json").read_text())
+    per_frame = tmp_path / "sizes.json"
+    per_frame.write_text(json.dumps({e: f"{w}x{h}" for e, (h, w) in sizes.items()}))
+    args = ["video", str(GOLDEN / "pred"), str(GOLDEN / "anno"), "--temporal", "--json"]
+    assert main([*args, "--list", str(GOLDEN / "list.txt"), "--sizes", str(per_frame)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    for t in ("0.5", "0.8"):
+        assert res[t] == EXPECTED["rvld"]["vil100"][t]["totals"]
+    assert main([*args, "--protocol", "openlane-v"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["0.5"] == EXPECTED["rvld"]["openlane-v"]["0.5"]["totals"]
+    per_frame.write_text('{"r_00": "640"}')
+    assert main([*args, "--sizes", str(per_frame)]) == 2
+    assert "'r_00'" in capsys.readouterr().err

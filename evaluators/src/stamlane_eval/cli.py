@@ -7,7 +7,7 @@
     stamlane-eval video PRED_DIR GT_DIR [--list LIST] [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
                         [--json] [--per-sequence FILE]
     stamlane-eval video PRED_DIR GT_DIR --temporal [--protocol vil100|openlane-v] [--list LIST] [--iou 0.5 0.8]
-                        [--size WxH] [--json] [--per-sequence FILE]     (RVLD's Rs / Rj / Rm)
+                        [--size WxH] [--sizes FILE] [--json] [--per-sequence FILE]     (RVLD's Rs / Rj / Rm)
 
 Bad input: one line on stderr naming the file and the problem, exit status 2, no traceback.
 """
@@ -160,6 +160,12 @@ def _build_parser() -> OneLineParser:
     )
     vd.add_argument("--width", type=_lane_width, default=None, help=f"lane line width in pixels ({culane.LANE_WIDTH})")
     vd.add_argument("--size", type=_size, default=None, help="image WxH (default: VIL-100 json info)")
+    vd.add_argument(
+        "--sizes",
+        type=Path,
+        metavar="FILE",
+        help='JSON {"<sequence>": "WxH", "<sequence>/<frame>": "WxH", ...}: sizes that differ between videos',
+    )
     vd.add_argument(
         "--temporal",
         action="store_true",
@@ -345,10 +351,30 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
     return seqs
 
 
+def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
+    """``--sizes FILE``: ``{"<sequence>" or "<sequence>/<frame>": "WxH"}`` as ``(H, W)``."""
+    if path is None:
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise LaneFileError(f"{path}: cannot read a JSON object: {e}") from None
+    if not isinstance(data, dict):
+        raise LaneFileError(f'{path}: expected a JSON object {{sequence: "WxH"}}, got {type(data).__name__}')
+    out = {}
+    for key, text in data.items():
+        try:
+            out[key] = _size(text if isinstance(text, str) else repr(text))
+        except argparse.ArgumentTypeError as e:
+            raise LaneFileError(f"{path}: {key!r}: {e}") from None
+    return out
+
+
 def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[video.Frame]]:
     """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing file: no lanes)."""
     if not args.pred.is_dir():
         raise LaneFileError(f"{args.pred}: not a directory")
+    sizes = _read_sizes(args.sizes)
     kind, layout = video_frames(args.gt)
     if args.list is not None:
         layout = _listed_frames(args.gt, args.list, kind)
@@ -360,9 +386,9 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
                 lanes, ids, size = read_vil100_json(path)
             else:
                 lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
-            size = args.size or size
+            size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
             if size is None and need_size:
-                raise LaneFileError(f"{path}: no image size: give --size WxH")
+                raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
             preds = read_culane_lines(args.pred / seq / f"{stem}.lines.txt", missing_ok=True)
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
@@ -401,7 +427,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
     for option, flag in (("width", "--width"), ("match_iou", "--match-iou")):
         if getattr(args, option) is not None:
             raise LaneFileError(f"{flag} does not apply to --temporal (RVLD's script draws 30 px and pairs above 0.5)")
-    if args.protocol == "openlane-v" and args.size is not None:
+    if args.protocol == "openlane-v" and (args.size is not None or args.sizes is not None):
         raise LaneFileError("--size does not apply to --protocol openlane-v (1920x1280 lanes, drawn at 960x640)")
     sequences = _read_video(args, need_size=args.protocol == "vil100")
     if args.protocol == "openlane-v":  # a VIL-100 json's own size does not apply either

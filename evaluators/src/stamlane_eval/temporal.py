@@ -19,9 +19,10 @@ For each pair of consecutive frames (t-1, t) of a sequence:
 Every quirk of the script is kept and commented where it happens. Lanes are ``(N, 2)`` float arrays of ``(x, y)``
 points in original-image pixels (OpenLane-V: pixels of its 1920x1280 frames).
 
-Speed: each lane is fitted once per frame and drawn once (as in :mod:`stamlane_eval.culane`: OpenCV itself,
-in a canvas cropped to the lane, pixel-identical to the script's full-image drawing), kept as one run of
-pixels per image row, so the IoU of two lanes is a sum over rows instead of two full-image masks.
+Speed: each lane is fitted and drawn once per frame (OpenCV itself, as in :mod:`stamlane_eval.culane`, in a
+canvas cropped to the lane, pixel-identical to the script's full-image drawing), the annotations reused for
+the next pair; an intersection is counted only where two crops overlap, instead of on two full (H, W, 3)
+masks per pair.
 """
 
 from __future__ import annotations
@@ -221,23 +222,16 @@ def _splines(lanes: list[list[tuple[float, float]]], what: str) -> list[np.ndarr
 # ---------------------------------------------------------------------------------------- rasterisation
 @dataclass(frozen=True)
 class _Drawn:
-    """A lane drawn ``LANE_WIDTH`` wide on an image of ``height`` rows, as one run of pixels per row.
-
-    Rows ``y0 .. y0 + len(lo) - 1`` hold pixels ``[lo, hi)`` (``lo == hi``: none). Where some row holds two or
-    more runs (a lane that turns back on itself), ``mask`` keeps the drawn crop (``x0`` its first column) and
-    ``cum`` its row-wise prefix sums, and intersections go through them.
-    """
+    """A lane drawn ``LANE_WIDTH`` wide on an image, kept as the crop ``[y0:y0+h, x0:x0+w]`` that holds it
+    (``mask``: uint8, 1 where drawn) and its pixel count."""
 
     y0: int
-    lo: np.ndarray
-    hi: np.ndarray
+    x0: int
+    mask: np.ndarray = field(repr=False)
     area: int
-    x0: int = 0
-    mask: np.ndarray | None = field(default=None, repr=False)
-    cum: np.ndarray | None = field(default=None, repr=False)
 
 
-_EMPTY = _Drawn(0, np.zeros(0, np.int32), np.zeros(0, np.int32), 0)
+_EMPTY = _Drawn(0, 0, np.zeros((0, 0), np.uint8), 0)
 _FAR = 2**28  # px: beyond this a crop is not worth it (OpenCV's own clipping then decides, as in the script)
 
 
@@ -264,51 +258,19 @@ def _draw(pts: np.ndarray, size: tuple[int, int]) -> _Drawn:
     local = (pts - np.array([x0, y0], dtype=pts.dtype)).reshape(-1, 1, 2)
     # cv2.polylines(open) draws exactly the union of the cv2.line calls of draw_lane (same caps at the joints)
     cv2.polylines(canvas, [local], False, 1, thickness=LANE_WIDTH)
-    count = cv2.reduce(canvas, 1, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    rows = np.flatnonzero(count)
-    if len(rows) == 0:
-        return _EMPTY
-    r0, r1 = int(rows[0]), int(rows[-1]) + 1
-    canvas, count = canvas[r0:r1], count[r0:r1]
-    width = canvas.shape[1]
-    lo = canvas.argmax(axis=1).astype(np.int32)
-    hi = (width - canvas[:, ::-1].argmax(axis=1)).astype(np.int32)
-    empty = count == 0
-    lo[empty] = 0
-    hi[empty] = 0
-    area = int(count.sum())
-    if np.array_equal(hi - lo, count):
-        return _Drawn(y0 + r0, lo + x0, hi + x0, area)
-    mask = canvas.astype(bool)
-    cum = np.zeros((len(mask), width + 1), np.int32)
-    np.cumsum(mask, axis=1, out=cum[:, 1:])
-    return _Drawn(y0 + r0, lo + x0, hi + x0, area, x0, mask, cum)
+    return _Drawn(y0, x0, canvas, cv2.countNonZero(canvas))
 
 
 def _inter(a: _Drawn, b: _Drawn) -> int:
-    """Pixels two drawn lanes share."""
-    r0, r1 = max(a.y0, b.y0), min(a.y0 + len(a.lo), b.y0 + len(b.lo))
-    if r0 >= r1:
+    """Pixels two drawn lanes share (counted where their crops overlap)."""
+    y0, x0 = max(a.y0, b.y0), max(a.x0, b.x0)
+    y1 = min(a.y0 + a.mask.shape[0], b.y0 + b.mask.shape[0])
+    x1 = min(a.x0 + a.mask.shape[1], b.x0 + b.mask.shape[1])
+    if y0 >= y1 or x0 >= x1:
         return 0
-    sa, sb = slice(r0 - a.y0, r1 - a.y0), slice(r0 - b.y0, r1 - b.y0)
-    if a.mask is None and b.mask is None:
-        overlap = np.minimum(a.hi[sa], b.hi[sb]) - np.maximum(a.lo[sa], b.lo[sb])
-        return int(overlap[overlap > 0].sum())
-    if a.mask is not None and b.mask is not None:
-        c0 = max(a.x0, b.x0)
-        c1 = min(a.x0 + a.mask.shape[1], b.x0 + b.mask.shape[1])
-        if c0 >= c1:
-            return 0
-        ma = a.mask[sa, c0 - a.x0 : c1 - a.x0]
-        mb = b.mask[sb, c0 - b.x0 : c1 - b.x0]
-        return int(np.count_nonzero(ma & mb))
-    runs, bits, sr, sm = (a, b, sa, sb) if b.mask is not None else (b, a, sb, sa)
-    width = bits.mask.shape[1]  # pixels of the run-lane's run [lo, hi) that the mask-lane has, per row
-    lo = np.clip(runs.lo[sr] - bits.x0, 0, width)
-    hi = np.clip(runs.hi[sr] - bits.x0, 0, width)
-    cum = bits.cum[sm]
-    rows = np.arange(len(lo))
-    return int(np.maximum(cum[rows, hi] - cum[rows, lo], 0).sum())
+    ma = a.mask[y0 - a.y0 : y1 - a.y0, x0 - a.x0 : x1 - a.x0]
+    mb = b.mask[y0 - b.y0 : y1 - b.y0, x0 - b.x0 : x1 - b.x0]
+    return cv2.countNonZero(cv2.bitwise_and(ma, mb))
 
 
 def _iou_matrix(rows: Sequence[_Drawn], cols: Sequence[_Drawn]) -> np.ndarray:
