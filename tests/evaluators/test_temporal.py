@@ -194,6 +194,8 @@ def test_bad_input() -> None:
         temporal.evaluate({"clip": [Frame([A], [A], size=SIZE), Frame([A], [np.zeros(3)], size=SIZE)]})
     with pytest.raises(ValueError, match="non-finite"):
         temporal.evaluate_frame([A], [np.array([[1.0, np.nan], [2.0, 3.0]])], SIZE)
+    with pytest.raises(ValueError, match="not a pixel"):
+        temporal.evaluate_frame([A * 1e6], [A], SIZE)
     with pytest.raises(ValueError, match="no sequence"):
         temporal.evaluate({})
 

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from stamlane_eval.io import MAX_COORDINATE
 from stamlane_eval.video import Frame
 
 __all__ = [
@@ -163,6 +164,10 @@ def _unique_points(lane: np.ndarray, protocol: str, i: int, what: str) -> list[t
         raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
+    if arr.size and np.abs(arr).max() > MAX_COORDINATE:
+        # refused, as the readers refuse it: beyond int32 the script's truncation depends on whether the frame's
+        # lanes have equal lengths (an object array of floats then raises OverflowError, a float array wraps)
+        raise ValueError(f"{what} lane {i}: a coordinate beyond +-{MAX_COORDINATE:g} px is not a pixel of an image")
     if protocol == "openlane-v":
         # load_culane_img_data / load_gt_data: 1920x1280 pixels to the 960x640 canvas, in this operation order
         arr = arr.copy()
