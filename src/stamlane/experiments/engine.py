@@ -27,7 +27,15 @@ from typing import Any
 
 import yaml
 
-from stamlane.experiments.scoring import SCORING, image_size, iou_width, read_per_image, score_split
+from stamlane.experiments.scoring import (
+    SCORING,
+    image_size,
+    iou_width,
+    read_per_clip,
+    read_per_image,
+    score_split,
+    score_temporal,
+)
 from stamlane.experiments.stats import Scores, views
 from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
@@ -157,6 +165,8 @@ class Experiment:
         bf16: bfloat16 autocast in every run.
         splits: the label files scored.
         probes: score multi-frame runs with their history probed too.
+        temporal: predict the frames of `stamlane.synth.generator.TEMPORAL_LABELS` one after the other (each
+            with its own history) and score their temporal stability, where the set has that file.
         extra: further ``stamlane fit`` arguments of every run, after the row's base config and before its row
             config.
         quick: the smoke settings (`QUICK_OVERRIDES`), without progress bars.
@@ -172,6 +182,7 @@ class Experiment:
     bf16: bool = False
     splits: tuple[str, ...] = ("test", "challenging")
     probes: bool = True
+    temporal: bool = True
     extra: tuple[str, ...] = ()
     quick: bool = False
     max_overlays: int = 12
@@ -304,9 +315,26 @@ class Experiment:
                 scores[key] = score_split(pred_dir, self.root, split, record["frames"])
                 changed = True
             labels[split] = digest
+        frames = self.temporal_split()
+        if frames is not None:
+            digest = _sha256(self.root / f"{frames}.json")
+            if labels.get(frames) != digest or frames not in scores:
+                pred_dir = self.pred_dir(name, frames)
+                if labels.get(frames) != digest or not (pred_dir / "predictions.json").is_file():
+                    self.predict(name, Path(record["run"]), frames)
+                scores[frames] = score_temporal(pred_dir, self.root, frames)
+                labels[frames] = digest
+                changed = True
         if changed:
             record["scoring"] = SCORING
             mark_finished(self.out / name, record)
+
+    def temporal_split(self) -> str | None:
+        """The label file (stem) of frame-after-frame predictions, where the set has one and it is wanted."""
+        from stamlane.synth.generator import TEMPORAL_LABELS
+
+        stem = TEMPORAL_LABELS.removesuffix(".json")
+        return stem if self.temporal and (self.root / TEMPORAL_LABELS).is_file() else None
 
     # ------------------------------------------------------------------ oracles
     def _oracles(self, scores: Scores, frames: list[int], postprocess: dict[str, Any]) -> list[str]:
@@ -370,7 +398,9 @@ class Experiment:
                 self._score(name, record)
                 for key in record["scores"]:
                     split, _, source = key.partition("@")
-                    per_image, clips = read_per_image(self.pred_dir(name, split, source or "real"))
+                    pred_dir = self.pred_dir(name, split, source or "real")
+                    read = read_per_clip if split == self.temporal_split() else read_per_image
+                    per_image, clips = read(pred_dir)
                     scores.add(row.name + (f"@{source}" if source else ""), split, seed, per_image, clips)
                 records[row.name].append(record)
         all_views = views(self.root, scores.clips)
@@ -403,7 +433,10 @@ class Experiment:
             )
         summary = Summary(
             data=str(self.root),
-            splits_sha256={split: _sha256(self.root / f"{split}.json") for split in self.splits},
+            splits_sha256={
+                split: _sha256(self.root / f"{split}.json")
+                for split in (*self.splits, *filter(None, [self.temporal_split()]))
+            },
             seeds=list(self.seeds),
             recipe={
                 "name": self.recipe.name,

@@ -2,7 +2,7 @@
 
 A metric's name is the one `stamlane_eval.integrations.lightning.LaneEvalCallback` logs (after ``val/`` or
 ``test/``): ``tusimple_f1`` (the paper's TuSimple F1), ``culane_f1@0.5`` and ``culane_f1@0.3`` (the CULane-style
-IoU F1 of the paper's ApolloScape tables). The same names key the summaries, the tables and the docs. Recall per
+IoU F1 of the paper's ApolloScape tables), ``temporal_rs@0.5`` ... (RVLD's temporal stability). The same names key the summaries, the tables and the docs. Recall per
 paint-visibility class (``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.history`)
 is reported where the data has visibility masks.
 
@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from stamlane_eval.culane import IOU_THRESHOLDS
-from stamlane_eval.stats import f1_of_counts, f1_of_rates
+from stamlane_eval.stats import f1_of_counts, f1_of_rates, rj_of_counts, rm_of_counts, rs_of_counts
+from stamlane_eval.temporal import TEMPORAL_IOU_THRESHOLDS
 
 from stamlane.synth.visibility import VISIBILITY_CLASSES
 
-__all__ = ["CLASS_RECALL", "CULANE", "METRICS", "TUSIMPLE", "Metric", "metric"]
+__all__ = ["CLASS_RECALL", "CULANE", "METRICS", "TEMPORAL", "TUSIMPLE", "Metric", "metric"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,17 @@ def _recall(means: np.ndarray) -> float:
     return float(means[0] / means[1]) if means[1] > 0 else 0.0
 
 
-TUSIMPLE = Metric("tusimple_f1", "TuSimple F1", lambda row: [row["fp"], row["fn"]], f1_of_rates)
+def _temporal_counts(threshold: float) -> Callable[[dict], list[float] | None]:
+    def columns(row: dict) -> list[float] | None:
+        counts = row.get("temporal")
+        return None if counts is None else counts[f"{threshold:g}"]
+
+    return columns
+
+
+TUSIMPLE = Metric(
+    "tusimple_f1", "TuSimple F1", lambda row: [row["fp"], row["fn"]] if "fp" in row else None, f1_of_rates
+)
 CULANE = tuple(
     Metric(f"culane_f1@{t:g}", f"IoU F1 @{t:g}", _culane_counts(t), f1_of_counts)
     for t in sorted(IOU_THRESHOLDS, reverse=True)
@@ -72,8 +83,17 @@ CULANE = tuple(
 CLASS_RECALL = tuple(
     Metric(f"recall_{c}", f"recall, {c} points", _class_counts(c), _recall) for c in VISIBILITY_CLASSES
 )
-METRICS = (TUSIMPLE, *CULANE, *CLASS_RECALL)
-"""Everything an experiment scores: the paper's TuSimple F1, the IoU F1 at 0.5 and 0.3, recall per visibility class."""
+TEMPORAL = tuple(
+    Metric(f"temporal_{name}@{t:g}", f"{name.capitalize()} @{t:g}", _temporal_counts(t), statistic)
+    for t in TEMPORAL_IOU_THRESHOLDS
+    for name, statistic in (("rs", rs_of_counts), ("rj", rj_of_counts), ("rm", rm_of_counts))
+)
+"""RVLD's temporal stability (`stamlane_eval.temporal`): of the annotated lanes matched between consecutive frames,
+the share predicted above the IoU threshold in both (Rs, stable), in one (Rj, jump), in neither (Rm, missing);
+per-clip ``(Ns, Nj, Nm)`` counts (a row of ``per_clip.jsonl``)."""
+METRICS = (TUSIMPLE, *CULANE, *CLASS_RECALL, *TEMPORAL)
+"""Everything an experiment scores: the paper's TuSimple F1, the IoU F1 at 0.5 and 0.3, recall per visibility class,
+and the temporal stability of frame-after-frame predictions."""
 
 
 def metric(key: str) -> Metric:

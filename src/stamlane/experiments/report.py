@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TUSIMPLE
+from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TEMPORAL, TUSIMPLE
 from stamlane.experiments.summary import Difference, Summary, Value
 from stamlane.experiments.tables import PaperTable, TableIndex
 
@@ -125,6 +125,7 @@ def tables(summary: Summary, only: Sequence[str] | None = None) -> str:
         lines += ["Paired differences between models (points):", "", *_md(["models", "metric", *SPLITS], rows)]
     lines += _factors(summary, models, pairs)
     lines += _recall(summary, models)
+    lines += _temporal(summary, models, pairs)
     return "\n".join(lines)
 
 
@@ -199,6 +200,41 @@ def _recall(summary: Summary, models: list) -> list[str]:
         "",
         *_md(["model", "split", "visible", "revealed", "hidden"], rows),
     ]
+
+
+def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+    frames = next(
+        (v for v in summary.views() if ":" not in v and summary.value(models[0].name, TEMPORAL[0].key, v)), None
+    )
+    if frames is None:
+        return []
+    first = summary.value(models[0].name, TEMPORAL[0].key, frames)
+    rows = [[m.label, *(value_text(summary.value(m.name, t.key, frames)) for t in TEMPORAL)] for m in models]
+    lines = [
+        f"Temporal stability (RVLD's Rs / Rj / Rm, %): the clips of `{frames}` ({first.images} clips) predicted frame "
+        "after frame, each frame with its own history; of the annotated lanes matched between consecutive frames, "
+        "the share predicted above the IoU threshold in both frames (stable), in one (jump), in neither (missing):",
+        "",
+        *_md(["model", *(t.label for t in TEMPORAL)], rows),
+    ]
+    if pairs:
+        keys = [t.key for t in TEMPORAL if t.key.startswith(("temporal_rs", "temporal_rj"))]
+        diff_rows = [[f"{a} − {b}", *(diff_text(summary.difference(a, b, frames, k)) for k in keys)] for a, b in pairs]
+        lines += _md(["models", *keys], diff_rows)
+    factors = [v for v in summary.views() if v.startswith(f"{frames}:")]
+    if factors:
+        key = TEMPORAL[0].key
+        rows = [
+            [f"`{v.split(':', 1)[1]}`", *(value_text(summary.value(m.name, key, v)) for m in models)]
+            + [diff_text(summary.difference(a, b, v, key)) for a, b in pairs]
+            for v in factors
+        ]
+        lines += [
+            f"{TEMPORAL[0].label} per factor:",
+            "",
+            *_md(["factor", *(m.label for m in models), *(f"{a} − {b}" for a, b in pairs)], rows),
+        ]
+    return lines
 
 
 # ---------------------------------------------------------------------------------------------- paper tables

@@ -18,9 +18,21 @@ from stamlane.experiments.history import class_counts, point_hits, read_visibili
 from stamlane.experiments.metrics import METRICS
 from stamlane.experiments.store import write_atomic
 
-__all__ = ["PER_IMAGE", "SCORING", "clip_of", "image_size", "iou_width", "read_per_image", "score_split"]
+__all__ = [
+    "PER_CLIP",
+    "PER_IMAGE",
+    "SCORING",
+    "clip_of",
+    "image_size",
+    "iou_width",
+    "read_per_clip",
+    "read_per_image",
+    "score_split",
+    "score_temporal",
+]
 
 PER_IMAGE = "per_image.jsonl"
+PER_CLIP = "per_clip.jsonl"
 SCORING = "no-time-limit+culane+classes"
 """How `score_split` scores (kept in each run's record): a run scored otherwise is scored again from its saved
 predictions (``no-time-limit+iou``: before the recall per visibility class; ``no-time-limit``: TuSimple F1
@@ -113,3 +125,50 @@ def read_per_image(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
         if values and all(v is not None for v in values):
             found[m.key] = np.array(values, dtype=np.float64)
     return found, [row["clip"] for row in rows]
+
+
+def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
+    """Score the frame-after-frame predictions ``pred_dir/predictions.json`` of the clips of ``root/<split>.json``
+    (every frame of each clip, oldest first) with RVLD's temporal stability (`stamlane_eval.temporal`, the VIL-100
+    protocol at the frames' size); write ``pred_dir/per_clip.jsonl`` (each clip's ``(Ns, Nj, Nm)`` per IoU
+    threshold).
+
+    Returns:
+        ``clips``, ``frames`` and per temporal metric key (``temporal_rs@0.5``, ...) its value on the whole split.
+    """
+    from stamlane_eval import temporal
+    from stamlane_eval.io import read_tusimple, tusimple_points
+    from stamlane_eval.video import Frame
+
+    from stamlane.experiments.metrics import TEMPORAL
+
+    preds = {p["raw_file"]: p for p in read_tusimple(pred_dir / "predictions.json")}
+    sequences: dict[str, list] = {}
+    for gt in read_tusimple(root / f"{split}.json"):
+        pred = preds[gt["raw_file"]]
+        frame = Frame(tusimple_points(pred["lanes"], gt["h_samples"]), tusimple_points(gt["lanes"], gt["h_samples"]))
+        sequences.setdefault(clip_of(gt["raw_file"]), []).append(frame)
+    result = temporal.evaluate(sequences, temporal.TEMPORAL_IOU_THRESHOLDS, image_size(root))
+    rows = [
+        {
+            "clip": clip,
+            "frames": len(frames),
+            "temporal": {f"{t:g}": [seq.counts[t].ns, seq.counts[t].nj, seq.counts[t].nm] for t in seq.counts},
+        }
+        for (clip, frames), seq in zip(sequences.items(), result.per_sequence)
+    ]
+    write_atomic(pred_dir / PER_CLIP, "".join(json.dumps(row) + "\n" for row in rows))
+    totals: dict = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
+    for m in TEMPORAL:
+        totals[m.key] = m.statistic(np.mean(np.array([m.columns(r) for r in rows], dtype=np.float64), axis=0))
+    return totals
+
+
+def read_per_clip(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Per temporal metric key, the per-clip ``(Ns, Nj, Nm)`` (N, 3) of a scored split, and the clips."""
+    from stamlane.experiments.metrics import TEMPORAL
+
+    rows = [json.loads(line) for line in (pred_dir / PER_CLIP).read_text().splitlines()]
+    return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL}, [
+        r["clip"] for r in rows
+    ]
