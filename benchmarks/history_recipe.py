@@ -274,14 +274,15 @@ def _plot(results: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for r in results:
-        steps = [p["step"] for p in r["curve"] if "history_use_f1" in p]
-        axes[0].plot(
-            steps, [100 * p["history_use_f1"] for p in r["curve"] if "history_use_f1" in p], "o-", label=r["name"]
-        )
-        axes[1].plot(steps, [100 * p["f1"] for p in r["curve"] if "history_use_f1" in p], "o-", label=r["name"])
+    colours = plt.cm.tab20(np.linspace(0, 1, max(len(results), 2)))
+    for r, colour in zip(results, colours):
+        points = [p for p in r["curve"] if "history_use_f1" in p]
+        steps = [p["step"] for p in points]
+        axes[0].plot(steps, [100 * p["history_use_f1"] for p in points], "o-", color=colour, label=r["name"])
+        axes[1].plot(steps, [100 * p["f1"] for p in points], "o-", color=colour, label=r["name"])
     axes[0].axhline(0, color="grey", linewidth=0.8)
     axes[0].set_ylabel("history use: val F1 real - key frame copied (points)")
     axes[1].set_ylabel("val F1 (TuSimple, %)")
