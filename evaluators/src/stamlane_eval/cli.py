@@ -190,7 +190,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
         line = f": line {e.line}" if e.line is not None else ""
         raise LaneFileError(f"{where}{line}: {e.message}") from None
     for w in caught:
-        print(f"stamlane-eval: warning: {args.gt}: {w.message}", file=sys.stderr)
+        print(f"stamlane-eval: warning: {args.pred}: {w.message}", file=sys.stderr)
     if args.per_image:
         _write_jsonl(
             args.per_image,
@@ -277,6 +277,7 @@ def _run_culane(args: argparse.Namespace) -> int:
         )
     except ValueError as e:
         raise LaneFileError(f"{args.pred}: {e}") from None
+    _refuse_zero_denominators(res, args)
     if args.per_image:
         recs = []
         for e, r in zip(entries, res.per_image, strict=True):
@@ -296,6 +297,21 @@ def _run_culane(args: argparse.Namespace) -> int:
         print(f"{args.command} ({args.variant}), {res.images} images, {format_wxh(size)}, width {args.width}")
         print(_table(rows))
     return 0
+
+
+def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace) -> None:
+    """Precision or recall 0/0 (no predicted lane, or no annotated lane, in any image): the C++ tool prints -1
+    there, which is no rate; refused (docs/evaluators.md, "What is scored and what is refused")."""
+    c = next(iter(res.totals.values()))  # tp + fp and tp + fn are the same at every threshold
+    if c.tp + c.fp == 0:
+        raise LaneFileError(
+            f"{args.pred}: no predicted lane in any of the {res.images} images: precision is 0/0 (the C++ tool "
+            f"prints -1)"
+        )
+    if c.tp + c.fn == 0:
+        raise LaneFileError(
+            f"{args.gt}: no annotated lane in any of the {res.images} images: recall is 0/0 (the C++ tool prints -1)"
+        )
 
 
 def _run_video(args: argparse.Namespace) -> int:
