@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from stamlane_eval.aggregate import culane_update, prf
+
 __all__ = [
     "APOLLO_SIZE",
     "CULANE_SIZE",
@@ -406,22 +408,17 @@ def evaluate_image(
 
 
 def aggregate(per_image: Sequence[CULaneImageResult], iou_thresholds: Sequence[float] = IOU_THRESHOLDS) -> CULaneResult:
-    """Sum TP/FP/FN over images and derive P, R, F1 per threshold (0 where a denominator is 0)."""
-    totals = {}
-    for t in (float(t) for t in iou_thresholds):
-        tp = sum(r.counts[t][0] for r in per_image)
-        fp = sum(r.counts[t][1] for r in per_image)
-        fn = sum(r.counts[t][2] for r in per_image)
-        totals[t] = counts_to_prf(tp, fp, fn)
+    """Sum TP/FP/FN over images and derive P, R, F1 per threshold (0 where a denominator is 0), with the helpers
+    the torchmetrics class uses (``stamlane_eval.aggregate``)."""
+    thresholds = [float(t) for t in iou_thresholds]
+    sums = culane_update([(0, 0, 0)] * len(thresholds), per_image, thresholds)
+    totals = {t: counts_to_prf(*c) for t, c in zip(thresholds, sums, strict=True)}
     return CULaneResult(totals, len(per_image), list(per_image))
 
 
 def counts_to_prf(tp: int, fp: int, fn: int) -> CULaneCounts:
-    """:class:`CULaneCounts` from summed counts (lanedet's ``eval_predictions`` formulas)."""
-    p = tp / (tp + fp) if tp + fp > 0 else 0.0
-    r = tp / (tp + fn) if tp + fn > 0 else 0.0
-    f = 2 * p * r / (p + r) if p + r > 0 else 0.0
-    return CULaneCounts(int(tp), int(fp), int(fn), p, r, f)
+    """:class:`CULaneCounts` from summed counts (``stamlane_eval.aggregate.prf``: lanedet's formulas)."""
+    return CULaneCounts(int(tp), int(fp), int(fn), *prf(tp, fp, fn))
 
 
 def evaluate(
