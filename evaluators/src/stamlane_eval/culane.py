@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from stamlane_eval.aggregate import culane_update, prf
@@ -205,6 +204,8 @@ def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Ma
     """Draw a polyline as ``cv::line`` calls of thickness ``width`` on a ``size`` = (H, W) image, cropped."""
     if pts is None:
         return None
+    import cv2  # here, not at the top: `stamlane-eval tusimple` imports this module but never draws (15 ms saved)
+
     h_img, w_img = size
     if len(pts) == 0 or np.abs(pts).max() > 2**28:  # NaN points (cvRound -> INT_MIN) and absurd values
         canvas = np.zeros((h_img, w_img), np.uint8)
