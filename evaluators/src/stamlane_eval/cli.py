@@ -39,6 +39,7 @@ from stamlane_eval.io import (
     LaneFileError,
     culane_entries,
     culane_lines_path,
+    inside,
     read_culane_lines,
     read_tusimple,
     read_vil100_json,
@@ -269,10 +270,9 @@ def _run_culane(args: argparse.Namespace) -> int:
         if not args.pred.is_dir():
             raise LaneFileError(f"{args.pred}: not a directory")
         entries = culane_entries(args.gt, args.list)
-        gts = []
-        for e in entries:
-            gts.append(read_culane_lines(culane_lines_path(args.gt, e), missing_ok=False))
-        preds = [read_culane_lines(culane_lines_path(args.pred, e), missing_ok=True) for e in entries]
+        gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
+        gts = [read_culane_lines(inside(culane_lines_path(gt_root, e), gt_root), missing_ok=False) for e in entries]
+        preds = [read_culane_lines(inside(culane_lines_path(pred_root, e), pred_root)) for e in entries]
     thresholds = sorted(set(args.iou))
     try:
         res = culane.evaluate(
@@ -332,6 +332,7 @@ def _run_video(args: argparse.Namespace) -> int:
     for seq, frames in layout.items():
         out = []
         for stem, path in frames:
+            inside(path, args.gt)  # nothing read outside the folders given, through links either
             if kind == "vil100":
                 lanes, ids, size = read_vil100_json(path)
             else:
@@ -339,7 +340,8 @@ def _run_video(args: argparse.Namespace) -> int:
             size = args.size or size
             if size is None:
                 raise LaneFileError(f"{path}: no image size: give --size WxH")
-            preds = read_culane_lines(args.pred / seq / f"{stem}.lines.txt", missing_ok=True)
+            pred_path = args.pred / seq / f"{stem}.lines.txt"
+            preds = read_culane_lines(inside(pred_path, args.pred) if pred_path.exists() else pred_path)
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
     thresholds = sorted(set(args.iou))

@@ -32,6 +32,7 @@ __all__ = [
     "culane_entries",
     "culane_lines_path",
     "duplicate_raw_file",
+    "inside",
     "iter_tusimple",
     "read_culane_lines",
     "read_text",
@@ -590,6 +591,19 @@ def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
     if stem.endswith(".lines"):
         stem = stem[: -len(".lines")]
     return Path(root) / (stem + ".lines.txt")
+
+
+def inside(path: Path, root: Path) -> Path:
+    """``path`` after checking that, symlinks resolved, it lies in ``root``: a link in a prediction or annotation
+    folder never makes the evaluator read (and quote in an error) a file elsewhere.
+
+    Raises:
+        LaneFileError: naming the link and where it leads.
+    """
+    real = path.resolve()
+    if not real.is_relative_to(root.resolve()):
+        raise LaneFileError(f"{path}: a link to {real}, outside the folder {root}")
+    return path
 
 
 def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | None = None) -> list[str]:
