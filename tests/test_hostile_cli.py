@@ -303,3 +303,26 @@ def test_the_label_property_saw_both_outcomes() -> None:
     if not SHOWN:
         pytest.skip("run with the property test")
     assert set(SHOWN) == {0, 2}
+
+
+def test_prediction_writers_never_write_through_links(tmp_path: Path) -> None:
+    """``stamlane predict`` writes its files as new files: a link planted where one goes is replaced, never written
+    through (into the labels it points at), and a linked folder leading out of the output folder is refused."""
+    from stamlane.writers import TusimpleWriter, write_culane_lines
+
+    labels = tmp_path / "data" / "label.json"
+    labels.parent.mkdir()
+    labels.write_text("the labels\n")
+    out = tmp_path / "out"
+    (out / "lines" / "d").mkdir(parents=True)
+    (out / "predictions.json").symlink_to(labels)
+    (out / "lines" / "d" / "0.lines.txt").symlink_to(labels)
+    with TusimpleWriter(out / "predictions.json") as writer:
+        writer.write("d/0.jpg", [np.array([[10.0, 300.0], [20.0, 200.0]])], [200, 300], 1.0)
+    write_culane_lines(out / "lines", "d/0.jpg", [np.array([[10.0, 300.0], [20.0, 200.0]])])
+    assert labels.read_text() == "the labels\n"
+    assert not (out / "predictions.json").is_symlink() and not (out / "lines" / "d" / "0.lines.txt").is_symlink()
+    (out / "lines" / "e").symlink_to(labels.parent)  # a folder on the way that leads into the data
+    with pytest.raises(ValueError, match="leads out of the output folder"):
+        write_culane_lines(out / "lines", "e/label.jpg", [])
+    assert labels.read_text() == "the labels\n"

@@ -163,15 +163,9 @@ def _check_input_files(rest: list[str]) -> None:
         value = value if eq else (rest[i + 1] if i + 1 < len(rest) else "")
         if not value or (option == "--ckpt_path" and value in ("last", "best", "hpc", "registry")):
             continue
-        if option == "--source":
-            if Path(value).is_dir():
-                continue
-        try:
-            check_input_file(value, option[2:])
-        except InputError:
-            if option == "--ckpt_path" and not Path(value).exists():
-                continue  # said later, in the checkpoint reader's words
-            raise
+        if not Path(value).exists() or (option == "--source" and Path(value).is_dir()):
+            continue  # a missing file is said later, in jsonargparse's or the checkpoint reader's words
+        check_input_file(value, option[2:])
         if option == "--config" and Path(value).stat().st_size > _MAX_CONFIG_BYTES:
             raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
 
