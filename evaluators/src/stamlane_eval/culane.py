@@ -217,18 +217,20 @@ def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Ma
     import cv2  # here, not at the top: `stamlane-eval tusimple` imports this module but never draws (15 ms saved)
 
     h_img, w_img = size
-    if len(pts):
-        (xmin, ymin), (xmax, ymax) = pts.min(0).tolist(), pts.max(0).tolist()  # dropping repeats keeps these
-    if len(pts) == 0 or max(-xmin, -ymin, xmax, ymax) > 2**28:  # NaN points (cvRound -> INT_MIN), absurd values
+    # Consecutive equal points add nothing: a zero-length cv::line only draws the end cap, already drawn by
+    # the previous segment (pixel-identical, and 50 samples per segment repeat points a lot).
+    step = pts[1:] != pts[:-1]
+    keep = np.ones(len(pts), dtype=bool)
+    keep[1:] = step[:, 0] | step[:, 1]
+    kept = pts[keep]
+    if len(kept):
+        (xmin, ymin), (xmax, ymax) = kept.min(0).tolist(), kept.max(0).tolist()
+    if len(kept) == 0 or max(-xmin, -ymin, xmax, ymax) > 2**28:  # NaN points (cvRound -> INT_MIN), absurd values
         canvas = np.zeros((h_img, w_img), np.uint8)
         pts32 = np.clip(pts, -(2**31), 2**31 - 1).astype(np.int32)
         cv2.polylines(canvas, [pts32.reshape(-1, 1, 2)], False, 1, thickness=width)
         return _Mask(0, 0, canvas.view(bool), int(np.count_nonzero(canvas)))
-    # Consecutive equal points add nothing: a zero-length cv::line only draws the end cap, already drawn by
-    # the previous segment (pixel-identical, and 50 samples per segment repeat points a lot).
-    keep = np.ones(len(pts), dtype=bool)
-    keep[1:] = (pts[1:] != pts[:-1]).any(axis=1)
-    pts = pts[keep] if keep.sum() >= 2 else pts[[0, 0]]
+    pts = kept if len(kept) >= 2 else pts[[0, 0]]
     margin = width + 2
     x0, y0 = max(int(xmin) - margin, 0), max(int(ymin) - margin, 0)
     x1, y1 = min(int(xmax) + margin + 1, w_img), min(int(ymax) + margin + 1, h_img)
