@@ -231,3 +231,23 @@ def test_video_malformed_files(
     code, out, err = _run(capsys, "video", folder / "pred", folder / "gt", "--json")
     assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
     assert code in (0, 2) and (code == 0) == bool(out), err
+
+
+def test_the_largest_images_allowed_score_in_bounded_memory() -> None:
+    """Images at every size limit at once (64 predicted and 64 gt lanes of 10,000 rows: 41M comparisons each) are
+    scored one block at a time, not 512 at once (which asked for tens of GB)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import resource\n"
+        "from stamlane_eval import tusimple\n"
+        "R = 10000; h = list(range(R))\n"
+        "gts = [[[float(300 + k)] * R for k in range(64)]] * 6\n"
+        "preds = [[[float(301 + k)] * R for k in range(64)]] * 6\n"
+        "assert tusimple.evaluate_batch(preds, gts, [h] * 6)[5].matched == 64\n"
+        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert int(done.stdout) < 1_500_000  # KiB: 1.5 GiB

@@ -52,6 +52,7 @@ MAX_RUN_TIME_MS = 200.0  # run_time above this scores the image (acc 0, fp 0, fn
 EXTRA_PRED_LANES = 2  # more than len(gt) + 2 predicted lanes scores the image (acc 0, fp 0, fn 1)
 MAX_SCORED_LANES = 4  # images with more gt lanes drop their worst lane (see _bench)
 ABSENT = -2.0  # the benchmark's "no lane on this row" value
+BLOCK_CELLS = 1 << 22  # pred x gt x row comparisons per vectorised block (~100 MB of temporaries at most)
 RATE_TOLERANCE = 1e-9  # a total may pass [0, 1] by float rounding (1.0000000000000002), not by more
 _NEGATIVE_FILL = -100.0  # lane.py replaces every negative value in pred and gt by -100 before comparing
 
@@ -222,7 +223,8 @@ def evaluate_batch(
         gts: per image, ground-truth lanes, same form ``(G, R)``.
         h_samples: per image, the ``R`` row y values.
         run_times: per image, run time in ms (default 0).
-        chunk: images per vectorised block (bounds memory).
+        chunk: at most this many images per vectorised block (fewer when they have many lanes and rows:
+            ``BLOCK_CELLS`` bounds the memory).
 
     Returns:
         One :class:`TuSimpleImageResult` per image.
@@ -287,8 +289,11 @@ def _score(
     key = n_pred[order] * (int(n_gt.max()) + 1) + n_gt[order]
     bounds = np.flatnonzero(np.diff(key)) + 1
     for group in np.split(order, bounds):
-        for s in range(0, len(group), chunk):
-            ids = group[s : s + chunk]
+        # images per block: at most `chunk`, and few enough that the (images, P, G, R) comparison stays small
+        cells = max(int(n_pred[group[0]]), 1) * max(int(n_gt[group[0]]), 1) * r_max
+        step = max(1, min(chunk, BLOCK_CELLS // cells))
+        for s in range(0, len(group), step):
+            ids = group[s : s + step]
             res = _bench(
                 pred_flat[_lane_index(p_start[ids], n_pred[ids])],
                 n_pred[ids],
