@@ -251,3 +251,13 @@ def test_the_largest_images_allowed_score_in_bounded_memory() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert int(done.stdout) < 1_500_000  # KiB: 1.5 GiB
+
+
+def test_lanes_too_large_to_draw_are_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Lanes crossing a 16384 x 16384 frame (the largest --size): a few of them fill a gigapixel of canvases, so the
+    image is refused (a size limit, docs/evaluators.md) instead of drawing 64 of them."""
+    lane = "".join(f"{100 + 0.9 * y:.1f} {y} " for y in range(0, 16000, 8)) + "\n"
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": lane * 6})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": lane * 6})
+    err = _refused(capsys, "culane", pred, gt, "--size", "16384x16384")
+    assert "too large to draw in memory" in err

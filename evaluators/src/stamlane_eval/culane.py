@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stamlane_eval.aggregate import culane_update, prf
+from stamlane_eval.cli_tools import format_wxh
 
 __all__ = [
     "APOLLO_SIZE",
@@ -50,6 +51,8 @@ IOU_THRESHOLDS = (0.3, 0.5)
 VARIANTS = ("official", "lanedet")
 SPLINE_SAMPLES = 50  # C++: splineInterpTimes(lane, 50) samples per segment, plus the last point
 LANEDET_SAMPLES = 5  # lanedet: interp(lane, n=5), i.e. (len(u) - 1) * 5 + 1 samples
+MAX_DRAWN_PIXELS = 1 << 30  # the lanes of one image drawn on at most 1 Gpx of cropped canvases (1 GiB)
+SPLINE_POINTS = 1 << 20  # resampled points per spline batch (~100 MB of float64 temporaries)
 BATCH_IMAGES = 128  # images whose lanes are resampled together (bounds the memory of the batch: ~17 MB)
 KM_TOLERANCE = 1e-2  # C++ hungarianGraph: an edge is "tight" when |lw + rw - w| < 1e-2
 
@@ -172,9 +175,12 @@ def _points_official_many(lanes: Sequence[np.ndarray]) -> list[np.ndarray | None
     for i, p in enumerate(pts):
         if len(p) > 2:
             by_count.setdefault(len(p), []).append(i)
-    for idx in by_count.values():
-        for i, spline in zip(idx, _spline_official_many(np.stack([pts[i] for i in idx])), strict=True):
-            out[i] = spline
+    for count, idx in by_count.items():
+        step = max(1, SPLINE_POINTS // ((count - 1) * SPLINE_SAMPLES))  # lanes per batch: bounded memory
+        for s in range(0, len(idx), step):
+            batch = idx[s : s + step]
+            for i, spline in zip(batch, _spline_official_many(np.stack([pts[i] for i in batch])), strict=True):
+                out[i] = spline
     return [None if p is None else _round_points(p) for p in out]
 
 
@@ -438,7 +444,15 @@ def _score_image(
             n_gt,
             np.full(n_pred, -1, dtype=np.int64),
         )
-    masks = [_rasterise(pts, size, width) for pts in points]
+    masks, drawn = [], 0
+    for pts in points:
+        masks.append(_rasterise(pts, size, width))
+        drawn += masks[-1].mask.size if masks[-1] is not None else 0
+        if drawn > MAX_DRAWN_PIXELS:
+            raise ValueError(
+                f"the lanes of this image cover more than {MAX_DRAWN_PIXELS >> 20} Mpx of {format_wxh(size)} "
+                f"canvases: too large to draw in memory (fewer or shorter lanes, or a smaller --size)"
+            )
     pm, gm = masks[:n_pred], masks[n_pred:]
     ious = np.array([[_iou(a, b) for b in gm] for a in pm], dtype=np.float64)  # (n_pred, n_gt)
     if variant == "official":
