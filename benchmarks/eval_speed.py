@@ -4,7 +4,7 @@
                                     [--reference PATH ...] [--reference-python PYTHON] [--metrics tusimple culane]
                                     [--out outputs/bench/eval_speed.json]
 
-Goals (issue 26): end to end, in one process on one core, >= 40x lane.py on TuSimple's 2782 images and >= 5x the
+Goals: end to end, in one process on one core, >= 40x lane.py on TuSimple's 2782 images and >= 5x the
 C++ tool on 2000 CULane images, with the same numbers. Give ``--reference lane.py`` (the official file) and
 ``--reference-python`` an interpreter with lane.py's own environment (numpy, scikit-learn, ujson), so that the
 official script runs as its users run it.
@@ -46,8 +46,8 @@ from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
 CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine
-TUSIMPLE_GOAL = 40.0  # x lane.py, end to end (issue 26)
-CULANE_GOAL = 5.0  # x the C++ tool (issue 26)
+TUSIMPLE_GOAL = 40.0  # x lane.py, end to end: the project's goal
+CULANE_GOAL = 5.0  # x the C++ tool: the project's goal
 H_SAMPLES = list(range(160, 720, 10))
 
 

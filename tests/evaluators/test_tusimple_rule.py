@@ -87,7 +87,7 @@ def test_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
 
 
 def test_a_wild_value_changes_only_its_image(shared_dir: Path) -> None:
-    """The regression of issue 26: one x = 1e9 among the 300 fixture images; every other image keeps lane.py's
+    """The regression the rule fixed: one x = 1e9 among the 300 fixture images; every other image keeps lane.py's
     number, and that image is scored as lane.py scores it (the row is a miss)."""
     d = shared_dir / "fixtures" / "evaluators" / "tusimple"
     preds, gts = read_tusimple(d / "pred.json"), read_tusimple(d / "gt.json")
