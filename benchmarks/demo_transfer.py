@@ -23,8 +23,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import yaml
 
-from stamlane.demo import MODELS, SPLITS, predict_split, score_split
+from stamlane.demo import MODELS
+
+SPLITS = ("test", "challenging")
 
 
 def _runs(demo: Path) -> dict[str, list[Path]]:
@@ -37,47 +40,48 @@ def _runs(demo: Path) -> dict[str, list[Path]]:
 
 
 def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
-    """Score every demo run on test/challenging clips of generator seed ``seed``."""
-    from stamlane_eval.stats import bootstrap, f1_of_rates, paired_bootstrap
+    """Score every demo run on test/challenging clips of generator seed ``seed``, as the demo scores its own."""
+    from dataclasses import asdict
 
+    from stamlane.experiments.engine import RECIPES, Experiment
+    from stamlane.experiments.metrics import TUSIMPLE
+    from stamlane.experiments.scoring import read_per_image, score_split
+    from stamlane.experiments.stats import Scores, views
     from stamlane.synth.generator import generate_dataset
 
     root = out / f"synthetic-seed{seed}"
     if not (root / "dataset.json").is_file():
         generate_dataset(root, train=0, val=0, test=clips, challenging=clips, seed=seed, workers=2)
-    results: dict = {"data": str(root), "seed": seed, "models": {}, "differences": []}
-    rates: dict[str, dict[str, np.ndarray]] = {}
-    groups: dict[str, list[str]] = {}
+    experiment = Experiment(list(MODELS), RECIPES["cpu"], [], root, out, max_overlays=4)
+    scores = Scores()
     for name, runs in _runs(demo).items():
-        per_split: dict[str, list] = {split: [] for split in SPLITS}
         for run in runs:
-            run_name = run.parent.name
+            frames = int(yaml.safe_load((run / "config.yaml").read_text())["data"]["num_frames"])
             for split in SPLITS:
-                pred = predict_split(run_name, run, out, split, max_overlays=4, root=root)
-                scores, per_image, groups[split] = score_split(pred, root / f"{split}.json")
-                per_split[split].append((scores["f1"], per_image["tusimple"]))
-        rates[name] = {split: np.mean([r for _, r in per_split[split]], axis=0) for split in SPLITS}
-        results["models"][name] = {
-            split: {
-                "f1_per_seed": [f1 for f1, _ in per_split[split]],
-                "f1_ci95": list(bootstrap(rates[name][split], f1_of_rates, groups=groups[split]).interval),
+                pred = experiment.predict(run.parent.name, run, split)
+                score_split(pred, root, split, frames)
+                per_image, groups = read_per_image(pred)
+                scores.add(name, split, int(run.parent.name.rsplit("-s", 1)[1]), per_image, groups)
+    all_views = views(root, scores.clips)
+    names = list(scores.quantities)
+    pairs = [(name, "single") for name in names if name != "single" and "single" in names]
+    return {
+        "data": str(root),
+        "seed": seed,
+        "models": {
+            name: {
+                k: {v: asdict(x) for v, x in d.items()} for k, d in scores.values(name, all_views, (TUSIMPLE,)).items()
             }
-            for split in SPLITS
-        }
-    for name in rates:
-        if name == "single" or "single" not in rates:
-            continue
-        for split in SPLITS:
-            est = paired_bootstrap(rates[name][split], rates["single"][split], f1_of_rates, groups=groups[split])
-            results["differences"].append(
-                {"a": name, "b": "single", "split": split, "f1_diff": est.value, "ci95": list(est.interval)}
-            )
-    return results
+            for name in names
+        },
+        "differences": [asdict(d) for d in scores.differences("models", pairs, all_views, (TUSIMPLE,))],
+    }
 
 
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
-    from stamlane.checkpoints import load_module, read_checkpoint
+    from stamlane.checkpoints import read_checkpoint
+    from stamlane.module import StamLaneModule
     from stamlane.overlay import draw_lanes
     from stamlane.stream import StreamingPredictor
 
@@ -85,7 +89,7 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     predictors = []
     for name, runs in _runs(demo).items():
         ckpt = runs[0] / "checkpoints" / "last.ckpt"
-        module = load_module(ckpt)
+        module = StamLaneModule.from_checkpoint(ckpt)
         data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
         crop_top = module.hparams.get("crop_top") or data.get("crop_top") or 0.0  # older runs: the data's
         predictor = StreamingPredictor.from_module(module, crop_top=float(crop_top))
@@ -124,17 +128,18 @@ def main(argv: list[str] | None = None) -> int:
         results["real_frames"] = str(real_frames(args.demo, args.frames, args.out))
     (args.out / "transfer.json").write_text(json.dumps(results, indent=2))
     print(f"clips of generator seed {args.seed} (never seen in training): TuSimple F1 %, [95 % interval]")
-    for name, splits in results["models"].items():
+    for name, values in results["models"].items():
         cells = [
-            f"{split} {100 * np.mean(s['f1_per_seed']):.1f} [{100 * s['f1_ci95'][0]:.1f}, {100 * s['f1_ci95'][1]:.1f}]"
-            for split, s in splits.items()
+            f"{split} {100 * v['mean']:.1f} [{100 * v['ci95'][0]:.1f}, {100 * v['ci95'][1]:.1f}]"
+            for split, v in values["tusimple_f1"].items()
+            if split in SPLITS
         ]
         print(f"  {name:<14} " + "   ".join(cells))
     for d in results["differences"]:
-        print(
-            f"  {d['a']} - {d['b']} {d['split']}: {100 * d['f1_diff']:+.1f} "
-            f"[{100 * d['ci95'][0]:+.1f}, {100 * d['ci95'][1]:+.1f}]"
-        )
+        if d["view"] in SPLITS:
+            print(
+                f"  {d['a']} - {d['b']} {d['view']}: {100 * d['diff']:+.1f} [{100 * d['ci95'][0]:+.1f}, {100 * d['ci95'][1]:+.1f}]"
+            )
     print(f"wrote {args.out / 'transfer.json'}" + (f" and {results['real_frames']}" if args.frames else ""))
     return 0
 

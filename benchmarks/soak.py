@@ -45,12 +45,12 @@ def soak_stream(args: argparse.Namespace) -> dict:
     import cv2
     import torch
 
-    from stamlane.checkpoints import load_module
     from stamlane.data.clips import frame_order
+    from stamlane.module import StamLaneModule
     from stamlane.stream.predictor import StreamingPredictor
 
     torch.set_num_threads(args.threads)
-    module = load_module(args.ckpt)
+    module = StamLaneModule.from_checkpoint(args.ckpt)
     hp = module.hparams
     predictor = StreamingPredictor.from_module(
         module,

@@ -211,9 +211,10 @@ def measure_end_to_end(
 
 def _load(ckpt: Path) -> tuple[torch.nn.Module, dict]:
     """The StamLaneModule of a checkpoint (eval mode) and its data options."""
-    from stamlane.checkpoints import load_module, read_checkpoint
+    from stamlane.checkpoints import read_checkpoint
+    from stamlane.module import StamLaneModule
 
-    module = load_module(ckpt)
+    module = StamLaneModule.from_checkpoint(ckpt)
     data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
     return module, data
 

@@ -1,39 +1,33 @@
-"""``stamlane ablate``: a two-row table end to end on a tiny synthetic set, resumability, the settings lock,
-and the bookkeeping (mean ± std, delta split, CSV / markdown / plot)."""
+"""``stamlane ablate``: the experiment engine on a two-row table of a tiny synthetic set, resuming, the settings
+lock, the reports; and the table index."""
 
 from __future__ import annotations
 
 import csv
 import json
-import math
 from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import pytest
 import torch
-from stamlane_eval.tusimple import paper_f1
 
 from stamlane.experiments import ablate
-from stamlane.experiments.report import robustness_markdown, table_markdown
-from stamlane.experiments.results import summarize
-from stamlane.experiments.runner import RunSpec, cli_args
-from stamlane.experiments.tables import PaperRow, PaperTable, load_tables
+from stamlane.experiments.summary import Summary
+from stamlane.experiments.tables import load_tables
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper"
 torch.set_num_threads(1)
 
-# the demo config shrunk for a test: 32x64 frames, width 1/8, fp32, no progress bar
+# the demo config shrunk for a test: 32x64 frames, width 1/8, no progress bar
 SHRINK = [
     "--data.image_size=[32, 64]",
     "--data.batch_size=2",
     "--data.num_workers=0",
     "--data.align=true",  # the generator's exact homographies: no ORB in a unit test
     "--model.encoder.width=0.125",
-    "--model.bf16=false",
     "--model.channels_last=false",
-    "--trainer.enable_progress_bar=false",
 ]
 
 
@@ -67,68 +61,72 @@ def two_row_index(tmp_path: Path) -> Path:
     return folder / "tables.yaml"
 
 
-def test_two_row_table_end_to_end_and_resume(
-    tiny_set: Path, two_row_index: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+def test_two_row_table_end_to_end_resume_and_lock(
+    tiny_set: Path, two_row_index: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     out = tmp_path / "ablate"
-    argv = ["--tables", str(two_row_index), "--table", "9", "--seeds", "0", "1", "--data-root", str(tiny_set)]
-    argv += ["--max-steps", "2", "--out", str(out), "--", *SHRINK]
-    assert ablate.main(argv) == 0, [p.read_text() for p in out.rglob("error.txt")]
-
-    results = {}
-    for rid in ("f1_keyonly", "f2_mixed_cs_features"):
-        for seed in (0, 1):
-            res = json.loads((out / "runs" / rid / f"seed{seed}" / "result.json").read_text())
-            assert res["steps"] == 2 and res["seed"] == seed
-            assert {"tusimple_f1", "tusimple_accuracy", "tusimple_fp", "tusimple_fn"} <= set(res["metrics"]["test"])
-            test = res["metrics"]["test"]  # the logged F1 is the paper's F1 of the logged FP and FN rates
-            assert test["tusimple_f1"] == pytest.approx(paper_f1(test["tusimple_fp"], test["tusimple_fn"]), abs=1e-6)
-            assert "challenging" in res["metrics"] and res["challenging_labels"] == "challenging.json"
-            results[rid, seed] = res
-            assert not (out / "runs" / rid / f"seed{seed}" / "logs" / "run" / "checkpoints").exists()
-    # the row's settings reached the model; the shrink arguments did not override them
-    assert results["f1_keyonly", 0]["num_frames"] == 1
-    assert results["f1_keyonly", 0]["fusion"].endswith("KeyFrameOnly")
-    assert results["f2_mixed_cs_features", 0]["num_frames"] == 2
-    assert results["f2_mixed_cs_features", 0]["fusion_args"]["history"] == "features"
-
-    # the summary CSV holds the mean over both seeds
-    lines = list(csv.DictReader((out / "table9.csv").open()))
-    assert [r["row"] for r in lines] == ["f1_keyonly", "f2_mixed_cs_features"]
-    for line in lines:
-        f1 = [results[line["row"], s]["metrics"]["test"]["tusimple_f1"] for s in (0, 1)]
-        assert float(line["test/tusimple_f1_mean"]) == pytest.approx(sum(f1) / 2, abs=1e-5)
-        assert line["n_seeds"] == "2" and line["paper/tusimple_f1"]
-    md = (out / "table9.md").read_text()
-    assert "| 1 frame | `f1_keyonly` | 2 |" in md and "robustness" in md and "Command: `stamlane ablate" in md
-    plot = cv2.imread(str(out / "table9.png"))
-    assert plot is not None and plot.std() > 10 and min(plot.shape[:2]) > 200  # a real picture, not an empty file
-
-    # second call: nothing runs again
-    stamps = {p: p.stat().st_mtime_ns for p in out.rglob("result.json")}
-
-    def no_run(spec: RunSpec) -> dict:
-        raise AssertionError(f"re-ran {spec.row.stem} seed {spec.seed}")
-
-    monkeypatch.setattr(ablate, "run", no_run)
+    argv = ["--tables", str(two_row_index), "--table", "9", "--seeds", "0", "1", "--data", str(tiny_set)]
+    argv += ["--steps", "2", "--bf16", "false", "--out", str(out), "--", *SHRINK]
+    assert ablate.main(argv) == 0
+    summary = Summary.read(out / "summary.json")
+    assert summary.recipe == {"name": "paper", "pretrain_steps": 0, "steps": 2, "row_args": []} and summary.seeds == [
+        0,
+        1,
+    ]
+    assert {m.name: m.frames for m in summary.models} == {"f1_keyonly": 1, "f2_mixed_cs_features": 2}
+    assert not (out / "pretrain-s0").exists()  # one stage: every row from scratch
+    # the row's settings reached the model; the shrink arguments (given after the base) did not override them
+    config = (out / "f2_mixed_cs_features-s0" / "run" / "config.yaml").read_text()
+    assert "history: features" in config and "num_frames: 2" in config and "width: 0.125" in config
+    assert "KeyFrameOnly" in (out / "f1_keyonly-s1" / "run" / "config.yaml").read_text()
+    # the two-frame row against one frame, and its history probed, with intervals over the two seeds
+    diff = summary.difference("f2_mixed_cs_features", "f1_keyonly", "test", "tusimple_f1")
+    assert diff is not None and len(diff.seed_diffs) == 2 and diff.seed_ci95 is not None
+    assert summary.difference("f2_mixed_cs_features", "f2_mixed_cs_features@key", "challenging", "tusimple_f1")
+    table = capsys.readouterr().out
+    assert "**Table 9: two rows**" in table and "| 2 frames (`f2_mixed_cs_features`) | 96.41 |" in table
+    md = (out / "tables.md").read_text()
+    assert md.startswith("**Table 9") and "History use" in md
+    lines = list(csv.DictReader((out / "summary.csv").open()))
+    assert {"value", "models", "history_key", "history_other"} <= {line["kind"] for line in lines}
+    plot = cv2.imread(str(out / "history_use.png"))
+    assert plot is not None and plot.std() > 10
+    # a second call trains nothing: every run is reused
+    stamps = {p: p.stat().st_mtime_ns for p in out.rglob("last.ckpt")}
     capsys.readouterr()
     assert ablate.main(argv) == 0
-    assert "4 run(s) already finished" in capsys.readouterr().err
-    assert {p: p.stat().st_mtime_ns for p in out.rglob("result.json")} == stamps
-
+    assert "done before, reused" in capsys.readouterr().out
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("last.ckpt")} == stamps
+    # --report-only reads the summary back
+    assert ablate.main(["--tables", str(two_row_index), "--table", "9", "--report-only", "--out", str(out)]) == 0
+    assert "**Table 9" in capsys.readouterr().out
     # the same --out with another budget is refused (one line, status 2)
-    other = [a if a != "2" else "3" for a in argv]
-    assert ablate.main(other) == 2
-    assert "other settings (max_steps" in capsys.readouterr().err
+    assert ablate.main([a if a != "2" else "3" for a in argv]) == 2
+    assert "was made with other settings" in capsys.readouterr().err
+
+
+def test_a_killed_run_goes_on_from_its_last_checkpoint(tiny_set: Path, two_row_index: Path, tmp_path: Path) -> None:
+    out = tmp_path / "ablate"
+    argv = ["--tables", str(two_row_index), "--table", "9", "--rows", "f1_keyonly", "--seeds", "0"]
+    argv += ["--data", str(tiny_set), "--steps", "2", "--bf16", "false", "--out", str(out), "--", *SHRINK]
+    assert ablate.main(argv) == 0
+    folder = out / "f1_keyonly-s0"
+    first = json.loads((folder / "done.json").read_text())
+    (folder / "done.json").unlink()  # as if the process had been killed after its final checkpoint
+    assert ablate.main(argv) == 0
+    again = json.loads((folder / "done.json").read_text())
+    assert again["scores"]["test"]["f1"] == pytest.approx(first["scores"]["test"]["f1"], abs=1e-9)
+    assert again["last_ckpt_sha256"] == first["last_ckpt_sha256"]  # the finished weights, not a new training
 
 
 def test_bad_input_is_one_line_status_2(capsys: pytest.CaptureFixture, tmp_path: Path) -> None:
     for argv in (
         ["--table", "5"],
         ["--table", "1", "--rows", "f9_nothing"],
-        ["--table", "1", "--max-steps", "0"],
-        ["--table", "1", "--data-root", str(tmp_path / "missing")],
-        ["--table", "1", "--max-steps", "5", "--minutes", "1"],
+        ["--table", "1", "--steps", "0"],
+        ["--table", "1", "--data", str(tmp_path / "missing")],
+        ["--table", "1", "--pretrain-steps", "5"],
+        ["--table", "1", "--seeds", "1", "1"],
         ["--report-only", "--table", "1", "--out", str(tmp_path / "empty")],
         [],
     ):
@@ -136,44 +134,6 @@ def test_bad_input_is_one_line_status_2(capsys: pytest.CaptureFixture, tmp_path:
         assert ablate.main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and err.startswith("stamlane ablate"), (argv, err)
-
-
-def test_cli_args_order_row_after_extra_runner_last(tmp_path: Path) -> None:
-    spec = RunSpec(
-        configs=(Path("base.yaml"), Path("layer.yaml")),
-        row=Path("row.yaml"),
-        seed=3,
-        out_dir=tmp_path,
-        max_steps=7,
-        minutes=90.5,
-        data_root="/d",
-        extra=("--data.align=cache",),
-    )
-    args = cli_args(spec)
-    assert args[:4] == ["--config=base.yaml", "--config=layer.yaml", "--data.align=cache", "--config=row.yaml"]
-    assert "--seed_everything=3" in args and "--trainer.max_steps=7" in args and "--data.root=/d" in args
-    assert "--trainer.max_time=00:01:30:30" in args
-
-
-def test_summary_mean_std_and_delta() -> None:
-    results = {
-        0: {"metrics": {"test": {"tusimple_f1": 0.8, "tusimple_fp": 0.1}, "challenging": {"tusimple_f1": 0.7}}},
-        1: {"metrics": {"test": {"tusimple_f1": 0.9, "tusimple_fp": 0.3}, "challenging": {"tusimple_f1": 0.6}}},
-    }
-    s = summarize("r", results)
-    assert s.seeds == [0, 1]
-    assert s.get("test", "tusimple_f1") == pytest.approx((0.85, math.sqrt(0.005)))
-    assert s.get("delta", "tusimple_f1") == pytest.approx((-0.2, math.sqrt(0.02)))
-    assert s.get("delta", "tusimple_fp") is None
-    single = summarize("r", {0: results[0]})
-    assert math.isnan(single.get("test", "tusimple_f1")[1])
-
-    table = PaperTable("1", "t", "tusimple", (PaperRow("r", "row r", Path("r.yaml"), {"tusimple_f1": 0.9681}),))
-    md = table_markdown(table, table.rows, {"r": s})
-    assert "85.00 ± 7.07" in md and "96.81" in md and "0.2000 ± 0.1414" in md
-    assert "-20.00 ± 14.14" in robustness_markdown(table, table.rows, {"r": s})
-    assert "| 80.00 |" in table_markdown(table, table.rows, {"r": single})
-    assert "not run" in table_markdown(table, table.rows, {})
 
 
 def test_index_covers_the_paper_tables() -> None:
@@ -204,24 +164,3 @@ def test_a_baseline_must_be_a_row_of_its_table(tmp_path: Path) -> None:
     (paper / "tables.yaml").write_text(text)
     with pytest.raises(ValueError, match="table 8: baseline 'f4_noalign_add' is not one of its rows"):
         load_tables(paper / "tables.yaml")
-
-
-def test_unfinished_run_resumes_from_its_last_checkpoint(tiny_set: Path, two_row_index: Path, tmp_path: Path) -> None:
-    out = tmp_path / "ablate"
-    save_every_step = [
-        "--trainer.callbacks+=lightning.pytorch.callbacks.ModelCheckpoint",
-        "--trainer.callbacks.save_last=true",
-        "--trainer.callbacks.every_n_train_steps=1",
-    ]
-    argv = ["--tables", str(two_row_index), "--table", "9", "--rows", "f1_keyonly", "--seeds", "0"]
-    argv += ["--data-root", str(tiny_set), "--max-steps", "2", "--out", str(out), "--keep-checkpoints"]
-    argv += ["--", *SHRINK, *save_every_step]
-    assert ablate.main(argv) == 0
-    folder = out / "runs" / "f1_keyonly" / "seed0"
-    first = json.loads((folder / "result.json").read_text())
-    assert first["resumed"] is False and (folder / "logs" / "run" / "checkpoints" / "last.ckpt").is_file()
-    (folder / "result.json").unlink()  # as if the process had been killed after its last checkpoint
-    assert ablate.main(argv) == 0
-    again = json.loads((folder / "result.json").read_text())
-    assert again["resumed"] is True and again["steps"] == 2
-    assert again["metrics"]["test"] == pytest.approx(first["metrics"]["test"], abs=1e-6)

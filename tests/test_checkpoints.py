@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.checkpoints import CheckpointError, check_classes, load_module, read_checkpoint
+from stamlane.checkpoints import CheckpointError, check_classes, read_checkpoint
+from stamlane.module import StamLaneModule
 
 NET = {
     "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
@@ -39,7 +40,7 @@ def test_foreign_classes_are_refused_before_any_import(tmp_path: Path, where: st
     hparams = {**NET, where: {"class_path": name}}
     path = _save(tmp_path / "evil.ckpt", hparams)
     with pytest.raises(CheckpointError, match=f"asks to build {name!r}"):
-        load_module(path)
+        StamLaneModule.from_checkpoint(path)
     assert "antigravity" not in sys.modules
 
 
@@ -55,7 +56,7 @@ def test_a_foreign_instantiator_and_nested_names_are_refused(tmp_path: Path) -> 
 def test_another_networks_weights_do_not_fit(tmp_path: Path) -> None:
     path = _save(tmp_path / "other.ckpt", NET, {"net.encoder.stages.0.0.weight": torch.zeros(3, 3, 3, 3)})
     with pytest.raises(CheckpointError, match=r"does not fit a stamlane network"):
-        load_module(path)
+        StamLaneModule.from_checkpoint(path)
 
 
 @pytest.mark.parametrize(

@@ -125,9 +125,9 @@ def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: 
     assert "carries no config and none is beside it: give --config" in capsys.readouterr().err
 
     # the checkpoint alone rebuilds the network (only stamlane's classes and torch.optim are built from it)
-    from stamlane.checkpoints import load_module
+    from stamlane.module import StamLaneModule
 
-    module = load_module(ckpt)
+    module = StamLaneModule.from_checkpoint(ckpt)
     assert module.num_frames == 2 and not module.training
 
     # --ckpt_path last finds the run's last checkpoint instead of silently starting at step 0

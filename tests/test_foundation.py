@@ -80,6 +80,17 @@ def test_the_generator_makes_clips_without_reading_them_or_torch():
     assert violations(python_files(SRC / "synth"), forbidden) == []
 
 
+def test_checkpoints_is_a_leaf():
+    # the safe loader lives on the module (StamLaneModule.from_checkpoint); checkpoints.py reads files only
+    assert violations([SRC / "checkpoints.py"], ("stamlane",)) == []
+
+
+def test_the_experiment_engine_knows_no_model_internals():
+    # the engine drives `stamlane fit/predict` through the CLI and reads files: models and data stay behind it
+    forbidden = ("stamlane.models", "stamlane.module", "stamlane.data.clips", "stamlane.losses")
+    assert violations(python_files(SRC / "experiments"), forbidden) == []
+
+
 def test_the_import_checker_catches_a_forbidden_import(tmp_path):
     # guard against a checker that can never fail: the imports the rules forbid are found
     bad = tmp_path / "core.py"

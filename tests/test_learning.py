@@ -7,7 +7,6 @@ training ended with.
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import pytest
@@ -16,14 +15,10 @@ from lightning.pytorch import Trainer, seed_everything
 from lightning.pytorch.callbacks import ModelCheckpoint
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.data.datamodule import ClipDataModule
 from stamlane.final_checkpoint import FinalCheckpoint
-from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import PolyLR, StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from tests.overfit import overfit, tiny_data, tiny_module
 
 torch.set_num_threads(1)
-SIZE = (64, 128)  # network input (H, W)
 
 
 @pytest.fixture(scope="module")
@@ -32,60 +27,23 @@ def two_clips(tiny_synthetic) -> Path:
     return tiny_synthetic(256, 144, 4, train=2, val=0, test=0, challenging=0, seed=5)
 
 
-def _module(num_frames: int) -> StamLaneModule:
-    return StamLaneModule(
-        VGGEncoder(width=0.125),
-        functools.partial(STAM, mode="mixed", order="cs", reduction=4, history="features"),
-        LaneDecoder,
-        optimizer=functools.partial(torch.optim.AdamW, lr=5e-3, weight_decay=1e-4),
-        scheduler=PolyLR,
-        postprocess=PostprocessConfig(min_cluster_pixels=10, min_samples=10),
-        num_frames=num_frames,
-        image_size=SIZE,
-        bf16=False,
-        report_run_time=False,
-    )
-
-
-def _data(root: Path, num_frames: int) -> ClipDataModule:
-    no_augmentation = {"crop_scale": (1.0, 1.0), "flip_prob": 0.0, "brightness": 0.0, "contrast": 0.0}
-    return ClipDataModule(
-        root=str(root),
-        num_frames=num_frames,
-        image_size=SIZE,
-        align="true",
-        batch_size=2,
-        val_labels=["train.json"],
-        saturation=0.0,
-        **no_augmentation,
-    )
-
-
 @pytest.mark.parametrize("num_frames", [1, 2])
 def test_a_tiny_network_overfits_two_clips(two_clips: Path, tmp_path: Path, num_frames: int) -> None:
-    seed_everything(0)
-    evaluator = LaneEvalCallback(tusimple=True, culane=False)
-    trainer = Trainer(
-        max_steps=STEPS,
-        val_check_interval=STEPS,
-        check_val_every_n_epoch=None,
-        num_sanity_val_steps=0,
-        logger=False,
-        enable_checkpointing=False,
-        enable_progress_bar=False,
-        enable_model_summary=False,
-        callbacks=[evaluator],
-        default_root_dir=tmp_path,
+    found = overfit(
+        tiny_module(num_frames),
+        tiny_data(two_clips, num_frames),
+        STEPS,
+        tmp_path,
+        [LaneEvalCallback(tusimple=True, culane=False)],
     )
-    trainer.fit(_module(num_frames), datamodule=_data(two_clips, num_frames))
-    f1 = float(trainer.callback_metrics["val/tusimple_f1"])
+    f1 = found["val/tusimple_f1"]
     assert f1 >= 0.9, f"{num_frames}-frame model reached TuSimple F1 {f1:.3f} on its own training clips"
 
 
 def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path) -> None:
     """A 7-step run with 4-step periodic checkpoints: Lightning alone leaves last.ckpt at step 4."""
     seed_everything(0)
-    module = _module(1)
+    module = tiny_module(1)
     periodic = ModelCheckpoint(dirpath=tmp_path / "ckpt", every_n_train_steps=4, save_last=True)
     trainer = Trainer(
         max_steps=7,
@@ -96,7 +54,7 @@ def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path
         callbacks=[periodic, FinalCheckpoint()],
         default_root_dir=tmp_path,
     )
-    trainer.fit(module, datamodule=_data(two_clips, 1))
+    trainer.fit(module, datamodule=tiny_data(two_clips, 1))
     last = tmp_path / "ckpt" / "last.ckpt"
     assert periodic.last_model_path == str(last)
     assert not list((tmp_path / "ckpt").glob("*.partial"))  # written beside, then renamed

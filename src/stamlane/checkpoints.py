@@ -3,8 +3,9 @@
 A checkpoint is data, and data must not run code. ``torch.load(weights_only=True)`` never unpickles code, but
 Lightning's ``load_from_checkpoint`` then BUILDS the network from the hyperparameters stored in the file:
 their ``class_path`` entries (and ``_instantiator``) name Python objects that get imported and called. A
-crafted checkpoint could name any module. `load_module` therefore checks every name against `ALLOWED_CLASSES`
-(stamlane's own classes and torch's optimisers and schedulers) before anything is built.
+crafted checkpoint could name any module. `check_classes` checks every name against `ALLOWED_CLASSES`
+(stamlane's own classes and torch's optimisers and schedulers) before anything is built:
+`stamlane.module.StamLaneModule.from_checkpoint` does it (this module imports nothing of stamlane's).
 
 Every problem — a missing, empty, truncated or text file, a file without weights, a foreign class, another
 network's weights — is a `CheckpointError` (a ``ValueError``) naming the file and the problem in one line;
@@ -30,7 +31,6 @@ __all__ = [
     "CheckpointError",
     "check_classes",
     "check_config",
-    "load_module",
     "read_checkpoint",
 ]
 
@@ -113,28 +113,6 @@ def check_classes(hparams: dict[str, Any], source: str | Path) -> None:
             raise CheckpointError(
                 f"checkpoint {source} asks to build {name!r}; only stamlane's classes and torch.optim may be built"
             )
-
-
-def load_module(path: str | Path) -> Any:
-    """The `stamlane.module.StamLaneModule` stored in a checkpoint, on the CPU, in eval mode.
-
-    Raises:
-        CheckpointError: see `read_checkpoint` and `check_classes`; also for hyperparameters that build no
-            stamlane network and for weights of another network (missing keys, other shapes).
-    """
-    from stamlane.module import StamLaneModule
-
-    content = read_checkpoint(path)
-    hparams = content.get("hyper_parameters")
-    if not isinstance(hparams, dict):
-        raise CheckpointError(f"checkpoint {path} records no hyper_parameters: build the network from its config")
-    check_classes(hparams, path)
-    try:
-        module = StamLaneModule.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, ImportError) as err:
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise CheckpointError(f"checkpoint {path} does not fit a stamlane network: {first[:200]}") from None
-    return module.eval()
 
 
 _IMPORT_KEYS = frozenset(

@@ -22,7 +22,6 @@ What `StamLaneCLI` adds to plain LightningCLI:
 from __future__ import annotations
 
 import importlib
-import logging
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -40,6 +39,7 @@ TOOLS: dict[str, str] = {
     "show": "stamlane.data.show_cli",
     "demo": "stamlane.demo",
     "ablate": "stamlane.experiments.ablate",
+    "report": "stamlane.experiments.report_cli",
     "stream": "stamlane.stream.cli",
     "export": "stamlane.stream.export_cli",
 }
@@ -58,6 +58,7 @@ SUMMARIES: dict[str, str] = {
     "stream": "per-frame streaming inference on a video or a folder of frames",
     "export": "a checkpoint to ONNX, with the parity against PyTorch printed",
     "ablate": "the paper's ablation tables over seeds",
+    "report": "the tables of experiment summaries (demo, ablate), the paper's tables",
 }
 """One line per command for ``stamlane --help``."""
 
@@ -170,19 +171,6 @@ def _check_input_files(rest: list[str]) -> None:
             raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
 
 
-class _NoTips(logging.Filter):
-    def filter(self, record: logging.LogRecord) -> bool:
-        return not str(record.getMessage()).startswith("\N{ELECTRIC LIGHT BULB} Tip")
-
-
-def _quiet_lightning_tips() -> None:
-    """Drop Lightning's advertising tip ("try installing litlogger ...") from every command's output."""
-    for name in ("lightning.pytorch.utilities.rank_zero", "lightning.fabric.utilities.rank_zero"):
-        logger = logging.getLogger(name)
-        if not any(isinstance(f, _NoTips) for f in logger.filters):
-            logger.addFilter(_NoTips())
-
-
 def one_line(err: BaseException) -> str:
     """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
     traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
@@ -221,8 +209,15 @@ def main(argv: list[str] | None = None) -> int:
         from lightning.fabric.utilities.exceptions import MisconfigurationException
 
         from stamlane.data.labels import DataError
+        from stamlane.quiet import quiet_libraries
 
-        _quiet_lightning_tips()
+        if "--verbose" in rest:  # everything the libraries say (not an option of LightningCLI's: taken out)
+            was_own = argv == sys.argv[1:]
+            rest, argv = [a for a in rest if a != "--verbose"], [a for a in argv if a != "--verbose"]
+            if was_own:
+                sys.argv = [sys.argv[0], *argv]
+        else:
+            quiet_libraries()
 
         try:
             _check_input_files(rest)

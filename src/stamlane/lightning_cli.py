@@ -50,10 +50,13 @@ class StamLaneCLI(LightningCLI):
     Args:
         args: command-line style arguments (``["fit", "--config", ...]``); ``None`` = ``sys.argv``.
         run: run the subcommand (False: only build model, data and trainer).
+        report: print where a fit's model went and its best validation F1 (the experiment engine, which reports
+            itself, turns it off).
         **kwargs: passed to ``LightningCLI``.
     """
 
-    def __init__(self, args: list[str] | None = None, run: bool = True, **kwargs: Any) -> None:
+    def __init__(self, args: list[str] | None = None, run: bool = True, report: bool = True, **kwargs: Any) -> None:
+        self.report = report
         kwargs.setdefault("seed_everything_default", 0)
         kwargs.setdefault("save_config_kwargs", {"overwrite": True})
         super().__init__(StamLaneModule, ClipDataModule, args=args, run=run, **kwargs)
@@ -110,7 +113,7 @@ class StamLaneCLI(LightningCLI):
 
     def after_fit(self) -> None:
         """Say where the model went and how good it is: best validation F1 and its step, checkpoints, logs."""
-        if self.trainer.global_rank != 0:
+        if self.trainer.global_rank != 0 or not self.report:
             return
         lines = [f"stamlane fit: done after {self.trainer.global_step} steps"]
         for cb in self.trainer.checkpoint_callbacks:

@@ -24,6 +24,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -34,6 +35,7 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from stamlane.checkpoints import CheckpointError, check_classes, read_checkpoint
 from stamlane.hardware import resolve_bf16
 from stamlane.lightning_compat import drop_hyperparameters
 from stamlane.losses import LaneLoss
@@ -115,6 +117,11 @@ class StamLaneModule(LightningModule):
             (``--ckpt_path``) keeps its own weights, and loading or testing the result never needs the file.
             The encoder and decoder must fit exactly; a fusion module other than the checkpoint's (another
             aggregator) keeps its own initialisation, which is printed.
+        fusion_lr_scale: the fusion modules' learning rate as a multiple of the optimizer's (their own parameter
+            group; the schedule scales both alike). A fusion that starts from scratch on a pretrained encoder
+            and decoder may need a larger one to catch up (docs/training.md).
+        fuse_skip: fuse the second-deepest encoder stage (stride 8) over time too, with a second module of the
+            fusion's kind whose output replaces the key frame's skip there (`stamlane.models.LaneNet`).
     """
 
     def __init__(
@@ -133,6 +140,8 @@ class StamLaneModule(LightningModule):
         channels_last: bool = False,
         report_run_time: bool = True,
         init_weights: str | None = None,
+        fusion_lr_scale: float = 1.0,
+        fuse_skip: bool = False,
     ) -> None:
         super().__init__()
         with warnings.catch_warnings():  # "Attribute 'encoder' is an instance of nn.Module": dropped just below
@@ -143,7 +152,7 @@ class StamLaneModule(LightningModule):
         drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
         if num_frames is not None and num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")
-        self.net = LaneNet(encoder, fusion, decoder)
+        self.net = LaneNet(encoder, fusion, decoder, fuse_skip)
         self.loss = loss if loss is not None else LaneLoss()
         self.optimizer_factory = optimizer
         self.scheduler_factory = scheduler
@@ -154,6 +163,9 @@ class StamLaneModule(LightningModule):
         self.channels_last = channels_last
         self.report_run_time = report_run_time
         self.init_weights = init_weights
+        if not fusion_lr_scale > 0:
+            raise ValueError(f"fusion_lr_scale must be > 0, got {fusion_lr_scale}")
+        self.fusion_lr_scale = float(fusion_lr_scale)
         if image_size is not None:
             stride = int(getattr(encoder, "total_stride", 1))
             height, width = image_size
@@ -168,30 +180,55 @@ class StamLaneModule(LightningModule):
     def setup(self, stage: str) -> None:
         """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""
         if stage == "fit" and self.init_weights:
-            from stamlane.checkpoints import CheckpointError, read_checkpoint
-
             try:
                 state = read_checkpoint(self.init_weights)["state_dict"]
             except CheckpointError as err:
                 raise ValueError(f"init_weights: {err}") from None
             own = self.state_dict()
-            fusion = "net.fusion."
+            for fusion in ("net.fusion.", "net.skip_fusion."):
 
-            def shapes(weights: dict[str, Tensor]) -> dict[str, tuple[int, ...]]:
-                return {k: tuple(v.shape) for k, v in weights.items() if k.startswith(fusion)}
+                def shapes(weights: dict[str, Tensor], prefix: str = fusion) -> dict[str, tuple[int, ...]]:
+                    return {k: tuple(v.shape) for k, v in weights.items() if k.startswith(prefix)}
 
-            if shapes(state) != shapes(own):  # another fusion (a row of the paper's tables): it starts afresh
+                if shapes(state) == shapes(own):
+                    continue
+                # another fusion (a row of the paper's tables, or one the checkpoint lacks): it starts afresh
                 state = {k: v for k, v in state.items() if not k.startswith(fusion)}
                 state |= {k: v for k, v in own.items() if k.startswith(fusion)}
+                name = fusion[len("net.") : -1]
                 rank_zero_info(
-                    f"init_weights: encoder and decoder from {self.init_weights}; the fusion module "
-                    f"({type(self.net.fusion).__name__}) differs from the checkpoint's and starts from its own "
-                    f"initialisation"
+                    f"init_weights: encoder and decoder from {self.init_weights}; the {name} module "
+                    f"({type(getattr(self.net, name)).__name__}) differs from the checkpoint's and starts from its "
+                    f"own initialisation"
                 )
             try:
                 self.load_state_dict(state)
             except RuntimeError as err:  # other architecture: missing / unexpected keys, other shapes
                 raise ValueError(f"init_weights: {self.init_weights!r} does not fit this network: {err}") from err
+
+    @classmethod
+    def from_checkpoint(cls, path: str | Path) -> StamLaneModule:
+        """The module stored in a checkpoint, built safely, on the CPU, in eval mode.
+
+        The file is read with ``weights_only=True`` and every ``class_path`` of its hyperparameters is checked
+        against `stamlane.checkpoints.ALLOWED_CLASSES` before anything is built (Lightning's own
+        ``load_from_checkpoint`` would import and call whatever the file names).
+
+        Raises:
+            CheckpointError: see `stamlane.checkpoints.read_checkpoint` and `check_classes`; also for
+                hyperparameters that build no stamlane network and for weights of another network.
+        """
+        content = read_checkpoint(path)
+        hparams = content.get("hyper_parameters")
+        if not isinstance(hparams, dict):
+            raise CheckpointError(f"checkpoint {path} records no hyper_parameters: build the network from its config")
+        check_classes(hparams, path)
+        try:
+            module = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
+        except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, ImportError) as err:
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise CheckpointError(f"checkpoint {path} does not fit a stamlane network: {first[:200]}") from None
+        return module.eval()
 
     # ------------------------------------------------------------------ network
     def forward(self, clip: Tensor, key_from_hist_net: Tensor | None = None) -> tuple[Tensor, Tensor]:
@@ -305,7 +342,14 @@ class StamLaneModule(LightningModule):
 
     # ------------------------------------------------------------------ optimisation
     def configure_optimizers(self) -> Any:
-        optimizer = self.optimizer_factory(self.parameters())
+        fusion = [*self.net.fusion.parameters(), *(self.net.skip_fusion.parameters() if self.net.skip_fusion else ())]
+        if self.fusion_lr_scale == 1.0 or not fusion:
+            optimizer = self.optimizer_factory(self.parameters())
+        else:
+            owned = {id(p) for p in fusion}
+            others = [p for p in self.parameters() if id(p) not in owned]
+            optimizer = self.optimizer_factory([{"params": others}, {"params": fusion}])
+            optimizer.param_groups[1]["lr"] *= self.fusion_lr_scale  # before the schedule reads its base rates
         if self.scheduler_factory is None:
             return optimizer
         total = self.trainer.estimated_stepping_batches

@@ -46,6 +46,7 @@ __all__ = [
     "fit_curve",
     "fit_lane",
     "sample_curve",
+    "sample_lanes",
 ]
 
 
@@ -301,6 +302,28 @@ def decode_lanes(
         curve = fit_curve(pts_orig[labels == cluster], config)
         if curve is not None:
             curves.append(curve)
+    lanes = sample_lanes(curves, config, y_samples, orig_size)
+    return lanes
+
+
+def sample_lanes(
+    curves: Sequence[LaneCurve],
+    config: PostprocessConfig,
+    y_samples: Sequence[float] | None = None,
+    orig_size: tuple[int, int] | None = None,
+) -> Lanes:
+    """The lanes of one image from its fitted curves: each sampled inside the rows it covers, or with ``extend``
+    from the image's common far end to the bottom; points outside ``orig_size`` ``(H, W)`` dropped; left to right.
+
+    Args:
+        curves: the image's fitted curves (`fit_curve`), original pixels.
+        config: the decoding options (``extend``, ``y_step``).
+        y_samples: rows to sample at (TuSimple ``h_samples``); ``None`` = every ``y_step`` pixels.
+        orig_size: ``(H, W)`` of the original image, or None (keep every point).
+
+    Returns:
+        ``(N, 2)`` ``(x, y)`` float arrays, left to right by x at their lowest row.
+    """
     if config.extend and curves:
         top = min(c.y_lo for c in curves)
         bottom = max(y_samples) if y_samples is not None and len(y_samples) else None

@@ -23,10 +23,11 @@ import cv2
 import lightning.pytorch as pl
 import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
+from stamlane_eval.io import culane_lines_path
 
 from stamlane.imageio import read_image
 from stamlane.overlay import draw_lanes
-from stamlane.writers import TusimpleWriter, culane_lines_path, output_path, write_culane_lines
+from stamlane.writers import TusimpleWriter, output_path, write_culane_lines
 
 __all__ = ["LanePredictionWriter"]
 
@@ -44,6 +45,7 @@ class LanePredictionWriter(BasePredictionWriter):
             ``"tusimple"`` (frames without ``h_samples`` are an error) or ``"culane"`` (always text).
         overlays: write overlay pictures.
         max_overlays: write at most this many overlays (``None``: all).
+        verbose: print what was written when prediction ends (the experiment engine turns it off).
     """
 
     def __init__(
@@ -52,8 +54,10 @@ class LanePredictionWriter(BasePredictionWriter):
         format: str = "auto",
         overlays: bool = True,
         max_overlays: int | None = None,
+        verbose: bool = True,
     ) -> None:
         super().__init__(write_interval="batch")
+        self.verbose = verbose
         if format not in _FORMATS:
             raise ValueError(f"format must be one of {_FORMATS}, got {format!r}")
         if max_overlays is not None and max_overlays < 0:
@@ -118,6 +122,6 @@ class LanePredictionWriter(BasePredictionWriter):
         if self._json is not None:
             self._json.close()
             self._json = None
-        if trainer.is_global_zero:
+        if trainer.is_global_zero and self.verbose:
             parts = [f"{n} {k}" for k, n in self.written.items() if n]
             print(f"stamlane predict: wrote {', '.join(parts) or 'nothing'} under {self.output_dir}")

@@ -22,7 +22,6 @@ from stamlane.types import Lanes
 
 __all__ = [
     "TusimpleWriter",
-    "culane_lines_path",
     "format_culane_lines",
     "open_output",
     "output_path",
@@ -84,16 +83,6 @@ class TusimpleWriter:
         self.close()
 
 
-def culane_lines_path(out_dir: str | Path, raw_file: str) -> Path:
-    """``<out_dir>/<raw_file without its suffix>.lines.txt``, the path ``stamlane-eval culane`` reads
-    (``stamlane_eval.io.culane_lines_path``; a leading ``/`` of ``raw_file`` is ignored)."""
-    from stamlane_eval.io import culane_lines_path as eval_lines_path
-
-    if ".." in Path(raw_file).parts:
-        raise ValueError(f"raw_file must be a relative path inside the dataset, got {raw_file!r}")
-    return eval_lines_path(out_dir, raw_file)
-
-
 def format_culane_lines(lanes: Lanes) -> str:
     """The text of a ``.lines.txt`` file: one lane a line, ``x1 y1 x2 y2 ...``; lanes with < 2 points skipped."""
     lines = []
@@ -108,7 +97,11 @@ def format_culane_lines(lanes: Lanes) -> str:
 
 
 def write_culane_lines(out_dir: str | Path, raw_file: str, lanes: Lanes) -> Path:
-    """Write one image's lanes to :func:`culane_lines_path`; returns the path written."""
+    """Write one image's lanes to the path ``stamlane-eval culane`` reads (`stamlane_eval.io.culane_lines_path`:
+    ``<out_dir>/<raw_file without its suffix>.lines.txt``; a ``raw_file`` that would leave ``out_dir`` is refused);
+    returns the path written."""
+    from stamlane_eval.io import culane_lines_path
+
     path = culane_lines_path(out_dir, raw_file)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open_output(out_dir, path) as f:

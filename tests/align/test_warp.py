@@ -77,12 +77,14 @@ def test_align_clip_order_shape_and_accuracy(texture, strategy):
 
 def test_align_clip_accepts_a_grey_array_and_keeps_failed_frames(texture):
     frames, _ = _clip(texture, color=False)
-    frames[0] = np.zeros_like(frames[0])  # black: cannot be aligned
+    frames[0] = np.zeros_like(frames[0])  # black: cannot be matched, so it moves as the pair that matched
     aligned, alignments = align_clip(np.stack(frames), horizon_row=SMALL_HORIZON)
     assert aligned.shape == (3, *SHAPE)
-    assert not alignments[0].ok and "too few features" in alignments[0].reason
+    assert alignments[0].ok and alignments[0].extrapolated and alignments[1].ok and not alignments[1].extrapolated
+    frames[1] = np.zeros_like(frames[1])  # no pair matches: nothing to move them with
+    aligned, alignments = align_clip(np.stack(frames), horizon_row=SMALL_HORIZON)
+    assert not alignments[0].ok and "too few features" in alignments[0].reason and not alignments[1].ok
     np.testing.assert_array_equal(aligned[0], frames[0])  # left as it was
-    assert alignments[1].ok
 
 
 def test_align_clip_single_frame_is_the_key(texture):
@@ -129,3 +131,31 @@ def test_chain_link_multiplies_checks_and_reports_the_counts_asked_for():
     wild = Alignment(np.array([[1.0, 0, 900.0], [0, 1, 0], [0, 0, 1]]), 40, 30, True, "")  # off the image
     failed = chain_link(wild, b, (360, 640), 160)
     assert not failed.ok and failed.reason
+
+
+def test_a_failed_pair_moves_as_the_nearest_pair_that_matched():
+    """Constant motion: in a 4-frame chain whose last pair failed (a washed-out key frame) every history frame
+    takes the motion of the pair before it; without fill the chain stays broken; a clip with no matched pair
+    stays failed."""
+    from stamlane.align.warp import alignments_to_key
+
+    motion = key_from_hist_motion(SMALL_CAMERA, forward=1.0)  # the same motion between every pair of frames
+
+    def estimate(failed: set[tuple[int, int]]):
+        def one(i: int, j: int) -> Alignment:
+            if (i, j) in failed or j == 3:  # every pair with the key frame fails, direct ones too
+                return Alignment.failed("washed out")
+            return Alignment(np.linalg.matrix_power(motion, j - i), 50, 40, True, "")
+
+        return one
+
+    size = (SMALL_CAMERA.height, SMALL_CAMERA.width)
+    found = alignments_to_key(4, estimate(set()), size, SMALL_HORIZON)
+    assert all(a.ok and a.extrapolated for a in found)
+    for back, a in zip((3, 2, 1), found):  # frames 0, 1, 2: 3, 2 and 1 pairs from the key frame
+        want = np.linalg.matrix_power(motion, back)
+        np.testing.assert_allclose(a.key_from_hist, want / want[2, 2], atol=1e-9)
+    broken = alignments_to_key(4, estimate(set()), size, SMALL_HORIZON, fill=False)
+    assert not any(a.ok for a in broken)
+    nothing = alignments_to_key(4, estimate({(0, 1), (1, 2)}), size, SMALL_HORIZON)
+    assert not any(a.ok for a in nothing) and not any(a.extrapolated for a in nothing)

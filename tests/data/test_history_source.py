@@ -62,7 +62,7 @@ def test_other_clip_needs_two_clips_and_unknown_sources_are_refused(tusimple_roo
 def test_key_corruption_changes_the_key_frame_only():
     rng = np.random.default_rng(0)
     clip = rng.uniform(0.2, 0.6, (4, 3, 40, 64)).astype(np.float32)
-    for kind in ("drop", "glare", "occluder"):
+    for kind in ("drop", "glare", "occluder", "blank"):
         out = KeyFrameCorruption(1.0, (kind,))(clip.copy(), np.random.default_rng(1))
         np.testing.assert_array_equal(out[:-1], clip[:-1])
         assert np.abs(out[-1] - clip[-1]).mean() > 0.01, kind

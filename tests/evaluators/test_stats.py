@@ -112,3 +112,26 @@ def test_seed_interval_is_the_student_t_interval_of_the_mean() -> None:
     for bad in ([0.01], [0.01, float("nan")]):
         with pytest.raises(ValueError):
             seed_interval(bad)
+
+
+def test_temporal_shares_through_the_bootstrap() -> None:
+    import numpy as np
+    from stamlane_eval import temporal
+    from stamlane_eval.stats import bootstrap, rj_of_counts, rm_of_counts, rs_of_counts, temporal_counts
+    from stamlane_eval.video import Frame
+
+    a = np.array([[150.0, 359.0], [220.0, 250.0], [290.0, 150.0]])
+    b = np.array([[490.0, 359.0], [420.0, 250.0], [350.0, 150.0]])
+    clips = {
+        "steady": [Frame([a, b], [a, b], size=(360, 640))] * 3,
+        "flaky": [Frame([a, b], [a, b], size=(360, 640)), Frame([b], [a, b], size=(360, 640))],
+    }
+    res = temporal.evaluate(clips)
+    counts = temporal_counts(res.per_sequence, 0.5)
+    assert counts.tolist() == [[4, 0, 0], [1, 1, 0]]
+    means = counts.mean(axis=0)
+    c = res.totals[0.5]
+    assert (rs_of_counts(means), rj_of_counts(means), rm_of_counts(means)) == (c.rs, c.rj, c.rm)
+    est = bootstrap(counts, rs_of_counts, resamples=200)
+    assert est.value == c.rs and est.interval[0] <= c.rs <= est.interval[1]
+    assert np.isnan(rs_of_counts(np.zeros(3)))

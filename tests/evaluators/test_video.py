@@ -54,17 +54,24 @@ def test_flicker_and_counts() -> None:
 
 
 def test_miou_per_frame_over_predictions_then_sequences() -> None:
-    # frame mIoU: mean over predicted lanes (unmatched -> 0): [1.0, 0.5] -> sequence 0.75; other sequence 1.0
+    # frame mIoU: matched IoUs summed over the predicted lanes' count (unmatched -> 0): [1.0, 0.5] -> 0.75
     seqs = {
         "one": [_frame([A], [A]), _frame([A, FAR], [A])],
         "two": [_frame([B], [B])],
-        "empty": [_frame([], [])],  # nothing to score: skipped
+        "empty": [_frame([], [])],  # MMA-Net's counter.cpp: a frame with neither lanes nor predictions scores 1
     }
     res = video.evaluate(seqs)
-    assert res.per_sequence[0].miou == 0.75 and res.per_sequence[1].miou == 1.0 and res.per_sequence[2].miou is None
-    assert res.miou == 0.875  # not the frame mean 0.8333
+    assert [s.miou for s in res.per_sequence] == [0.75, 1.0, 1.0]
+    assert res.miou == (0.75 + 1.0 + 1.0) / 3  # over sequences, not the frame mean 0.875
     assert video.evaluate({"s": [_frame([], [A])]}).miou == 0.0  # annotations, no prediction: 0
+    assert video.evaluate({"s": [_frame([A], [])]}).miou == 0.0  # predictions, no annotation: 0
     assert res.sequences == 3 and res.frames == 4
+
+
+def test_dataset_miou_from_printed_sequence_values() -> None:
+    # evaluate.cpp prints each video's mIoU with 6 significant digits; evaluate_iou.py averages the printed text
+    assert video.dataset_miou([2 / 3, 1 / 3]) == (0.666667 + 0.333333) / 2
+    assert video.dataset_miou([]) == 0.0
 
 
 def test_lane_absent_in_middle_frame_is_no_flicker() -> None:
@@ -136,3 +143,65 @@ def test_cli_lines_layout_and_errors(capsys: pytest.CaptureFixture[str], tmp_pat
     code = main(["video", str(pred.parent), str(bad)])
     err = capsys.readouterr().err
     assert code == 2 and "annotations.lane" in err and "0.jpg.json" in err
+
+
+# --------------------------------------------------------------------------- parity with MMA-Net's evaluation
+GOLDEN_T = Path(__file__).parent / "golden" / "temporal"
+MMA = json.loads((GOLDEN_T / "expected.json").read_text())["mma_net"]
+
+
+def _golden_first_frame_sizes() -> dict[str, list[Frame]]:
+    """The golden temporal set as MMA-Net scores it: every frame of a video at its first frame's size."""
+    from stamlane_eval.io import read_culane_lines
+
+    sizes = json.loads((GOLDEN_T / "sizes.json").read_text())
+    seqs: dict[str, list[Frame]] = {}
+    for entry in (GOLDEN_T / "list.txt").read_text().split():
+        seq = entry.rsplit("/", 1)[0]
+        size = seqs[seq][0].size if seq in seqs else tuple(sizes[entry])
+        pred = read_culane_lines(GOLDEN_T / "pred" / f"{entry}.lines.txt")
+        anno = read_culane_lines(GOLDEN_T / "anno" / f"{entry}.lines.txt")
+        seqs.setdefault(seq, []).append(Frame(pred, anno, size=size))
+    return seqs
+
+
+@pytest.mark.parametrize("threshold", ["0.5", "0.8"])
+def test_golden_parity_with_mma_net(threshold: str) -> None:
+    want = MMA[threshold]
+    res = video.evaluate(_golden_first_frame_sizes(), (float(threshold),))
+    assert res.totals[float(threshold)].f1 == want["F"]  # "all scenes F", every bit
+    for s in res.per_sequence:  # what the C++ tool wrote for each video
+        w = want["per_video"][s.name]
+        assert (list(s.counts[float(threshold)]), f"{s.miou:.6g}") == ([w["tp"], w["fp"], w["fn"]], w["miou"])
+    # "all scenes miou": the printed values summed in the order os.listdir gave the script, every bit ...
+    by_name = {s.name: s.miou for s in res.per_sequence}
+    assert video.dataset_miou([by_name[v] for v in want["video_order"]]) == want["miou"]
+    # ... and in list order (which this package uses) the same up to the order of a float sum
+    assert res.miou == pytest.approx(want["miou"], rel=1e-15, abs=0)
+
+
+OUTCOMES = json.loads((GOLDEN_T / "expected.json").read_text())["outcomes"]
+
+
+@pytest.mark.parametrize("name", sorted(OUTCOMES))
+def test_mma_net_on_the_small_outcome_sets(name: str) -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_cases", GOLDEN_T / "make_cases.py")
+    cases = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cases)
+    seqs = {
+        seq: [
+            Frame([np.asarray(p, float) for p in pred], [np.asarray(a, float) for a in anno], size=size)
+            for anno, pred, size in frames
+        ]
+        for seq, _, frames in cases.outcome_cases()[name][1]
+    }
+    for t, want in OUTCOMES[name]["mma_net"].items():
+        res = video.evaluate(seqs, (float(t),))
+        if "error" in want:  # no true positive anywhere: MMA-Net's script divides by zero; F is 0 here
+            assert want["error"].startswith("ZeroDivisionError") and res.totals[float(t)].f1 == 0.0
+            continue
+        assert res.totals[float(t)].f1 == want["F"]
+        by_name = {s.name: s.miou for s in res.per_sequence}
+        assert video.dataset_miou([by_name[v] for v in want["video_order"]]) == want["miou"]

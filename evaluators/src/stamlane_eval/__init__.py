@@ -1,7 +1,8 @@
-"""stamlane-eval: TuSimple and CULane/ApolloScape lane metrics, number for number equal to the official tools.
+"""stamlane-eval: TuSimple, CULane/ApolloScape and video lane metrics, number for number equal to the official tools.
 
-The core (``tusimple``, ``culane``, ``io``, ``cli``) needs numpy/scipy/opencv only; the torchmetrics metrics
-and the Lightning callback live in ``stamlane_eval.integrations`` and are imported only on request.
+The core (``tusimple``, ``culane``, ``video``, ``temporal``, ``io``, ``cli``) needs numpy/scipy/opencv only; the
+torchmetrics metrics and the Lightning callback live in ``stamlane_eval.integrations`` and are imported only on
+request.
 """
 
 __all__ = ["__version__"]

@@ -4,8 +4,10 @@
     stamlane-eval culane PRED_DIR GT_DIR [--list LIST] [--iou 0.3 0.5] [--width 30] [--size 1640x590]
                          [--variant official|lanedet] [--json] [--per-image FILE]
     stamlane-eval apollo PRED_DIR GT_DIR ...     (the culane command with ApolloScape's 3384x2710)
-    stamlane-eval video PRED_DIR GT_DIR [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
+    stamlane-eval video PRED_DIR GT_DIR [--list LIST] [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
                         [--json] [--per-sequence FILE]
+    stamlane-eval video PRED_DIR GT_DIR --temporal [--protocol vil100|openlane-v] [--list LIST] [--iou 0.5 0.8]
+                        [--size WxH] [--sizes FILE] [--json] [--per-sequence FILE]     (RVLD's Rs / Rj / Rm)
 
 Bad input: one line on stderr naming the file and the problem, exit status 2, no traceback.
 """
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import stamlane_eval
-from stamlane_eval import culane, tusimple, video
+from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.cli_tools import (
     OneLineParser,
     OutputError,
@@ -41,6 +43,7 @@ from stamlane_eval.io import (
     culane_lines_path,
     inside,
     read_culane_lines,
+    read_text,
     read_tusimple,
     read_vil100_json,
     tusimple_points,
@@ -153,15 +156,39 @@ def _build_parser() -> OneLineParser:
         cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
         cu.set_defaults(default_size=size)
 
-    vd = sub.add_parser("video", help="video metrics: mIoU, F@0.5/0.8, identity switches, flicker")
+    vd = sub.add_parser(
+        "video", help="video metrics: mIoU, F@0.5/0.8 (MMA-Net), identity switches, flicker; --temporal: Rs/Rj/Rm"
+    )
     vd.add_argument("pred", type=Path, help="folder of predictions, <sequence>/<frame>.lines.txt")
     vd.add_argument(
         "gt", type=Path, help="VIL-100 root (Json/<video>/<frame>.jpg.json) or <sequence>/<frame>.lines.txt"
     )
-    vd.add_argument("--iou", type=_iou, nargs="+", default=list(video.VIDEO_IOU_THRESHOLDS), help="F thresholds")
-    vd.add_argument("--match-iou", type=_iou, default=video.MATCH_IOU, help="IoU of a match for switches/flicker")
-    vd.add_argument("--width", type=_lane_width, default=culane.LANE_WIDTH, help="lane line width in pixels")
+    vd.add_argument(
+        "--list", type=Path, help="frames in time order, <sequence>/<frame> per line; default: every frame, by name"
+    )
+    vd.add_argument("--iou", type=_iou, nargs="+", default=list(video.VIDEO_IOU_THRESHOLDS), help="IoU thresholds")
+    vd.add_argument(
+        "--match-iou", type=_iou, default=None, help=f"IoU of a match for switches/flicker ({video.MATCH_IOU})"
+    )
+    vd.add_argument("--width", type=_lane_width, default=None, help=f"lane line width in pixels ({culane.LANE_WIDTH})")
     vd.add_argument("--size", type=_size, default=None, help="image WxH (default: VIL-100 json info)")
+    vd.add_argument(
+        "--sizes",
+        type=Path,
+        metavar="FILE",
+        help='JSON {"<sequence>": "WxH", "<sequence>/<frame>": "WxH", ...}: sizes that differ between videos',
+    )
+    vd.add_argument(
+        "--temporal",
+        action="store_true",
+        help="RVLD's temporal stability instead: Ns, Nj, Nm, Rs, Rj, Rm per threshold (evaluate_temporal.py)",
+    )
+    vd.add_argument(
+        "--protocol",
+        choices=temporal.PROTOCOLS,
+        default="vil100",
+        help="with --temporal: which copy of RVLD's script (openlane-v: 1920x1280 lanes drawn at 960x640)",
+    )
     _output_format(vd, official=None)
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
 
@@ -324,10 +351,61 @@ def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace
         )
 
 
-def _run_video(args: argparse.Namespace) -> int:
+def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple[str, Path]]]:
+    """The frames a list names, in its order: ``{sequence: [(frame_stem, annotation_path), ...]}``.
+
+    An entry is ``<sequence>/<frame>`` (an extension and a leading ``/`` or ``/JPEGImages/``, as in VIL-100's
+    ``data/test.txt``, are allowed); the sequence is everything before the last ``/``. A sequence's frames must
+    be listed together: RVLD's script pairs list neighbours by position.
+    """
+    seqs: dict[str, list[tuple[str, Path]]] = {}
+    last = None
+    for i, entry in enumerate(culane_entries(gt, list_file), 1):
+        rel = entry.strip().lstrip("/")
+        rel = rel[len("JPEGImages/") :] if rel.startswith("JPEGImages/") else rel  # evaluate_iou.py drops it too
+        if "/" not in rel:
+            raise LaneFileError(f"{list_file}: line {i}: {entry!r} names no sequence (expected <sequence>/<frame>)")
+        seq, name = rel.rsplit("/", 1)
+        stem = name[: name.rfind(".")] if "." in name else name
+        if seq in seqs and seq != last:
+            raise LaneFileError(
+                f"{list_file}: line {i}: sequence {seq!r} resumes after other sequences; list each sequence's "
+                f"frames together, in time order"
+            )
+        path = gt / "Json" / seq / f"{stem}.jpg.json" if kind == "vil100" else culane_lines_path(gt, rel)
+        seqs.setdefault(seq, []).append((stem, path))
+        last = seq
+    return seqs
+
+
+def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
+    """``--sizes FILE``: ``{"<sequence>" or "<sequence>/<frame>": "WxH"}`` as ``(H, W)``."""
+    if path is None:
+        return {}
+    text = read_text(path)  # a FIFO or a device: refused unread
+    try:
+        data = json.loads(text)
+    except ValueError as e:
+        raise LaneFileError(f"{path}: cannot read a JSON object: {e}") from None
+    if not isinstance(data, dict):
+        raise LaneFileError(f'{path}: expected a JSON object {{sequence: "WxH"}}, got {type(data).__name__}')
+    out = {}
+    for key, text in data.items():
+        try:
+            out[key] = _size(text if isinstance(text, str) else repr(text))
+        except argparse.ArgumentTypeError as e:
+            raise LaneFileError(f"{path}: {key!r}: {e}") from None
+    return out
+
+
+def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[video.Frame]]:
+    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing file: no lanes)."""
     if not args.pred.is_dir():
         raise LaneFileError(f"{args.pred}: not a directory")
+    sizes = _read_sizes(args.sizes)
     kind, layout = video_frames(args.gt)
+    if args.list is not None:
+        layout = _listed_frames(args.gt, args.list, kind)
     sequences: dict[str, list[video.Frame]] = {}
     for seq, frames in layout.items():
         out = []
@@ -337,16 +415,25 @@ def _run_video(args: argparse.Namespace) -> int:
                 lanes, ids, size = read_vil100_json(path)
             else:
                 lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
-            size = args.size or size
-            if size is None:
-                raise LaneFileError(f"{path}: no image size: give --size WxH")
+            size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
+            if size is None and need_size:
+                raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
             pred_path = args.pred / seq / f"{stem}.lines.txt"
             preds = read_culane_lines(inside(pred_path, args.pred) if pred_path.exists() else pred_path)
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
+    return sequences
+
+
+def _run_video(args: argparse.Namespace) -> int:
+    if args.temporal:
+        return _run_temporal(args)
+    sequences = _read_video(args, need_size=True)
     thresholds = sorted(set(args.iou))
+    width = args.width or culane.LANE_WIDTH
+    match_iou = video.MATCH_IOU if args.match_iou is None else args.match_iou
     try:
-        res = video.evaluate(sequences, thresholds, args.match_iou, args.width)
+        res = video.evaluate(sequences, thresholds, match_iou, width)
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
@@ -354,7 +441,7 @@ def _run_video(args: argparse.Namespace) -> int:
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
-        print(f"video, {res.sequences} sequences, {res.frames} frames, width {args.width}")
+        print(f"video, {res.sequences} sequences, {res.frames} frames, width {width}")
         rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision", "recall", "F"]]
         for t, c in res.totals.items():
             rows.append([f"{t:g}", c.tp, c.fp, c.fn, c.precision, c.recall, c.f1])
@@ -363,6 +450,42 @@ def _run_video(args: argparse.Namespace) -> int:
             f"mIoU {res.miou:.4f}  identity switches {res.id_switches} (rate {res.switch_rate:.4f})  "
             f"flicker {res.flickers} (rate {res.flicker_rate:.4f})"
         )
+    return 0
+
+
+def _run_temporal(args: argparse.Namespace) -> int:
+    for option, flag in (("width", "--width"), ("match_iou", "--match-iou")):
+        if getattr(args, option) is not None:
+            raise LaneFileError(f"{flag} does not apply to --temporal (RVLD's script draws 30 px and pairs above 0.5)")
+    if args.protocol == "openlane-v" and (args.size is not None or args.sizes is not None):
+        raise LaneFileError("--size does not apply to --protocol openlane-v (1920x1280 lanes, drawn at 960x640)")
+    sequences = _read_video(args, need_size=args.protocol == "vil100")
+    if args.protocol == "openlane-v":  # a VIL-100 json's own size does not apply either
+        sequences = {k: [video.Frame(f.preds, f.target) for f in v] for k, v in sequences.items()}
+    thresholds = sorted(set(args.iou))
+    try:
+        res = temporal.evaluate(sequences, thresholds, protocol=args.protocol)
+    except ValueError as e:
+        raise LaneFileError(f"{args.gt}: {e}") from None
+    if not res.totals[thresholds[0]].total:
+        raise LaneFileError(
+            f"{args.gt}: no annotated lane is matched between two consecutive frames ({res.pairs} pairs of frames): "
+            f"Rs, Rj, Rm are 0/0 (RVLD's script fails here with ZeroDivisionError)"
+        )
+    if args.per_sequence:
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+    if args.format == "json":
+        print(json.dumps(res.as_dict()))
+    else:
+        n = res.totals[thresholds[0]].total
+        print(
+            f"temporal stability (RVLD, {args.protocol}), {res.sequences} sequences, {res.frames} frames, "
+            f"{res.pairs} pairs of frames, {n} annotated lanes matched across a pair"
+        )
+        rows: list[list[object]] = [["IoU", "Ns", "Nj", "Nm", "Rs %", "Rj %", "Rm %"]]
+        for t, c in res.totals.items():
+            rows.append([f"{t:g}", c.ns, c.nj, c.nm, *(f"{100 * v:.2f}" for v in (c.rs, c.rj, c.rm))])
+        print(_table(rows))
     return 0
 
 

@@ -23,17 +23,21 @@ when both intervals exclude 0.
     >>> seed_interval([f1_a[s] - f1_b[s] for s in seeds]).interval
 
 The CULane / ApolloScape F1 is a function of the summed lane counts: ``culane_counts(result.per_image, 0.5)`` with
-``f1_of_counts`` goes through the same functions.
+``f1_of_counts`` goes through the same functions; so are RVLD's Rs, Rj, Rm of the summed Ns, Nj, Nm:
+``temporal_counts(result.per_sequence, 0.5)`` (one row per clip) with ``rs_of_counts`` / ``rj_of_counts`` /
+``rm_of_counts``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from stamlane_eval.culane import CULaneImageResult
+from stamlane_eval.temporal import TemporalSequenceResult
 from stamlane_eval.tusimple import TuSimpleImageResult, paper_f1
 
 __all__ = [
@@ -43,7 +47,11 @@ __all__ = [
     "f1_of_counts",
     "f1_of_rates",
     "paired_bootstrap",
+    "rj_of_counts",
+    "rm_of_counts",
+    "rs_of_counts",
     "seed_interval",
+    "temporal_counts",
     "tusimple_rates",
 ]
 
@@ -112,6 +120,34 @@ def f1_of_counts(means: np.ndarray) -> float:
     + FN), which the means give as the sums do; 0 where there is no lane at all (as the official tool)."""
     tp, fp, fn = (float(v) for v in means[:3])
     return 2 * tp / (2 * tp + fp + fn) if tp > 0 else 0.0
+
+
+def temporal_counts(per_sequence: Sequence[TemporalSequenceResult], iou_threshold: float) -> np.ndarray:
+    """Per-sequence ``(Ns, Nj, Nm)`` of a temporal stability evaluation at one threshold, (N, 3)."""
+    return np.array(
+        [[c.ns, c.nj, c.nm] for c in (s.counts[float(iou_threshold)] for s in per_sequence)], dtype=np.float64
+    ).reshape(-1, 3)
+
+
+def _share(means: np.ndarray, k: int) -> float:
+    """Share k of the mean ``(Ns, Nj, Nm)``: the ratio of the sums (NaN where nothing was counted)."""
+    total = float(means[0] + means[1] + means[2])
+    return float(means[k]) / total if total else math.nan
+
+
+def rs_of_counts(means: np.ndarray) -> float:
+    """RVLD's Rs from the mean ``(Ns, Nj, Nm)`` per sequence (what `temporal_counts` gives)."""
+    return _share(means, 0)
+
+
+def rj_of_counts(means: np.ndarray) -> float:
+    """RVLD's Rj from the mean ``(Ns, Nj, Nm)`` per sequence."""
+    return _share(means, 1)
+
+
+def rm_of_counts(means: np.ndarray) -> float:
+    """RVLD's Rm from the mean ``(Ns, Nj, Nm)`` per sequence."""
+    return _share(means, 2)
 
 
 def _weights(n: int, groups: Sequence | None, resamples: int, seed: int) -> tuple[np.ndarray, int]:

@@ -3,10 +3,12 @@
 Every frame is scored with the CULane area metric of the official C++ tool (:func:`stamlane_eval.culane.
 evaluate_image`: lanes drawn ``width`` px wide, maximum-IoU matching), then:
 
-- **mIoU** (as MMA-Net / VIL-100 report it): per frame, the mean over the PREDICTED lanes of the IoU with
-  the matched annotation (0 when unmatched); a frame with annotations but no prediction scores 0, a frame
-  with neither is skipped. Averaged over the frames of a sequence, then over sequences (each sequence weighs
-  the same, whatever its length).
+- **mIoU** as MMA-Net computes it for VIL-100 (yujun0-0/MMA-Net @ a88a5a70, ``evaluation/evaluate_iou.py``
+  and its ``culane/src/counter.cpp``): per frame, the sum over the annotated lanes (in file order) of the
+  IoU with the prediction matched to each, divided by the number of PREDICTED lanes; a frame with annotations
+  but no prediction, or predictions but no annotation, scores 0; a frame with neither scores 1. Averaged over
+  the frames of a sequence, then over sequences (each sequence weighs the same, whatever its length), from
+  each sequence's mIoU as the C++ tool prints it (6 significant digits).
 - **F@t** for each threshold t (default 0.5 and 0.8): TP = matched pairs with IoU > t, summed over all frames;
   P = TP/(TP+FP), R = TP/(TP+FN), F = 2PR/(P+R) (0 where undefined).
 - **Temporal stability**, with ``match_iou`` (default 0.5) deciding whether an annotated lane is matched in a
@@ -31,10 +33,22 @@ import numpy as np
 
 from stamlane_eval import culane
 
-__all__ = ["VIDEO_IOU_THRESHOLDS", "Frame", "SequenceResult", "VideoResult", "evaluate", "evaluate_sequence"]
+__all__ = [
+    "MMA_NET_DIGITS",
+    "VIDEO_IOU_THRESHOLDS",
+    "Frame",
+    "SequenceResult",
+    "VideoResult",
+    "dataset_miou",
+    "evaluate",
+    "evaluate_sequence",
+    "frame_miou",
+]
 
 VIDEO_IOU_THRESHOLDS = (0.5, 0.8)  # the thresholds VIL-100 / MMA-Net report F at
 MATCH_IOU = 0.5  # a pair counts as "matched" for identity switches and flicker above this IoU
+MMA_NET_DIGITS = 6  # evaluate.cpp writes each video's mIoU with iostream's default 6 significant digits, and
+# evaluate_iou.py averages those printed values over the videos
 
 
 @dataclass(frozen=True)
@@ -68,7 +82,7 @@ class SequenceResult:
     switch_chances: int
     flickers: int
     flicker_chances: int
-    frame_miou: list[float | None] = field(default_factory=list, repr=False)
+    frame_miou: list[float] = field(default_factory=list, repr=False)
 
     def as_dict(self) -> dict[str, object]:
         out: dict[str, object] = {"sequence": self.name, "frames": self.frames, "miou": self.miou}
@@ -122,6 +136,40 @@ def _ids(ids: Sequence[int] | None, n: int, what: str, i: int) -> list[int]:
     return ids
 
 
+def frame_miou(r: culane.CULaneImageResult) -> float:
+    """One frame's mIoU as MMA-Net's ``Counter::count_im_pair`` returns it.
+
+    Args:
+        r: the frame scored by :func:`stamlane_eval.culane.evaluate_image` (``variant="official"``).
+
+    Returns:
+        1.0 for a frame with neither lanes nor predictions, 0.0 when either is empty, else the IoUs of the
+        matched pairs summed in annotation order, divided by the number of predicted lanes.
+    """
+    if not r.n_pred and not r.n_gt:
+        return 1.0  # count_im_pair: make_tuple(anno_match, 0, 0, 0, 0, 1) when both lists are empty
+    if not r.n_pred or not r.n_gt:
+        return 0.0
+    gt_to_pred = {g: p for p, g in enumerate(r.pred_to_gt.tolist()) if g >= 0}
+    total = 0.0
+    for g in range(r.n_gt):  # curr_iou += similarity[i][anno_match[i]], matched annotations in order
+        if g in gt_to_pred:
+            total += float(r.ious[gt_to_pred[g], g])
+    return total / r.n_pred  # curr_iou / detect_lanes.size(): over the PREDICTED lanes
+
+
+def dataset_miou(sequence_mious: Sequence[float]) -> float:
+    """MMA-Net's "all scenes miou": each sequence's mIoU as its C++ tool prints it, averaged over sequences.
+
+    Returns:
+        0.0 for no sequence (MMA-Net divides by zero there).
+    """
+    if not sequence_mious:
+        return 0.0
+    printed = [float(f"{m:.{MMA_NET_DIGITS}g}") for m in sequence_mious]  # read_helper parses the printed text
+    return sum(printed) / len(printed)  # MIOU += float(v['miou']); MIOU / len(res.items())
+
+
 def evaluate_sequence(
     frames: Sequence[Frame],
     name: str = "",
@@ -145,7 +193,7 @@ def evaluate_sequence(
     """
     thresholds = tuple(float(t) for t in iou_thresholds)
     counts = {t: [0, 0, 0] for t in thresholds}
-    frame_miou: list[float | None] = []
+    frame_mious: list[float] = []
     matched: list[dict[int, int]] = []  # per frame: target id -> pred id (matched above match_iou)
     present: list[set[int]] = []  # per frame: target ids
     for i, fr in enumerate(frames):
@@ -160,10 +208,7 @@ def evaluate_sequence(
         for t in thresholds:
             for k in range(3):
                 counts[t][k] += r.counts[t][k]
-        if r.n_pred:
-            frame_miou.append(float(np.mean(r.matched_iou)))
-        else:
-            frame_miou.append(0.0 if r.n_gt else None)
+        frame_mious.append(frame_miou(r))
         m = {}
         for p, g in enumerate(r.pred_to_gt.tolist()):
             if g >= 0 and r.matched_iou[p] > match_iou:
@@ -181,17 +226,17 @@ def evaluate_sequence(
             if g in matched[t - 1] and g in matched[t + 1] and g in present[t - 1] and g in present[t + 1]:
                 flicker_chances += 1
                 flickers += g not in matched[t]
-    scored = [v for v in frame_miou if v is not None]
     return SequenceResult(
         name=name,
         frames=len(frames),
-        miou=float(np.mean(scored)) if scored else None,
+        # evaluate.cpp: iou += get<5>(result) in list order, then / filelists.size()
+        miou=sum(frame_mious) / len(frame_mious) if frame_mious else None,
         counts={t: (c[0], c[1], c[2]) for t, c in counts.items()},
         id_switches=switches,
         switch_chances=switch_chances,
         flickers=flickers,
         flicker_chances=flicker_chances,
-        frame_miou=frame_miou,
+        frame_miou=frame_mious,
     )
 
 
@@ -220,7 +265,7 @@ def evaluate(
     switches, chances = sum(s.id_switches for s in per), sum(s.switch_chances for s in per)
     flickers, f_chances = sum(s.flickers for s in per), sum(s.flicker_chances for s in per)
     return VideoResult(
-        miou=float(np.mean(mious)) if mious else 0.0,
+        miou=dataset_miou(mious),
         totals=totals,
         id_switches=switches,
         switch_rate=switches / chances if chances else 0.0,

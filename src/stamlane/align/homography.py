@@ -120,6 +120,9 @@ class Alignment:
         num_inliers: RANSAC inliers among those matches.
         ok: whether the homography was estimated and passed the plausibility checks.
         reason: empty when ``ok``; otherwise why the identity was returned.
+        extrapolated: the homography was not matched but composed from the clip's other frame pairs under
+            constant motion (`stamlane.align.warp.alignments_to_key`: a frame pair that failed, e.g. on a frame
+            washed out by glare, takes the motion of the nearest pair that matched).
     """
 
     key_from_hist: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -127,6 +130,7 @@ class Alignment:
     num_inliers: int = 0
     ok: bool = False
     reason: str = ""
+    extrapolated: bool = False
 
     @classmethod
     def failed(cls, reason: str, num_matches: int = 0, num_inliers: int = 0) -> Alignment:

@@ -47,6 +47,8 @@ from stamlane.imageio import read_image
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [
+    "DATASETS",
+    "FORMATS",
     "HISTORY_SOURCES",
     "IMAGE_SUFFIXES",
     "NET_HOMOGRAPHIES",
@@ -57,6 +59,7 @@ __all__ = [
     "TuSimpleClips",
     "VIL100Clips",
     "frame_order",
+    "make_clips",
 ]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
@@ -519,3 +522,26 @@ class VIL100Clips(_ListClips):
 
     def _read_lanes(self, path: Path) -> list[np.ndarray]:
         return read_vil100_json(path)
+
+
+DATASETS: dict[str, type[ClipDataset]] = {
+    cls.format: cls for cls in (TuSimpleClips, CULaneClips, ApolloClips, VIL100Clips)
+}
+"""The dataset of each format (each class names its own ``format``): the one list of formats."""
+FORMATS = tuple(DATASETS)
+
+
+def make_clips(
+    format: str, root: str | Path, files: list[str] | str, label_dir: str | None = None, **kwargs: Any
+) -> ClipDataset:
+    """The dataset of ``format`` (`FORMATS`) over the label or list ``files``; ``label_dir`` is ApolloScape's.
+
+    Raises:
+        ValueError: an unknown format, or ``label_dir`` for another format than ApolloScape.
+    """
+    if format not in DATASETS:
+        raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
+    if label_dir is not None and DATASETS[format] is not ApolloClips:
+        raise ValueError(f"label_dir is ApolloScape's option, not {format!r}'s")
+    extra = {"label_dir": label_dir} if DATASETS[format] is ApolloClips else {}
+    return DATASETS[format](root, files, **extra, **kwargs)

@@ -12,7 +12,9 @@ Kinds, one drawn per corrupted clip:
 - ``"drop"``: 1-3 rectangles (20-50 % of the width, 25-70 % of the height) replaced by the frame's mean colour;
 - ``"glare"``: the frame overexposed (gain 1.8-2.6 plus an offset, clipped) under a bright veil, as the
   challenging split's glare factor;
-- ``"occluder"``: 2-5 opaque dark ellipses (10-30 % of the width), as vehicles or windscreen dirt.
+- ``"occluder"``: 2-5 opaque dark ellipses (10-30 % of the width), as vehicles or windscreen dirt;
+- ``"blank"``: every row below a random 20-60 % of the height replaced by the frame's mean colour (the near road,
+  where every lane is: the key frame alone cannot be solved there).
 
 A single-frame network trained on the same data sees the same corruption (it is then plain augmentation), so
 models compared at equal data stay comparable.
@@ -25,9 +27,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["CORRUPTIONS", "KeyFrameCorruption"]
+__all__ = ["CORRUPTIONS", "DEFAULT_KINDS", "KeyFrameCorruption"]
 
-CORRUPTIONS = ("drop", "glare", "occluder")
+CORRUPTIONS = ("drop", "glare", "occluder", "blank")
+DEFAULT_KINDS = ("drop", "glare", "occluder")
 
 
 @dataclass(frozen=True)
@@ -36,11 +39,11 @@ class KeyFrameCorruption:
 
     Args:
         prob: chance that a clip's key frame is corrupted, in [0, 1].
-        kinds: the kinds drawn from (`CORRUPTIONS`), uniformly.
+        kinds: the kinds drawn from (`CORRUPTIONS`), uniformly; default `DEFAULT_KINDS`.
     """
 
     prob: float = 0.5
-    kinds: tuple[str, ...] = CORRUPTIONS
+    kinds: tuple[str, ...] = DEFAULT_KINDS
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.prob <= 1.0:
@@ -72,6 +75,8 @@ class KeyFrameCorruption:
                 rw, rh = int(rng.uniform(0.2, 0.5) * w), int(rng.uniform(0.25, 0.7) * h)
                 x0, y0 = int(rng.integers(0, w - rw + 1)), int(rng.integers(0, h - rh + 1))
                 key[y0 : y0 + rh, x0 : x0 + rw] = mean
+        elif kind == "blank":
+            key[int(rng.uniform(0.2, 0.6) * h) :] = key.reshape(-1, 3).mean(axis=0)
         elif kind == "glare":
             key = key * float(rng.uniform(1.8, 2.6)) + float(rng.uniform(0.08, 0.2))
             cx, cy = rng.uniform(0.2, 0.8) * w, rng.uniform(0.0, 0.5) * h

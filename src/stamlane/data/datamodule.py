@@ -13,9 +13,9 @@ from lightning import LightningDataModule
 from torch.utils.data import DataLoader
 
 from stamlane.data.alignment import WARP_MODES
-from stamlane.data.clips import HISTORY_SOURCES, ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.clips import FORMATS, HISTORY_SOURCES, ClipDataset, make_clips
 from stamlane.data.collate import collate_clips
-from stamlane.data.corruption import KeyFrameCorruption
+from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform
@@ -29,8 +29,6 @@ from stamlane.synth.generator import (
 )
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
-
-FORMATS = ("tusimple", "culane", "apollo", "vil100")
 
 SYNTH_TRAIN_FACTORS = 120
 """Factor clips (15 per factor) beside the 120 clean train clips of the default synthetic set (docs/training.md:
@@ -82,6 +80,7 @@ class ClipDataModule(LightningDataModule):
             history (docs/training.md).
         key_corruption: chance that a training sample's key frame alone is corrupted, history intact
             (`stamlane.data.corruption.KeyFrameCorruption`: dropped regions, glare, occluders); 0 = never.
+        key_corruption_kinds: the kinds drawn from (`stamlane.data.corruption.CORRUPTIONS`).
         synth_train, synth_val, synth_test, synth_challenging: clips per split of a generated set.
         synth_train_factors, synth_val_factors: clips with a challenging factor added to the train and val splits
             of a generated set (`stamlane.synth.generate_dataset`'s ``train_factors`` / ``val_factors``).
@@ -122,6 +121,7 @@ class ClipDataModule(LightningDataModule):
         align_strategy: str = "chain",
         history_source: str = "real",
         key_corruption: float = 0.0,
+        key_corruption_kinds: tuple[str, ...] = DEFAULT_KINDS,
         synth_train: int = 120,
         synth_val: int = 20,
         synth_test: int = 100,
@@ -146,7 +146,8 @@ class ClipDataModule(LightningDataModule):
             raise ValueError(f"align_strategy must be 'chain' or 'direct', got {align_strategy!r}")
         if history_source not in HISTORY_SOURCES:
             raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
-        self.key_corruption = KeyFrameCorruption(key_corruption) if key_corruption > 0 else None
+        corrupt = KeyFrameCorruption(key_corruption, tuple(key_corruption_kinds))  # checked even when unused
+        self.key_corruption = corrupt if key_corruption > 0 else None
         self.save_hyperparameters()
         self.synthetic = root is None
         self.root = Path(root if root is not None else DEFAULT_SYNTHETIC_ROOT)
@@ -253,14 +254,8 @@ class ClipDataModule(LightningDataModule):
             "history_source": "real" if split == "train" else hp.history_source,
             "key_corruption": self.key_corruption if split == "train" else None,
         }
-        files = self.split_labels(split)
-        if self.format == "tusimple":
-            return TuSimpleClips(self.root, files, **common)
-        if self.format == "culane":
-            return CULaneClips(self.root, files, **common)
-        if self.format == "apollo":
-            return ApolloClips(self.root, files, label_dir=hp.label_dir, **common)
-        return VIL100Clips(self.root, files, **common)
+        label_dir = hp.label_dir if self.format == "apollo" else None
+        return make_clips(self.format, self.root, self.split_labels(split), label_dir, **common)
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {

@@ -17,7 +17,7 @@ import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status, parse_wxh
 
 from stamlane.data.alignment import ALIGN_MODES
-from stamlane.data.clips import ApolloClips, ClipDataset, CULaneClips, TuSimpleClips, VIL100Clips
+from stamlane.data.clips import FORMATS, ClipDataset, make_clips
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import ClipTransform
 
@@ -56,7 +56,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--labels", required=True, nargs="+", help="label (TuSimple) or list files, relative to root")
     p.add_argument("--out", required=True, help="output image (.png or .jpg)")
     p.add_argument("--n", type=int, default=8, help="samples to show (spread over the set)")
-    p.add_argument("--format", default="tusimple", choices=("tusimple", "culane", "apollo", "vil100"))
+    p.add_argument("--format", default="tusimple", choices=FORMATS)
     p.add_argument("--num-frames", type=int, default=4)
     p.add_argument("--stride", type=int, default=1)
     p.add_argument("--size", type=parse_wxh, default=(128, 256), help="network size WxH (default 256x128)")
@@ -88,14 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            if args.format == "tusimple":
-                ds: ClipDataset = TuSimpleClips(args.root, args.labels, **common)
-            elif args.format == "culane":
-                ds = CULaneClips(args.root, args.labels, **common)
-            elif args.format == "apollo":
-                ds = ApolloClips(args.root, args.labels, label_dir=args.label_dir, **common)
-            else:
-                ds = VIL100Clips(args.root, args.labels, **common)
+            label_dir = args.label_dir if args.format == "apollo" else None
+            ds: ClipDataset = make_clips(args.format, args.root, args.labels, label_dir, **common)
         if len(ds) == 0:
             print(f"stamlane show: no samples in {args.labels} under {args.root}", file=sys.stderr)
             return 2

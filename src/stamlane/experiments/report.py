@@ -1,181 +1,452 @@
-"""Tables of an ablation: CSV, markdown (ours beside the paper's), the Table 6-like robustness split, and a
-bar plot with error bars.
+"""Tables of experiment summaries: what ``stamlane demo`` prints, what ``stamlane report`` writes.
 
-Accuracy and F1 are printed in percent like the paper; FP and FN as fractions. Cells are
-``mean ± std`` over seeds (sample std); a single seed prints the mean alone.
+Markdown throughout (it reads as well in a terminal as in docs/results.md). Numbers are percent: a value is
+``mean ± std over seeds [95 % interval, clips resampled]``; a difference ``+d [clips] s[seeds]``, **bold** where
+every interval excludes 0 (the only differences the docs claim). `tables` gives one summary's models, their
+history use, the paired differences, every factor with its headroom, and the recall per visibility class;
+`paper_tables` the paper's tables from one or several summaries (run sets); `replication` the rows trained in
+several run sets side by side; `write_csv` and `plot_history_use` the same numbers for spreadsheets and eyes.
 """
 
 from __future__ import annotations
 
 import csv
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from stamlane.experiments.results import RowSummary
-from stamlane.experiments.tables import PaperRow, PaperTable
+import numpy as np
 
-__all__ = ["COLUMNS", "plot_table", "robustness_markdown", "table_markdown", "write_csv"]
+from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TEMPORAL, TUSIMPLE
+from stamlane.experiments.summary import Difference, Summary, Value
+from stamlane.experiments.tables import PaperTable, TableIndex
 
-SPLITS = ("test", "challenging", "delta")
-"""Splits of a summary: the test split, the challenging split, and their paired difference per seed."""
+__all__ = [
+    "SINGLE_ROW",
+    "STAM_ROW",
+    "paper_tables",
+    "plot_history_use",
+    "plot_val_curves",
+    "reads_history",
+    "replication",
+    "tables",
+    "write_csv",
+]
 
-# (metric name as logged, header, percent?) per metric kind
-COLUMNS: dict[str, tuple[tuple[str, str, bool], ...]] = {
-    "tusimple": (
-        ("tusimple_f1", "F1 (%)", True),
-        ("tusimple_accuracy", "Acc (%)", True),
-        ("tusimple_fp", "FP", False),
-        ("tusimple_fn", "FN", False),
-        ("culane_f1@0.5", "IoU F1@0.5 (%)", True),
-    ),
-    "iou": (
-        ("culane_precision@0.5", "P@0.5", False),
-        ("culane_recall@0.5", "R@0.5", False),
-        ("culane_f1@0.5", "F1@0.5", False),
-        ("culane_precision@0.3", "P@0.3", False),
-        ("culane_recall@0.3", "R@0.3", False),
-        ("culane_f1@0.3", "F1@0.3", False),
-    ),
-}
+SINGLE_ROW, STAM_ROW = "f1_keyonly", "f4_mixed_cs_features"
+"""The paper rows every other row is compared with: one frame, and pre-aligned STAM (mixed C-S, the paper's
+choice; the history-carrying reading)."""
+SPLITS = ("test", "challenging")
+NO_HEADROOM = 0.01
+"""Below this headroom (1 F1 point, history oracle minus key-frame oracle) a factor is marked as one where history
+cannot show: the fitted lines already bridge what the key frame does not show."""
 
 
-def _fmt(value: float | None, percent: bool) -> str:
-    if value is None or math.isnan(value):
+def value_text(v: Value | None) -> str:
+    if v is None:
         return "–"
-    return f"{value * 100:.2f}" if percent else f"{value:.4f}"
+    std = f" ± {100 * v.std:.1f}" if v.std is not None else ""
+    ci = f" [{100 * v.ci95[0]:.1f}, {100 * v.ci95[1]:.1f}]" if v.ci95 else ""
+    return f"{100 * v.mean:.1f}{std}{ci}"
 
 
-def _cell(stat: tuple[float, float] | None, percent: bool) -> str:
-    if stat is None:
+def diff_text(d: Difference | None) -> str:
+    if d is None:
         return "–"
-    mean, std = stat
-    if math.isnan(std):
-        return _fmt(mean, percent)
-    return f"{_fmt(mean, percent)} ± {_fmt(std, percent)}"
+    text = f"{100 * d.diff:+.1f} [{100 * d.ci95[0]:+.1f}, {100 * d.ci95[1]:+.1f}]"
+    if d.seed_ci95:
+        text += f" s[{100 * d.seed_ci95[0]:+.1f}, {100 * d.seed_ci95[1]:+.1f}]"
+    return f"**{text}**" if d.supported else text
 
 
-def _md_table(header: list[str], lines: list[list[str]]) -> str:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(cells) + " |" for cells in lines]
-    return "\n".join(out) + "\n"
+def reads_history(summary: Summary, model: str, view: str, metric: str = TUSIMPLE.key) -> bool:
+    """A model is said to read its history on a view only where its history use (real history minus the key
+    frame copied) is positive and both its intervals (clips, seeds) exclude 0."""
+    d = summary.difference(model, f"{model}@key", view, metric)
+    return d is not None and d.diff > 0 and d.supported
 
 
-def table_markdown(table: PaperTable, rows: Sequence[PaperRow], summaries: dict[str, RowSummary]) -> str:
-    """Markdown of one table: our metrics on the test split (mean ± std over seeds) beside the paper's.
-
-    Args:
-        table: the paper table.
-        rows: its rows to print, in order.
-        summaries: ``{row id: summary}``; a row without one prints "not run".
-    """
-    cols = COLUMNS[table.kind]
-    paper_cols = [c for c in cols if any(c[0] in r.paper for r in rows)]
-    header = ["Row", "Config", "Seeds", *[c[1] for c in cols], *[f"paper {c[1]}" for c in paper_cols]]
-    lines = []
-    for row in rows:
-        s = summaries.get(row.id)
-        if s is None or not s.seeds:
-            ours = ["not run"] + ["–"] * (len(cols) - 1)
-            n = "0"
-        else:
-            ours = [_cell(s.get("test", key), pct) for key, _, pct in cols]
-            n = str(len(s.seeds))
-        paper = [_fmt(row.paper.get(key), pct) for key, _, pct in paper_cols]
-        lines.append([row.label, f"`{row.id}`", n, *ours, *paper])
-    return f"**Table {table.name}: {table.title}**\n\n" + _md_table(header, lines)
+def _md(header: Sequence[str], rows: list[Sequence[str]]) -> list[str]:
+    return [
+        "| " + " | ".join(header) + " |",
+        "|" + "---|" * len(header),
+        *("| " + " | ".join(r) + " |" for r in rows),
+        "",
+    ]
 
 
-def robustness_markdown(table: PaperTable, rows: Sequence[PaperRow], summaries: dict[str, RowSummary]) -> str:
-    """Markdown of the robustness split (like the paper's Table 6): F1 on the test split, on the
-    challenging split, and ΔF1 = challenging - test (per seed, then mean ± std). Rows without a
-    challenging result are left out; an empty string when there are none."""
-    key = table.f1_key
-    pct = table.kind == "tusimple"
-    unit = " (%)" if pct else ""
-    lines = []
-    for row in rows:
-        s = summaries.get(row.id)
-        if s is None or s.get("challenging", key) is None:
-            continue
-        cells = [_cell(s.get(split, key), pct) for split in SPLITS]
-        lines.append([row.label, f"`{row.id}`", str(len(s.seeds)), *cells])
-    if not lines:
-        return ""
-    header = ["Row", "Config", "Seeds", f"F1 all{unit}", f"F1 challenging{unit}", f"ΔF1{unit}"]
-    return f"**Table {table.name}, robustness (all vs challenging clips, like Table 6)**\n\n" + _md_table(header, lines)
+def _kept(summary: Summary, only: Sequence[str] | None) -> list:
+    if not only:
+        return summary.models
+    names = {m.name for m in summary.models}
+    unknown = sorted(set(only) - names)
+    if unknown:
+        raise KeyError(f"no model {' '.join(unknown)} in the summary; models: {' '.join(sorted(names))}")
+    return [m for m in summary.models if m.name in only]
 
 
-def write_csv(path: str | Path, table: PaperTable, rows: Sequence[PaperRow], summaries: dict[str, RowSummary]) -> None:
-    """One line per row: ids, seeds, ``{split}/{metric}_mean`` and ``_std`` of every logged metric and
-    split, and ``paper/{metric}``. Blank where a value is missing."""
-    metrics = sorted(
-        {
-            (split, name)
-            for s in summaries.values()
-            for split, values in s.mean.items()
-            if split in SPLITS
-            for name in values
-        },
-        key=lambda sm: (SPLITS.index(sm[0]), sm[1]),
+def tables(summary: Summary, only: Sequence[str] | None = None) -> str:
+    """Every table of one summary (see the module docstring); ``only``: just these models and their pairs."""
+    models = _kept(summary, only)
+    names = {m.name for m in models}
+    label = {m.name: m.label for m in models}
+    recipe = summary.recipe
+    stages = (
+        f"{recipe.get('pretrain_steps')} + {recipe.get('steps')}"
+        if recipe.get("pretrain_steps")
+        else recipe.get("steps")
     )
-    paper = sorted({k for r in rows for k in r.paper})
-    header = ["table", "row", "label", "n_seeds", "seeds"]
-    header += [f"{split}/{name}_{stat}" for split, name in metrics for stat in ("mean", "std")]
-    header += [f"paper/{k}" for k in paper]
-    path = Path(path)
+    lines = [
+        f"Seeds {len(summary.seeds)} ({', '.join(map(str, summary.seeds))}); recipe {recipe.get('name')}, "
+        f"{stages} steps per model; {'bfloat16' if summary.bf16 else 'float32'}. F1 % mean ± std over seeds "
+        f"[95 % interval, clips resampled]; differences +d [clips] s[seeds], bold where both exclude 0.",
+        "",
+    ]
+    iou = CULANE[0].key
+    lines += _md(
+        ["model", "frames", "test F1", "challenging F1", f"test {CULANE[0].label}", f"challenging {CULANE[0].label}"],
+        [
+            [
+                m.label,
+                str(m.frames),
+                *(value_text(summary.value(m.name, TUSIMPLE.key, s)) for s in SPLITS),
+                *(value_text(summary.value(m.name, iou, s)) for s in SPLITS),
+            ]
+            for m in models
+        ],
+    )
+    lines += _history_use(summary, [m for m in models if m.probes])
+    pairs = list(dict.fromkeys((d.a, d.b) for d in summary.differences if d.kind == "models" and {d.a, d.b} <= names))
+    if pairs:
+        rows = []
+        for a, b in pairs:
+            for metric in (TUSIMPLE.key, iou):
+                cells = [diff_text(summary.difference(a, b, s, metric)) for s in SPLITS]
+                rows.append([f"{label[a]} − {label[b]}", metric, *cells])
+        lines += ["Paired differences between models (points):", "", *_md(["models", "metric", *SPLITS], rows)]
+    lines += _factors(summary, models, pairs)
+    lines += _recall(summary, models)
+    lines += _temporal(summary, models, pairs)
+    return "\n".join(lines)
+
+
+def _history_use(summary: Summary, models: list) -> list[str]:
+    if not models:
+        return []
+    rows = []
+    for m in models:
+        for metric in (TUSIMPLE.key, CULANE[0].key):
+            for split in SPLITS:
+                key = summary.difference(m.name, f"{m.name}@key", split, metric)
+                other = summary.difference(m.name, f"{m.name}@other_clip", split, metric)
+                if key is None and other is None:
+                    continue
+                verdict = "yes" if reads_history(summary, m.name, split, metric) else "no"
+                rows.append([m.label, metric, split, diff_text(key), diff_text(other), verdict])
+    return [
+        "History use: the same weights scored with their real history minus with the key frame copied into every "
+        "history slot, and minus with another clip's history (points); a model reads its history where the "
+        "first is positive and both its intervals exclude 0:",
+        "",
+        *_md(["model", "metric", "split", "real − key copied", "real − another clip's", "reads its history"], rows),
+    ]
+
+
+def _headroom(summary: Summary, view: str, frames: int) -> Difference | None:
+    return summary.difference(f"oracle:history-{frames}f", "oracle:key", view, TUSIMPLE.key)
+
+
+def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+    factors = [v for v in summary.views() if v.startswith("challenging:")]
+    if not factors:
+        return []
+    multi = [m for m in models if m.probes]
+    frames = max((m.frames for m in multi), default=0)
+    header = ["factor", "images", f"headroom ({frames} frames)"] if frames else ["factor", "images"]
+    header += [m.label for m in models]
+    header += [f"{m.name}: history use" for m in multi]
+    header += [f"{a} − {b}" for a, b in pairs]
+    rows = []
+    for view in factors:
+        first = summary.value(models[0].name, TUSIMPLE.key, view)
+        row = [f"`{view.split(':', 1)[1]}`", str(first.images if first else "–")]
+        if frames:
+            h = _headroom(summary, view, frames)
+            note = " (no headroom: history cannot show here)" if h is not None and h.diff < NO_HEADROOM else ""
+            row.append(diff_text(h) + note)
+        row += [value_text(summary.value(m.name, TUSIMPLE.key, view)) for m in models]
+        row += [diff_text(summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)) for m in multi]
+        row += [diff_text(summary.difference(a, b, view, TUSIMPLE.key)) for a, b in pairs]
+        rows.append(row)
+    text = (
+        "Challenging split per factor, TuSimple F1 (%); headroom = F1 of lanes fitted to the labelled points visible "
+        "in the key frame or its aligned history minus to those visible in the key frame (what perfect use of the "
+        "history can add):"
+    )
+    return [text, "", *_md(header, rows)]
+
+
+def _recall(summary: Summary, models: list) -> list[str]:
+    rows = []
+    for m in models:
+        for split in SPLITS:
+            cells = [value_text(summary.value(m.name, r.key, split)) for r in CLASS_RECALL]
+            if any(c != "–" for c in cells):
+                rows.append([m.label, split, *cells])
+    if not rows:
+        return []
+    return [
+        "Recall of labelled key-frame points by paint visibility (%): visible in the key frame / hidden there but "
+        "visible in a history frame of the model's clip (revealed) / hidden in every frame:",
+        "",
+        *_md(["model", "split", "visible", "revealed", "hidden"], rows),
+    ]
+
+
+def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+    frames = next(
+        (v for v in summary.views() if ":" not in v and summary.value(models[0].name, TEMPORAL[0].key, v)), None
+    )
+    if frames is None:
+        return []
+    first = summary.value(models[0].name, TEMPORAL[0].key, frames)
+    rows = [[m.label, *(value_text(summary.value(m.name, t.key, frames)) for t in TEMPORAL)] for m in models]
+    lines = [
+        f"Temporal stability (RVLD's Rs / Rj / Rm, %): the clips of `{frames}` ({first.images} clips) predicted frame "
+        "after frame, each frame with its own history; of the annotated lanes matched between consecutive frames, "
+        "the share predicted above the IoU threshold in both frames (stable), in one (jump), in neither (missing):",
+        "",
+        *_md(["model", *(t.label for t in TEMPORAL)], rows),
+    ]
+    if pairs:
+        keys = [t.key for t in TEMPORAL if t.key.startswith(("temporal_rs", "temporal_rj"))]
+        diff_rows = [[f"{a} − {b}", *(diff_text(summary.difference(a, b, frames, k)) for k in keys)] for a, b in pairs]
+        lines += _md(["models", *keys], diff_rows)
+    factors = [v for v in summary.views() if v.startswith(f"{frames}:")]
+    if factors:
+        key = TEMPORAL[0].key
+        rows = [
+            [f"`{v.split(':', 1)[1]}`", *(value_text(summary.value(m.name, key, v)) for m in models)]
+            + [diff_text(summary.difference(a, b, v, key)) for a, b in pairs]
+            for v in factors
+        ]
+        lines += [
+            f"{TEMPORAL[0].label} per factor:",
+            "",
+            *_md(["factor", *(m.label for m in models), *(f"{a} − {b}" for a, b in pairs)], rows),
+        ]
+    return lines
+
+
+# ---------------------------------------------------------------------------------------------- paper tables
+def _by_row(summary: Summary) -> dict[str, str]:
+    """paper row id -> model name in ``summary``."""
+    return {m.paper_row or m.name: m.name for m in summary.models}
+
+
+def paper_tables(summaries: Sequence[Summary], index: TableIndex, which: Sequence[str]) -> str:
+    """The paper's tables ``which`` from summaries holding its rows (several summaries: run sets, each row taken
+    from the first that has it and compared with one frame and STAM of THAT run set). An IoU table (7, 8) comes
+    twice, at IoU 0.5 and 0.3; every row carries its history use where it was probed."""
+    lines: list[str] = []
+    for name in which:
+        table = index.table(name)
+        metrics = (TUSIMPLE.key,) if table.kind == "tusimple" else tuple(m.key for m in CULANE)
+        for metric in metrics:
+            lines += _paper_table(table, summaries, metric)
+    return "\n".join(lines)
+
+
+def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str) -> list[str]:
+    rows_in = [_by_row(s) for s in summaries]
+    where = {}  # row -> the first run set that measured it in this metric
+    for i, found in enumerate(rows_in):
+        for row, name in found.items():
+            if any(summaries[i].value(name, metric, s) for s in SPLITS):
+                where.setdefault(row, i)
+    several = len(summaries) > 1
+    what = "F1" if metric == TUSIMPLE.key else f"IoU F1 @{metric.split('@')[1]}"
+
+    def versus(i: int, row: str, other: str | None) -> str:
+        a, b = rows_in[i].get(row), rows_in[i].get(other) if other else None
+        if a is None or b is None or a == b:
+            return "–"
+        return " / ".join(diff_text(summaries[i].difference(a, b, s, metric)) for s in SPLITS)
+
+    def history(i: int, row: str) -> str:
+        name = rows_in[i][row]
+        found = [summaries[i].difference(name, f"{name}@key", s, metric) for s in SPLITS]
+        return " / ".join(diff_text(d) for d in found) if any(found) else "–"
+
+    run = [r for r in table.rows if r.id in where]
+    seeds = sorted({len(s.seeds) for s in summaries})
+    header = ["row", f"paper {what}", *(["run set"] if several else []), "test", "challenging"]
+    header += ["− 1 frame (test / chall.)", "− STAM (test / chall.)"]
+    header += ["− baseline (test / chall.)"] if table.baseline else []
+    header += ["history use (test / chall.)"]
+    rows = []
+    references = {SINGLE_ROW, STAM_ROW, table.baseline} - {None}
+    used = {where[r.id] for r in run if r.id not in references}
+    for r in table.rows:
+        paper = f"{100 * r.paper[metric]:.2f}" if metric in r.paper else "–"
+        if r.id not in where:
+            blanks = [""] * (len(header) - 4 - several)
+            rows.append([f"{r.label} (`{r.id}`)", paper, *([""] if several else []), "not run", *blanks])
+            continue
+        places = [where[r.id]]
+        if r.id in references:  # shown for every run set the table's other rows are compared inside
+            measured = {i for i, found in enumerate(rows_in) if r.id in found}
+            places = sorted(({*used, *places} & measured) or set(places))
+        for i in places:
+            name = rows_in[i][r.id]
+            cells = [f"{r.label} (`{r.id}`)", paper, *([str(i + 1)] if several else [])]
+            cells += [value_text(summaries[i].value(name, metric, s)) for s in SPLITS]
+            cells += [versus(i, r.id, SINGLE_ROW), versus(i, r.id, STAM_ROW)]
+            cells += [versus(i, r.id, table.baseline)] if table.baseline else []
+            cells.append(history(i, r.id))
+            rows.append(cells)
+    title = (
+        f"**Table {table.name}: {table.title}**{'' if metric == TUSIMPLE.key else ', ' + what} "
+        f"({len(run)} of {len(table.rows)} rows run, {'/'.join(map(str, seeds))} seeds)"
+    )
+    return [title, "", *_md(header, rows)]
+
+
+def replication(summaries: Sequence[Summary], index: TableIndex) -> str:
+    """The rows trained in more than one run set, side by side (F1 and the difference from one frame), and how far
+    the first two sets agree: the correlation of the rows' differences from one frame on the challenging clips,
+    how often their signs agree, how many differences claimed in one set are claimed in the other."""
+    label = {r.id: r.label for t in index.tables.values() for r in t.rows}
+    rows_in = [_by_row(s) for s in summaries]
+    rows = []
+    for row in dict.fromkeys(r for found in rows_in for r in found):
+        places = [i for i, found in enumerate(rows_in) if row in found]
+        if len(places) < 2:
+            continue
+        for i in places:
+            name, single = rows_in[i][row], rows_in[i].get(SINGLE_ROW)
+            versus = "–"
+            if single and single != name:
+                versus = " / ".join(diff_text(summaries[i].difference(name, single, s, TUSIMPLE.key)) for s in SPLITS)
+            cells = [value_text(summaries[i].value(name, TUSIMPLE.key, s)) for s in SPLITS]
+            rows.append([f"{label.get(row, row)} (`{row}`)", str(i + 1), *cells, versus])
+    lines = _md(["row", "run set", "test F1", "challenging F1", "− 1 frame (test / chall.)"], rows)
+    return "\n".join([*lines, *_agreement(summaries, rows_in)]) + "\n"
+
+
+def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> list[str]:
+    if len(summaries) < 2:
+        return []
+    pairs, claims = [], []
+    for row in (set(rows_in[0]) & set(rows_in[1])) - {SINGLE_ROW}:
+        found = []
+        for i in (0, 1):
+            single = rows_in[i].get(SINGLE_ROW)
+            found.append(
+                summaries[i].difference(rows_in[i][row], single, "challenging", TUSIMPLE.key) if single else None
+            )
+        if None in found:
+            continue
+        pairs.append([d.diff for d in found])
+        claimed = [d.supported for d in found]
+        if any(claimed):
+            claims.append(all(claimed) and np.sign(pairs[-1][0]) == np.sign(pairs[-1][1]))
+    if len(pairs) < 3:
+        return []
+    d = np.array(pairs)
+    r = float(np.corrcoef(d[:, 0], d[:, 1])[0, 1])
+    same = int((np.sign(d[:, 0]) == np.sign(d[:, 1])).sum())
+    return [
+        f"Rows trained in run sets 1 and 2: {len(d)}. Their difference from one frame on the challenging clips, set 1 "
+        f"against set 2: correlation {r:+.2f}, the same sign in {same} of {len(d)}, and {sum(claims)} of "
+        f"{len(claims)} differences claimed in one set (both intervals exclude 0) claimed in the other."
+    ]
+
+
+# ---------------------------------------------------------------------------------------------- csv, plots
+def write_csv(path: Path, summary: Summary) -> None:
+    """Every value and difference of a summary, one line each (``kind, subject, b, view, metric, value, low, high,
+    seed_low, seed_high, std, seeds``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(header)
-        for row in rows:
-            s = summaries.get(row.id)
-            line: list[object] = [table.name, row.id, row.label]
-            line += [len(s.seeds), " ".join(map(str, s.seeds))] if s else [0, ""]
-            for split, name in metrics:
-                stat = s.get(split, name) if s else None
-                line += ["", ""] if stat is None else ["" if math.isnan(v) else f"{v:.6g}" for v in stat]
-            line += [f"{row.paper[k]:.6g}" if k in row.paper else "" for k in paper]
-            writer.writerow(line)
+        w = csv.writer(f)
+        w.writerow(
+            ["kind", "subject", "b", "view", "metric", "value", "low", "high", "seed_low", "seed_high", "std", "seeds"]
+        )
+        subjects = [(m.name, m.values) for m in summary.models]
+        subjects += [(f"{m.name}@{s}", v) for m in summary.models for s, v in m.probes.items()]
+        subjects += list(summary.oracles.items())
+        for subject, values in subjects:
+            for metric, per_view in values.items():
+                for view, v in per_view.items():
+                    low, high = v.ci95 or (None, None)
+                    w.writerow(["value", subject, "", view, metric, v.mean, low, high, "", "", v.std, v.seeds])
+        for d in summary.differences:
+            s_low, s_high = d.seed_ci95 or (None, None)
+            w.writerow(
+                [d.kind, d.a, d.b, d.view, d.metric, d.diff, d.ci95[0], d.ci95[1], s_low, s_high, "", len(d.seed_diffs)]
+            )
 
 
-def plot_table(
-    path: str | Path, table: PaperTable, rows: Sequence[PaperRow], summaries: dict[str, RowSummary], subtitle: str = ""
-) -> bool:
-    """Bar plot of the headline F1 per row (test and, where run, challenging split) with ±std error bars.
-
-    Returns:
-        False when no row has a result (nothing is written).
-    """
+def plot_history_use(summary: Summary, path: Path) -> Path | None:
+    """A bar chart: per factor of the challenging split, each multi-frame model's history use (TuSimple F1 points,
+    real minus key frame copied, with its clip interval) beside the headroom of the labels; None without probes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    done = [r for r in rows if r.id in summaries and summaries[r.id].get("test", table.f1_key) is not None]
-    if not done:
-        return False
-    scale = 100.0 if table.kind == "tusimple" else 1.0
-    splits = [sp for sp in ("test", "challenging") if any(summaries[r.id].get(sp, table.f1_key) for r in done)]
-    width = 0.8 / len(splits)
-    fig, ax = plt.subplots(figsize=(max(6.0, 0.9 * len(done) + 2), 4.2))
-    for i, split in enumerate(splits):
-        means, errs = [], []
-        for r in done:
-            stat = summaries[r.id].get(split, table.f1_key)
-            means.append(stat[0] * scale if stat else math.nan)
-            errs.append(0.0 if stat is None or math.isnan(stat[1]) else stat[1] * scale)
-        xs = [j + (i - (len(splits) - 1) / 2) * width for j in range(len(done))]
-        ax.bar(xs, means, width, yerr=errs, capsize=3, label="all test clips" if split == "test" else "challenging")
-    ax.set_xticks(range(len(done)))
-    ax.set_xticklabels([r.label for r in done], rotation=30, ha="right", fontsize=8)
-    ax.set_ylabel(("F1 (%)" if scale == 100.0 else "F1") + (" @ IoU 0.5" if table.kind == "iou" else ""))
-    ax.set_title(f"Table {table.name}: {table.title}" + (f"\n{subtitle}" if subtitle else ""), fontsize=9)
+    multi = [m for m in summary.models if m.probes]
+    if not multi:
+        return None
+    views = ["challenging", *(v for v in summary.views() if v.startswith("challenging:"))]
+    series = []
+    frames = max(m.frames for m in multi)
+    series.append(("headroom (oracle)", [_headroom(summary, v, frames) for v in views]))
+    series += [(m.label, [summary.difference(m.name, f"{m.name}@key", v, TUSIMPLE.key) for v in views]) for m in multi]
+    fig, ax = plt.subplots(figsize=(10, 4))
+    width = 0.8 / len(series)
+    for k, (name, diffs) in enumerate(series):
+        x = np.arange(len(views)) + (k - (len(series) - 1) / 2) * width
+        y = [100 * d.diff if d else np.nan for d in diffs]
+        err = np.array([[100 * (d.diff - d.ci95[0]), 100 * (d.ci95[1] - d.diff)] if d else [0, 0] for d in diffs]).T
+        ax.bar(x, y, width, yerr=err, capsize=2, label=name)
+    ax.axhline(0, color="grey", linewidth=0.8)
+    ax.set_xticks(np.arange(len(views)), [v.split(":")[-1] for v in views], rotation=20)
+    ax.set_ylabel("F1 points: real history − key frame copied")
+    ax.set_title("Does the model read its history? (challenging split, 95 % intervals over clips)")
     ax.legend(fontsize=8)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return True
+    return path
+
+
+def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequence[int], path: Path) -> Path:
+    """Validation F1 over training steps of the runs ``(name, label, first step)`` of an experiment folder, one line
+    per run and seed (from each run's ``metrics.csv``); a dotted line where a second stage starts."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, label, first in runs:
+        for seed in seeds:
+            metrics = out / f"{name}-s{seed}" / "run" / "metrics.csv"
+            rows = list(csv.DictReader(metrics.open())) if metrics.is_file() else []
+            points = [
+                (int(r["step"]) + 1 + first, float(r["val/tusimple_f1"])) for r in rows if r.get("val/tusimple_f1")
+            ]
+            if points:
+                ax.plot(*zip(*points), marker="o", label=f"{label}, seed {seed}")
+    for start in {first for _, _, first in runs if first}:
+        ax.axvline(start, color="grey", linestyle=":", linewidth=1)
+    ax.set(xlabel="training step (a second stage right of the dotted line)", ylabel="validation F1 (TuSimple)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -17,6 +17,7 @@ __all__ = [
     "PaperRow",
     "PaperTable",
     "TableIndex",
+    "baseline_pairs",
     "default_index_path",
     "load_tables",
     "metric_key",
@@ -159,3 +160,13 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
             raise ValueError(f"{path}: table {name}: baseline {baseline!r} is not one of its rows")
         tables[name] = PaperTable(name, str(spec.get("title", f"Table {name}")), kind, tuple(rows), baseline)
     return TableIndex(path.resolve(), default_base, layers, tables)
+
+
+def baseline_pairs(models: dict[str, str], index: TableIndex | None = None) -> list[tuple[str, str]]:
+    """``(model, baseline model)`` for every row of a table with a ``baseline`` (Tables 2 and 8: unaligned frames
+    summed) whose row and baseline are both among ``models`` (paper row id -> model name)."""
+    found = []
+    for table in (index or load_tables()).tables.values():
+        base = models.get(table.baseline)
+        found += [(models[r.id], base) for r in table.rows if base and models.get(r.id, base) != base]
+    return list(dict.fromkeys(found))

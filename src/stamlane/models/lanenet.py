@@ -25,6 +25,11 @@ class LaneNet(nn.Module):
             Either way the result maps (B, T, C, h, w) -> (B, C, h, w).
         decoder: a factory called as ``decoder(encoder.out_channels)`` (e.g. `LaneDecoder`) or a built module;
             ``decoder(fused, key_skips) -> (logits, embedding)``.
+        fuse_skip: fuse the second-deepest stage (stride 8 for `VGGEncoder`) over time too, with a second fusion
+            module of the same kind (``fusion`` called with that stage's channels; ``fusion`` must then be a
+            factory): the decoder's skip at that stride carries the aligned history as well, at twice the
+            deepest stage's resolution. Needs pre-aligned images (``LaneNet.forward``); feature-space alignment
+            and the streaming predictor fuse the deepest stage only and refuse such a network.
 
     For speed on CPUs with AMX: ``model.to(memory_format=torch.channels_last)`` (frames are converted to match
     inside `encode`) and ``torch.autocast("cpu", dtype=torch.bfloat16)`` around the forward pass.
@@ -35,6 +40,7 @@ class LaneNet(nn.Module):
         encoder: nn.Module,
         fusion: nn.Module | Callable[[int], nn.Module],
         decoder: nn.Module | Callable[[Sequence[int]], nn.Module],
+        fuse_skip: bool = False,
     ) -> None:
         super().__init__()
         if not hasattr(encoder, "out_channels"):
@@ -43,6 +49,14 @@ class LaneNet(nn.Module):
         channels = list(encoder.out_channels)
         self.fusion = fusion if isinstance(fusion, nn.Module) else fusion(channels[-1])
         self.decoder = decoder if isinstance(decoder, nn.Module) else decoder(channels)
+        self.skip_fusion: nn.Module | None = None
+        if fuse_skip:
+            if isinstance(fusion, nn.Module) or len(channels) < 2:
+                raise ValueError(
+                    "fuse_skip needs the fusion as a factory (a class or partial, not a built module) and an encoder "
+                    f"of at least 2 stages, got {type(fusion).__name__} and {len(channels)} stage(s)"
+                )
+            self.skip_fusion = fusion(channels[-2])
 
     def _memory_format(self) -> torch.memory_format:
         """channels_last when the encoder's first conv weight is (and is not also plain contiguous)."""
@@ -71,7 +85,9 @@ class LaneNet(nn.Module):
             frames = frames.contiguous(memory_format=memory_format)
         return self.encoder(frames)
 
-    def fuse_and_decode(self, last_stage_feats: Tensor, key_skips: Sequence[Tensor]) -> tuple[Tensor, Tensor]:
+    def fuse_and_decode(
+        self, last_stage_feats: Tensor, key_skips: Sequence[Tensor], skip_stage_feats: Tensor | None = None
+    ) -> tuple[Tensor, Tensor]:
         """Fuse the deepest stage over time and decode (the streaming half of `forward`).
 
         Args:
@@ -79,11 +95,22 @@ class LaneNet(nn.Module):
                 history aligned to it.
             key_skips: the key frame's features of the shallower stages, shallow first, (B, C_i, h_i, w_i)
                 (the list `encode` returns for the key frame is accepted as is; its deepest entry is ignored).
+            skip_stage_feats: the second-deepest stage of every frame, (B, T, C', 2h, 2w), aligned; required when
+                the network fuses it too (``fuse_skip``): its fusion replaces the key frame's skip at that stage.
 
         Returns:
             ``(logits (B, 2, H, W), embedding (B, E, H, W))`` at input resolution.
         """
         fused = self.fusion(last_stage_feats)
+        if self.skip_fusion is not None:
+            if skip_stage_feats is None:
+                raise ValueError(
+                    "this network fuses the second-deepest stage too (fuse_skip): it needs that stage of every "
+                    "frame, pre-aligned images (feature-space alignment and streaming fuse the deepest stage only)"
+                )
+            skips = list(key_skips[: len(self.decoder.in_channels) - 1])
+            skips[-1] = self.skip_fusion(skip_stage_feats)
+            key_skips = skips
         return self.decoder(fused, key_skips)
 
     def forward(self, clip: Tensor) -> tuple[Tensor, Tensor]:
@@ -102,4 +129,5 @@ class LaneNet(nn.Module):
         feats = self.encode(clip.flatten(0, 1))
         last = feats[-1].unflatten(0, (batch, num_frames))
         key_skips = [f.unflatten(0, (batch, num_frames))[:, -1] for f in feats[:-1]]
-        return self.fuse_and_decode(last, key_skips)
+        skip_stage = feats[-2].unflatten(0, (batch, num_frames)) if self.skip_fusion is not None else None
+        return self.fuse_and_decode(last, key_skips, skip_stage)

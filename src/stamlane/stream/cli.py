@@ -2,7 +2,7 @@
 
 Usage::
 
-    stamlane stream drive.mp4 --ckpt outputs/demo/stam4/run/checkpoints/last.ckpt [--out DIR]
+    stamlane stream drive.mp4 --ckpt outputs/demo/stam4-s0/run/checkpoints/last.ckpt [--out DIR]
     stamlane stream frames_dir/ --config configs/demo.yaml [--ckpt CKPT]
 
 ``VIDEO`` is a video file or a folder of frames (in name order, ``2.jpg`` before ``10.jpg``). The network
@@ -104,7 +104,8 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
 
 def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     """The LightningModule and the data options (num_frames, image_size, horizon_row) it was trained with."""
-    from stamlane.checkpoints import CheckpointError, load_module, read_checkpoint
+    from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.module import StamLaneModule
 
     data: dict[str, Any] = {}
     if args.config:
@@ -129,7 +130,9 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
     try:
-        module = load_module(args.ckpt)  # only stamlane's classes and torch.optim may be built from it
+        module = StamLaneModule.from_checkpoint(
+            args.ckpt
+        )  # only stamlane's classes and torch.optim may be built from it
         data = dict(read_checkpoint(args.ckpt).get("datamodule_hyper_parameters") or {})
     except CheckpointError as err:
         raise StreamError(str(err)) from None

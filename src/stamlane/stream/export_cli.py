@@ -58,7 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.checkpoints import CheckpointError, load_module
+    from stamlane.checkpoints import CheckpointError
+    from stamlane.module import StamLaneModule
     from stamlane.stream.export import DEFAULT_OPSET, export_all, export_clip
 
     opset = args.opset if args.opset is not None else DEFAULT_OPSET
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
                 check_output(out, [args.ckpt_path])
         if output.suffix != ".onnx":
             raise ValueError(f"--output must end in .onnx, got {output}")
-        module = load_module(args.ckpt_path)
+        module = StamLaneModule.from_checkpoint(args.ckpt_path)
         num_frames, image_size = module.num_frames, module.hparams.get("image_size")
         if num_frames is None or image_size is None:
             raise ValueError(f"checkpoint {args.ckpt_path} records no num_frames / image_size")

@@ -82,6 +82,10 @@ FIRST_KEY = 7
 for the paper's longest clips (5 frames) and the 8-frame ones some video detectors use."""
 FAR_M = 120.0
 """Ground rendered this far ahead of the last camera position; beyond it (a few pixels under the horizon) haze."""
+TEMPORAL_LABELS = "challenging-frames.json"
+"""Label file of every frame from the ``FIRST_KEY + 1``-th of the first `TEMPORAL_CLIPS_PER_FACTOR` challenging clips
+of each factor, oldest first: what the temporal stability metrics (Rs / Rj / Rm) score, frame after frame."""
+TEMPORAL_CLIPS_PER_FACTOR = 4
 VISIBILITY_DIR = "visibility"
 """Folder of a set's visibility files: ``visibility/<split>.json``, one line per key frame of ``<split>.json``
 (``raw_file``, ``visibility``: per lane, per h_sample, the mask of `stamlane.synth.visibility.paint_visibility`)."""
@@ -607,6 +611,24 @@ def key_frame_visibility(clip: SynthClip, key: int, reach: int = FIRST_KEY) -> l
     )
 
 
+def write_temporal_labels(root: Path, challenging: int) -> Path | None:
+    """Write `TEMPORAL_LABELS`: every frame from the ``FIRST_KEY + 1``-th of the challenging clips ``0 ..
+    TEMPORAL_CLIPS_PER_FACTOR * len(FACTORS) - 1`` (as many of each factor), from their ``frame_labels``; None (and
+    no file) for a set without challenging clips or with clips of fewer than ``FIRST_KEY + 2`` frames."""
+    clips = min(challenging, TEMPORAL_CLIPS_PER_FACTOR * len(FACTORS))
+    if clips == 0:
+        return None
+    records = []
+    for i in range(clips):
+        frames = json.loads((Path(root) / "frame_labels" / f"challenging-{i:04d}.json").read_text())
+        records += [{k: f[k] for k in ("raw_file", "lanes", "h_samples")} for f in frames[FIRST_KEY:]]
+    if len(records) < 2 * clips:  # clips too short for two frames with a full history each: nothing to follow
+        return None
+    path = Path(root) / TEMPORAL_LABELS
+    path.write_text(_json_lines(records))
+    return path
+
+
 def _json_lines(records: list[dict]) -> str:
     return "".join(json.dumps(r) + "\n" for r in records)
 
@@ -682,7 +704,8 @@ def generate_dataset(
         train_factors, val_factors: clips with a challenging factor added to the train and val splits after
             their clean clips (ids ``train-<train + i>``: factor ``challenging_factor(i)``), so that training has
             a reason to read the history; they come from their own seeds (their split and index), never the
-            test or challenging clips', and leave the clean clips as they were.
+            test or challenging clips', and leave the clean clips as they were. With them, ``train-clean.json``
+            / ``val-clean.json`` list the clean clips' key frames alone.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``).
         progress: show a tqdm progress bar.
@@ -742,6 +765,9 @@ def generate_dataset(
                     totals[k] += v
                 bar.update(1)
             (root / f"{split}.json").write_text(_json_lines(records))
+            if extra.get(split):  # the clean clips alone too: the set as it was before factor clips
+                clean = [r for r in records if r["raw_file"].split("/")[1] not in clip_factors]
+                (root / f"{split}-clean.json").write_text(_json_lines(clean))
             n = max(len(jobs), 1)
             stats[split] = {
                 "clips": len(jobs),
@@ -756,6 +782,7 @@ def generate_dataset(
                 stats[split]["paint_visibility_4_frames"] = _visibility_shares(seen)
         for name, records in by_factor.items():
             (root / f"challenging-{name}.json").write_text(_json_lines(records))
+        write_temporal_labels(root, challenging)
     finally:
         if pool:
             pool.shutdown()

@@ -9,7 +9,9 @@ import numpy as np
 import torch
 
 from stamlane_eval import culane as _culane
-from stamlane_eval.integrations.torchmetrics import CULaneMetric, TuSimpleMetric
+from stamlane_eval import temporal as _temporal
+from stamlane_eval import video as _video
+from stamlane_eval.integrations.torchmetrics import CULaneMetric, TemporalStabilityMetric, TuSimpleMetric, VideoMetric
 from stamlane_eval.tusimple import lanes_to_xs
 
 __all__ = ["LaneEvalCallback"]
@@ -35,7 +37,10 @@ class LaneEvalCallback(pl.Callback):
     - ``gt_lanes``: the same for the ground truth;
     - ``h_samples``: ``list[int]`` (TuSimple rows) or ``None``;
     - ``orig_size``: ``(H, W)`` of the original image;
-    - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed).
+    - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed);
+    - ``sequence`` (needed by ``video`` and ``temporal``): per image, the name of the sequence it is a frame of;
+      the frames of a sequence must come in time order (within this process: see
+      :class:`~stamlane_eval.integrations.torchmetrics.TemporalStabilityMetric` for DDP).
 
     TuSimple metrics use images with ``h_samples`` only (lanes are converted with
     :func:`stamlane_eval.tusimple.lanes_to_xs`, gt included: gaps inside a gt lane become interpolated rows).
@@ -44,8 +49,12 @@ class LaneEvalCallback(pl.Callback):
     At epoch end it logs ``{prefix}/tusimple_accuracy``, ``{prefix}/tusimple_fp``, ``{prefix}/tusimple_fn``,
     ``{prefix}/tusimple_f1`` (the paper's F1), ``{prefix}/culane_f1@0.5``, ``{prefix}/culane_precision@0.5``,
     ``{prefix}/culane_recall@0.5`` (and the same @0.3, ... for every threshold) through ``pl_module.log``;
-    the sums are synchronised across processes by the torchmetrics states. ``prefix`` is ``"val"`` for
-    validation; the test stage logs under ``test_prefix`` (``"test"``). Metrics with no image are not logged.
+    the sums are synchronised across processes by the torchmetrics states. With ``video``:
+    ``{prefix}/video_miou``, ``{prefix}/video_f1@0.5`` (and precision, recall, at every ``video_iou_thresholds``)
+    as MMA-Net computes them; with ``temporal``: ``{prefix}/temporal_rs@0.5``, ``{prefix}/temporal_rj@0.5``,
+    ``{prefix}/temporal_rm@0.5`` (and @0.8) as RVLD's script. ``prefix`` is ``"val"`` for validation; the test
+    stage logs under ``test_prefix`` (``"test"``). Metrics with no image (temporal: no lane matched across a
+    pair) are not logged.
 
     Args:
         tusimple: compute the TuSimple metrics.
@@ -56,6 +65,10 @@ class LaneEvalCallback(pl.Callback):
         prefix: log-name prefix of the validation stage.
         test_prefix: log-name prefix of the test stage.
         variant: CULane variant, ``"official"`` or ``"lanedet"``.
+        video: compute mIoU and F as MMA-Net (needs ``sequence``).
+        temporal: compute RVLD's Rs / Rj / Rm (needs ``sequence``).
+        video_iou_thresholds: thresholds of the video F and of Stable / Jump / Missing.
+        temporal_protocol: ``"vil100"`` or ``"openlane-v"``.
     """
 
     def __init__(
@@ -68,6 +81,10 @@ class LaneEvalCallback(pl.Callback):
         prefix: str = "val",
         test_prefix: str = "test",
         variant: str = "official",
+        video: bool = False,
+        temporal: bool = False,
+        video_iou_thresholds: Sequence[float] = _video.VIDEO_IOU_THRESHOLDS,
+        temporal_protocol: str = "vil100",
     ) -> None:
         super().__init__()
         if culane_size is not None and (len(culane_size) != 2 or min(culane_size) <= 0):
@@ -81,6 +98,11 @@ class LaneEvalCallback(pl.Callback):
         self.culane_metric = CULaneMetric(
             iou_thresholds, width, self.culane_size or _culane.CULANE_SIZE, variant=variant
         )
+        self.use_video = video
+        self.use_temporal = temporal
+        size = self.culane_size or _culane.CULANE_SIZE
+        self.video_metric = VideoMetric(video_iou_thresholds, size)
+        self.temporal_metric = TemporalStabilityMetric(video_iou_thresholds, size, protocol=temporal_protocol)
 
     # ---------------------------------------------------------------------------------------- hooks
     def on_validation_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
@@ -112,9 +134,12 @@ class LaneEvalCallback(pl.Callback):
 
     # -------------------------------------------------------------------------------------- helpers
     def _reset(self, pl_module: pl.LightningModule) -> None:
-        for m in (self.tusimple_metric, self.culane_metric):
+        for m in self._metrics():
             m.to(pl_module.device)  # states must live where the process group reduces (NCCL: the GPU)
             m.reset()
+
+    def _metrics(self) -> tuple[TuSimpleMetric | CULaneMetric | VideoMetric | TemporalStabilityMetric, ...]:
+        return self.tusimple_metric, self.culane_metric, self.video_metric, self.temporal_metric
 
     def _update(self, outputs: object) -> None:
         if not isinstance(outputs, Mapping) or any(k not in outputs for k in _KEYS):
@@ -143,6 +168,18 @@ class LaneEvalCallback(pl.Callback):
         if self.use_culane:
             per_image = None if self.culane_size is not None else [(int(s[0]), int(s[1])) for s in sizes]
             self.culane_metric.update(preds, gts, per_image)
+        if self.use_video or self.use_temporal:
+            sequences = outputs.get("sequence")
+            if sequences is None or len(sequences) != n:
+                got = "none" if sequences is None else f"{len(sequences)} for {n} images"
+                raise ValueError(
+                    f"LaneEvalCallback(video/temporal) needs 'sequence' per image in the step's dict, got {got}"
+                )
+            per_image = [self.culane_size or (int(s[0]), int(s[1])) for s in sizes]
+            if self.use_video:
+                self.video_metric.update(preds, gts, list(sequences), per_image)
+            if self.use_temporal:
+                self.temporal_metric.update(preds, gts, list(sequences), per_image)
 
     def _log(self, pl_module: pl.LightningModule, prefix: str) -> None:
         if self.use_tusimple and self._any_images(self.tusimple_metric):
@@ -154,11 +191,24 @@ class LaneEvalCallback(pl.Callback):
             for t in self.culane_metric.iou_thresholds:
                 for name in ("f1", "precision", "recall"):
                     pl_module.log(f"{prefix}/culane_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
-        self.tusimple_metric.reset()
-        self.culane_metric.reset()
+        if self.use_video and self._any_images(self.video_metric):
+            vals = self.video_metric.compute()
+            pl_module.log(f"{prefix}/video_miou", float(vals["miou"]))
+            for t in self.video_metric.iou_thresholds:
+                for name in ("f1", "precision", "recall"):
+                    pl_module.log(f"{prefix}/video_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+        if self.use_temporal and self._any_images(self.temporal_metric):
+            vals = self.temporal_metric.compute()  # synchronised: every process takes the same branch below
+            for t in self.temporal_metric.iou_thresholds:
+                if not _temporal.StabilityCounts(*(int(vals[f"{k}@{t:g}"]) for k in ("ns", "nj", "nm"))).total:
+                    continue
+                for name in ("rs", "rj", "rm"):
+                    pl_module.log(f"{prefix}/temporal_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+        for m in self._metrics():
+            m.reset()
 
     @staticmethod
-    def _any_images(metric: TuSimpleMetric | CULaneMetric) -> bool:
+    def _any_images(metric: TuSimpleMetric | CULaneMetric | VideoMetric | TemporalStabilityMetric) -> bool:
         """Whether any process saw an image (every rank must take the same branch before compute's sync)."""
         n = metric.images.clone()
         if torch.distributed.is_available() and torch.distributed.is_initialized():

@@ -9,16 +9,18 @@ differs).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import hashlib
+from collections.abc import Hashable, Sequence
 
 import numpy as np
 import torch
 from torchmetrics import Metric
+from torchmetrics.utilities import dim_zero_cat
 
-from stamlane_eval import culane, tusimple
+from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.aggregate import TuSimpleSums, culane_update, prf, tusimple_compute, tusimple_update
 
-__all__ = ["CULaneMetric", "TuSimpleMetric"]
+__all__ = ["CULaneMetric", "TemporalStabilityMetric", "TuSimpleMetric", "VideoMetric"]
 
 
 def _to_numpy(lane: object) -> np.ndarray:
@@ -156,4 +158,216 @@ class CULaneMetric(Metric):
                 out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.float64)
             for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
                 out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.int64)
+        return out
+
+
+def _sequence_key(name: Hashable) -> int:
+    """A sequence's name as an int64 every process computes alike (a tensor state cannot hold strings)."""
+    digest = hashlib.blake2b(repr(name).encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "little", signed=True)
+
+
+def _name(sequence: Hashable) -> Hashable:
+    """A sequence name as a plain value: a one-element tensor (as a collate function makes it) becomes its item."""
+    return sequence.item() if isinstance(sequence, torch.Tensor) else sequence
+
+
+def _frames(
+    preds: Sequence[Sequence[object]],
+    target: Sequence[Sequence[object]],
+    sequences: Sequence[Hashable] | None,
+    sizes: Sequence[tuple[int, int]] | None,
+) -> list[tuple[Hashable, list[np.ndarray], list[np.ndarray], tuple[int, int] | None]]:
+    n = len(preds)
+    if len(target) != n:
+        raise ValueError(f"got {n} prediction frames and {len(target)} target frames")
+    if sequences is not None and len(sequences) != n:
+        raise ValueError(f"got {len(sequences)} sequence names for {n} frames")
+    if sizes is not None and len(sizes) != n:
+        raise ValueError(f"got {len(sizes)} sizes for {n} frames")
+    return [
+        (
+            "" if sequences is None else _name(sequences[i]),
+            [_to_numpy(x) for x in preds[i]],
+            [_to_numpy(x) for x in target[i]],
+            None if sizes is None else (int(sizes[i][0]), int(sizes[i][1])),
+        )
+        for i in range(n)
+    ]
+
+
+class VideoMetric(Metric):
+    """mIoU and F@t as MMA-Net computes them for VIL-100 (:mod:`stamlane_eval.video`).
+
+    ``update`` takes frames in time order with the sequence each belongs to; the mIoU is averaged per sequence,
+    then over sequences, so every frame's value is kept (a ``"cat"`` state: under DDP each process may hold any
+    frames of any sequence). F sums TP/FP/FN.
+
+    Args:
+        iou_thresholds: TP when the matched IoU is strictly greater.
+        size: image ``(H, W)``; ``update(..., sizes=...)`` may give each frame its own.
+    """
+
+    full_state_update = False
+    higher_is_better = True
+
+    def __init__(
+        self,
+        iou_thresholds: Sequence[float] = video.VIDEO_IOU_THRESHOLDS,
+        size: tuple[int, int] = culane.CULANE_SIZE,
+        **kwargs: object,
+    ) -> None:
+        super().__init__(**kwargs)
+        self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
+        self.size = (int(size[0]), int(size[1]))
+        k = len(self.iou_thresholds)
+        for name in ("tp", "fp", "fn"):
+            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
+        self.add_state("images", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        self.add_state("frame_miou", default=[], dist_reduce_fx="cat")
+        self.add_state("frame_sequence", default=[], dist_reduce_fx="cat")
+
+    def update(
+        self,
+        preds: Sequence[Sequence[object]],
+        target: Sequence[Sequence[object]],
+        sequences: Sequence[Hashable] | None = None,
+        sizes: Sequence[tuple[int, int]] | None = None,
+    ) -> None:
+        """Add frames.
+
+        Args:
+            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
+            target: per frame, annotated lanes, same form.
+            sequences: per frame, the name of its sequence (default: one sequence).
+            sizes: per frame ``(H, W)``; default ``size``.
+        """
+        mious, keys = [], []
+        counts = torch.zeros(len(self.iou_thresholds), 3, dtype=torch.int64)
+        for i, (seq, p, g, size) in enumerate(_frames(preds, target, sequences, sizes)):
+            try:
+                r = culane.evaluate_image(p, g, self.iou_thresholds, culane.LANE_WIDTH, size or self.size, "official")
+            except ValueError as e:
+                raise ValueError(f"sequence {seq!r}, frame {i} of this update: {e}") from None
+            counts += torch.tensor([r.counts[t] for t in self.iou_thresholds], dtype=torch.int64)
+            mious.append(video.frame_miou(r))
+            keys.append(_sequence_key(seq))
+        counts = counts.to(self.tp.device)
+        self.tp += counts[:, 0]
+        self.fp += counts[:, 1]
+        self.fn += counts[:, 2]
+        self.images += len(mious)
+        if mious:
+            self.frame_miou.append(torch.tensor(mious, dtype=torch.float64, device=self.tp.device))
+            self.frame_sequence.append(torch.tensor(keys, dtype=torch.int64, device=self.tp.device))
+
+    def compute(self) -> dict[str, torch.Tensor]:
+        """``{"miou", f"f1@{t}", f"precision@{t}", f"recall@{t}", f"tp@{t}", f"fp@{t}", f"fn@{t}"}``."""
+        per_sequence: dict[int, list[float]] = {}
+        if int(self.images):
+            keys = dim_zero_cat(self.frame_sequence).tolist()
+            for key, value in zip(keys, dim_zero_cat(self.frame_miou).tolist(), strict=True):
+                per_sequence.setdefault(key, []).append(value)
+        mious = [sum(v) / len(v) for v in per_sequence.values()]  # evaluate.cpp: sum in order, / frames
+        out = {"miou": torch.tensor(video.dataset_miou(mious), dtype=torch.float64)}
+        for i, t in enumerate(self.iou_thresholds):
+            c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
+            for name in ("precision", "recall", "f1"):
+                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+            for name in ("tp", "fp", "fn"):
+                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+        return out
+
+
+class TemporalStabilityMetric(Metric):
+    """RVLD's temporal stability (:mod:`stamlane_eval.temporal`): Ns, Nj, Nm summed, Rs, Rj, Rm from the sums.
+
+    ``update`` takes frames in time order with the sequence each belongs to. The metric keeps the last frame of
+    every sequence it has seen (on this process, until ``reset``), so a sequence may arrive over many updates: a
+    frame pairs with the previous frame of its sequence. Under DDP give each process whole sequences, or runs of
+    consecutive frames (a pair split between two processes is not counted); the counts of the processes sum.
+    ``forward`` only updates (a batch of frames has no stability of its own) and returns None.
+
+    Args:
+        iou_thresholds: thresholds T of Stable / Jump / Missing.
+        size: image ``(H, W)`` (vil100); ``update(..., sizes=...)`` may give each frame its own.
+        protocol: ``"vil100"`` or ``"openlane-v"`` (lanes in 1920x1280 pixels; ``size`` is not used).
+    """
+
+    full_state_update = False
+    higher_is_better = None  # Rs up, Rj and Rm down
+
+    def __init__(
+        self,
+        iou_thresholds: Sequence[float] = temporal.TEMPORAL_IOU_THRESHOLDS,
+        size: tuple[int, int] | None = culane.CULANE_SIZE,
+        protocol: str = "vil100",
+        **kwargs: object,
+    ) -> None:
+        super().__init__(**kwargs)
+        if protocol not in temporal.PROTOCOLS:
+            raise ValueError(f"protocol must be one of {temporal.PROTOCOLS}, got {protocol!r}")
+        self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
+        self.size = None if size is None or protocol == "openlane-v" else (int(size[0]), int(size[1]))
+        self.protocol = protocol
+        k = len(self.iou_thresholds)
+        for name in ("ns", "nj", "nm"):
+            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
+        for name in ("images", "pairs"):
+            self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        self._last: dict[Hashable, temporal.TemporalFrame] = {}
+
+    def update(
+        self,
+        preds: Sequence[Sequence[object]],
+        target: Sequence[Sequence[object]],
+        sequences: Sequence[Hashable] | None = None,
+        sizes: Sequence[tuple[int, int]] | None = None,
+    ) -> None:
+        """Add frames, in time order within each sequence.
+
+        Args:
+            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
+            target: per frame, annotated lanes, same form.
+            sequences: per frame, the name of its sequence (default: one sequence).
+            sizes: per frame ``(H, W)``; default ``size``.
+        """
+        counts = torch.zeros(len(self.iou_thresholds), 3, dtype=torch.int64)
+        pairs = 0
+        frames = _frames(preds, target, sequences, sizes)
+        for i, (seq, p, g, size) in enumerate(frames):
+            prev = self._last.get(seq)
+            try:
+                frame = temporal.evaluate_frame(p, g, size or self.size, self.protocol)
+                c = None if prev is None else temporal.evaluate_pair(prev, frame, self.iou_thresholds)
+            except ValueError as e:
+                raise ValueError(f"sequence {seq!r}, frame {i} of this update: {e}") from None
+            if c is not None:
+                counts += torch.tensor([c[t] for t in self.iou_thresholds], dtype=torch.int64)
+                pairs += 1
+            self._last[seq] = frame
+        counts = counts.to(self.ns.device)
+        self.ns += counts[:, 0]
+        self.nj += counts[:, 1]
+        self.nm += counts[:, 2]
+        self.images += len(frames)
+        self.pairs += pairs
+
+    def forward(self, *args: object, **kwargs: object) -> None:
+        self.update(*args, **kwargs)
+
+    def reset(self) -> None:
+        super().reset()
+        self._last = {}
+
+    def compute(self) -> dict[str, torch.Tensor]:
+        """``{f"rs@{t}", f"rj@{t}", f"rm@{t}"}`` (NaN when nothing was counted) and ``{f"ns@{t}", f"nj@{t}",
+        f"nm@{t}"}`` for each threshold."""
+        out = {}
+        for i, t in enumerate(self.iou_thresholds):
+            c = temporal.StabilityCounts(int(self.ns[i]), int(self.nj[i]), int(self.nm[i]))
+            for name in ("rs", "rj", "rm"):
+                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+            for name in ("ns", "nj", "nm"):
+                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
         return out

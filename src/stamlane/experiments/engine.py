@@ -1,0 +1,488 @@
+"""The experiment engine: train rows x seeds with a named recipe, predict, score, probe the history, summarise.
+
+``stamlane demo`` (three fixed rows and pictures) and ``stamlane ablate`` (the paper's tables) are this engine
+with other rows. For every seed, a recipe's optional stage 1 (the single-frame network from scratch, whose final
+weights start every row) and then every row are trained through ``stamlane fit`` in this process; each run's
+FINAL weights predict the scored splits (``stamlane predict``), which are scored (`stamlane.experiments.scoring`);
+a multi-frame run is scored twice more with its history probed (``data.history_source``: the key frame copied
+into every history slot, and another clip's history), which measures whether it reads its history at all.
+Where the set has paint-visibility masks, two oracles fitted to the labels (`stamlane.experiments.history`) give
+each view's headroom: what perfect use of the history could add.
+
+Runs finish with ``done.json`` (`stamlane.experiments.store`): a later call with the same ``out`` and settings
+reuses them (more seeds, or a run killed midway), predicts and scores again only a split whose labels changed or
+that was scored under older rules, and refuses other settings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from stamlane.experiments.scoring import (
+    SCORING,
+    image_size,
+    iou_width,
+    read_per_clip,
+    read_per_image,
+    score_split,
+    score_temporal,
+)
+from stamlane.experiments.stats import Scores, views
+from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
+from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
+from stamlane.quiet import quiet_libraries
+
+__all__ = [
+    "CONFIG_DIR",
+    "PROBES",
+    "QUICK_OVERRIDES",
+    "RECIPES",
+    "Experiment",
+    "ExperimentError",
+    "Recipe",
+    "Row",
+]
+
+CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs"
+PROBES = ("key", "other_clip")
+"""History probes of every multi-frame run (`stamlane.data.clips.HISTORY_SOURCES` other than ``real``)."""
+QUICK_OVERRIDES = (
+    "--data.image_size=[64, 128]",
+    "--model.encoder.width=0.125",
+    "--model.channels_last=false",
+    "--data.batch_size=2",
+    "--data.num_workers=0",
+)
+"""A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
+
+
+class ExperimentError(Exception):
+    """A known failure of an experiment (bad rows, a used ``--out``, a broken run folder): one line, exit 2."""
+
+
+@dataclass(frozen=True)
+class Row:
+    """A model of an experiment: a name (its folders), a label (its tables), its ``stamlane fit`` configs
+    (relative to ``configs/``, in order) and the paper row it is (``configs/paper/tables.yaml``), if any."""
+
+    name: str
+    label: str
+    configs: tuple[str, ...]
+    paper: str | None = None
+
+    @classmethod
+    def paper_row(cls, row: str, base: str = "demo.yaml") -> Row:
+        """A row of the paper's tables on ``base`` (``base``, ``paper/ablation.yaml``, ``paper/rows/<row>.yaml``)."""
+        if not (CONFIG_DIR / "paper" / "rows" / f"{row}.yaml").is_file():
+            known = sorted(p.stem for p in (CONFIG_DIR / "paper" / "rows").glob("*.yaml"))
+            raise ExperimentError(f"no paper row {row!r}; known rows: {' '.join(known)}")
+        return cls(row, f"paper row {row}", (base, "paper/ablation.yaml", f"paper/rows/{row}.yaml"), paper=row)
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """How every row is trained.
+
+    Attributes:
+        name: ``"cpu"`` (two stages) or ``"paper"`` (one stage).
+        steps: steps of each row (stage 2 of the two-stage recipe).
+        pretrain_steps: steps of stage 1, the single-frame network from scratch whose final weights start every
+            row (0: one stage, every row from scratch).
+        pretrain: the stage-1 model.
+        row_args: ``stamlane fit`` arguments of every row's training (not of stage 1), after its configs.
+        val_checks: validations per run (for the curves; stage 2 validates half as often as stage 1).
+    """
+
+    name: str
+    steps: int
+    pretrain_steps: int = 0
+    pretrain: Row | None = None
+    row_args: tuple[str, ...] = ()
+    val_checks: int = 4
+
+    def settings(self) -> dict[str, Any]:
+        return {
+            "recipe": self.name,
+            "pretrain_steps": self.pretrain_steps,
+            "steps": self.steps,
+            "row_args": list(self.row_args),
+        }
+
+
+PRETRAIN = Row("pretrain", "1 frame, stage 1 (every model starts here)", ("demo_single.yaml",))
+KEY_CORRUPTION = ("--data.key_corruption=0.5", "--data.key_corruption_kinds=[blank, glare]")
+"""Stage 2 of the CPU recipe: half the training clips have their key frame's near road blanked or the frame
+overexposed, history intact (`stamlane.data.corruption`): the reason to read the history (docs/training.md)."""
+RECIPES = {
+    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_args=KEY_CORRUPTION),
+    "paper": Recipe("paper", steps=1500),
+}
+"""The named recipes (docs/training.md): ``cpu``, the demo's two stages (1,200 single-frame steps from scratch,
+then each row for 300 steps from those weights with the key frame corrupted in half the clips: every model gets
+1,500 steps on the same data); ``paper``, every row from scratch for 1,500 steps (the paper's protocol at a CPU
+budget). Steps can be changed per call."""
+
+
+def _cli(args: list[str]) -> Any:
+    from stamlane.lightning_cli import StamLaneCLI
+
+    argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
+    try:
+        return StamLaneCLI(args=args, report=False)
+    finally:
+        sys.argv = argv
+
+
+def _frames_of(run: Path) -> int:
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    return int(config["data"]["num_frames"])
+
+
+def _postprocess_of(run: Path) -> dict[str, Any]:
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    return dict(config["model"].get("postprocess") or {})
+
+
+@dataclass
+class Experiment:
+    """Rows x seeds on one synthetic set (see the module docstring).
+
+    Attributes:
+        rows: the models.
+        recipe: how they are trained.
+        seeds: training seeds.
+        root: the data root (a synthetic set: ``dataset.json``, ``test.json``, ``challenging.json``).
+        out: the experiment's folder.
+        bf16: bfloat16 autocast in every run.
+        splits: the label files scored.
+        probes: score multi-frame runs with their history probed too.
+        temporal: predict the frames of `stamlane.synth.generator.TEMPORAL_LABELS` one after the other (each
+            with its own history) and score their temporal stability, where the set has that file.
+        extra: further ``stamlane fit`` arguments of every run, after the row's base config and before its row
+            config.
+        quick: the smoke settings (`QUICK_OVERRIDES`), without progress bars.
+        max_overlays: overlay pictures per run and split.
+        log: where the one-line progress messages go.
+    """
+
+    rows: list[Row]
+    recipe: Recipe
+    seeds: list[int]
+    root: Path
+    out: Path
+    bf16: bool = False
+    splits: tuple[str, ...] = ("test", "challenging")
+    probes: bool = True
+    temporal: bool = True
+    extra: tuple[str, ...] = ()
+    quick: bool = False
+    max_overlays: int = 12
+    log: Callable[[str], None] = field(default=lambda line: print(f"[stamlane] {line}", flush=True))
+
+    # ------------------------------------------------------------------ settings and folders
+    def settings(self) -> dict[str, Any]:
+        """What every run of ``out`` must share."""
+        return {
+            "data": str(self.root.resolve()),
+            **self.recipe.settings(),
+            "bf16": self.bf16,
+            "extra": list(self.extra),
+        }
+
+    def run_name(self, row: Row, seed: int) -> str:
+        return f"{row.name}-s{seed}"
+
+    def pred_dir(self, name: str, split: str, source: str = "real") -> Path:
+        return self.out / "predictions" / name / (split if source == "real" else f"{split}@{source}")
+
+    # ------------------------------------------------------------------ training and prediction
+    def _common(self, row: Row) -> list[str]:
+        configs = [str(CONFIG_DIR / c) for c in row.configs]
+        args = ["--config", configs[0], *self.extra]  # extra acts as part of the base: a row's own settings hold
+        for config in configs[1:]:
+            args += ["--config", config]
+        return [
+            *args,
+            f"--data.root={self.root}",
+            f"--model.bf16={str(self.bf16).lower()}",
+            f"--trainer.enable_progress_bar={str(not self.quick).lower()}",
+            "--trainer.enable_model_summary=false",
+            *(QUICK_OVERRIDES if self.quick else ()),
+        ]
+
+    def _fit(self, row: Row, steps: int, seed: int, init: Path | None) -> Path:
+        """Train ``row`` for ``steps`` steps with ``seed`` from the weights of ``init`` (or from scratch); returns the
+        run folder (``config.yaml``, ``metrics.csv``, ``checkpoints/last.ckpt``: the final weights)."""
+        checks = self.recipe.val_checks // (2 if init else 1)
+        val_every = max(1, steps // max(checks, 1))
+        name = self.run_name(row, seed)
+        last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
+        row_args = self.recipe.row_args if row is not self.recipe.pretrain else ()
+        cli = _cli(
+            [
+                "fit",
+                *([f"--ckpt_path={last}"] if last.is_file() else []),
+                *self._common(row),
+                *row_args,
+                *([f"--model.init_weights={init}"] if init else []),
+                f"--seed_everything={seed}",
+                f"--trainer.max_steps={steps}",
+                f"--trainer.val_check_interval={val_every}",
+                f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
+                f"--trainer.default_root_dir={self.out / name}",
+                f"--trainer.logger.save_dir={self.out}",
+                f"--trainer.logger.name={name}",
+                "--trainer.logger.version=run",
+            ]
+        )
+        return Path(cli.trainer.logger.log_dir)
+
+    def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
+        """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks; returns the
+        predictions folder."""
+        pred_dir = self.pred_dir(name, split, source)
+        _cli(
+            [
+                "predict",
+                "--config",
+                str(run / "config.yaml"),
+                f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
+                f"--data.root={self.root}",
+                f"--data.predict_labels=[{split}.json]",
+                f"--data.history_source={source}",
+                "--trainer.logger=false",
+                "--trainer.callbacks=[]",
+                "--trainer.enable_progress_bar=false",
+                "--predictions.verbose=false",
+                f"--predictions.output_dir={pred_dir}",
+                f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
+            ]
+        )
+        return pred_dir
+
+    def _trained(self, row: Row, seed: int, steps: int, init: Path | None, label: str) -> dict[str, Any]:
+        """The finished record of a run, training it first when there is none."""
+        name = self.run_name(row, seed)
+        try:
+            record = finished(self.out / name, self.settings(), self.out)
+        except StoreError as err:
+            raise ExperimentError(str(err)) from None
+        if record is not None:
+            self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
+            return record
+        self.log(f"seed {seed}, {label}: {row.label}, {steps} steps")
+        start = time.perf_counter()
+        run = self._fit(row, steps, seed, init)
+        record = self.settings() | {
+            "seed": seed,
+            "train_minutes": round((time.perf_counter() - start) / 60, 2),
+            "run": str(run),
+            "last_ckpt": str(run / "checkpoints" / "last.ckpt"),
+            "frames": _frames_of(run),
+            "hardware": _hardware(),
+        }
+        mark_finished(self.out / name, record)
+        return record
+
+    def _score(self, name: str, record: dict[str, Any]) -> None:
+        """Predict and score every split (and its probes) that ``record`` has no current scores of; record them."""
+        labels = record.setdefault("labels", {})
+        scores = record.setdefault("scores", {})
+        rescore = record.get("scoring") != SCORING
+        sources = ("real", *PROBES) if self.probes and record["frames"] > 1 else ("real",)
+        changed = False
+        for split in self.splits:
+            digest = _sha256(self.root / f"{split}.json")
+            for source in sources:
+                key = split if source == "real" else f"{split}@{source}"
+                current = labels.get(split) == digest and key in scores
+                if current and not rescore:
+                    continue
+                pred_dir = self.pred_dir(name, split, source)
+                if not current or not (pred_dir / "predictions.json").is_file():
+                    if key in scores:
+                        self.log(f"{name}: the {split} labels changed, predicting them again")
+                    self.predict(name, Path(record["run"]), split, source)
+                scores[key] = score_split(pred_dir, self.root, split, record["frames"])
+                changed = True
+            labels[split] = digest
+        frames = self.temporal_split()
+        if frames is not None:
+            digest = _sha256(self.root / f"{frames}.json")
+            if labels.get(frames) != digest or frames not in scores:
+                pred_dir = self.pred_dir(name, frames)
+                if labels.get(frames) != digest or not (pred_dir / "predictions.json").is_file():
+                    self.predict(name, Path(record["run"]), frames)
+                scores[frames] = score_temporal(pred_dir, self.root, frames)
+                labels[frames] = digest
+                changed = True
+        if changed:
+            record["scoring"] = SCORING
+            mark_finished(self.out / name, record)
+
+    def temporal_split(self) -> str | None:
+        """The label file (stem) of frame-after-frame predictions, where the set has one and it is wanted."""
+        from stamlane.synth.generator import TEMPORAL_LABELS
+
+        stem = TEMPORAL_LABELS.removesuffix(".json")
+        return stem if self.temporal and (self.root / TEMPORAL_LABELS).is_file() else None
+
+    # ------------------------------------------------------------------ oracles
+    def _oracles(self, scores: Scores, frames: list[int], postprocess: dict[str, Any]) -> list[str]:
+        """Score the key-frame oracle and the history oracle of each clip length in ``frames`` on every split with
+        visibility masks; returns the oracle subjects."""
+        from stamlane_eval.io import read_tusimple
+
+        from stamlane.experiments.history import oracle_predictions, read_visibility
+        from stamlane.postprocess import PostprocessConfig
+
+        config = PostprocessConfig(**postprocess)
+        subjects: list[str] = []
+        for split in self.splits:
+            visibility = read_visibility(self.root, split)
+            if visibility is None:
+                continue
+            gts = read_tusimple(self.root / f"{split}.json")
+            for t in frames:
+                key, history = oracle_predictions(gts, visibility, t, config, image_size(self.root))
+                for subject, records in (("oracle:key", key), (f"oracle:history-{t}f", history)):
+                    pred_dir = self.out / "predictions" / subject.replace(":", "-") / split
+                    write_atomic(pred_dir / "predictions.json", "".join(json.dumps(r) + "\n" for r in records))
+                    score_split(pred_dir, self.root, split, t)
+                    per_image, clips = read_per_image(pred_dir)
+                    scores.add(subject, split, 0, per_image, clips)
+                    subjects.append(subject)
+        return list(dict.fromkeys(subjects))
+
+    # ------------------------------------------------------------------ the whole experiment
+    def run(self, pairs: list[tuple[str, str]]) -> Summary:
+        """Train, predict, score and summarise every row and seed.
+
+        Args:
+            pairs: the models compared, ``(a, b)`` names of rows (a - b on the same key frames).
+
+        Returns:
+            the summary, also written to ``<out>/summary.json``.
+        """
+        if self.out.exists() and not self.out.is_dir():
+            raise ExperimentError(f"--out {self.out} is a file, not a folder")
+        names = [r.name for r in self.rows]
+        if len(set(names)) != len(names):
+            raise ExperimentError(f"two rows share a name: {names}")
+        self.out.mkdir(parents=True, exist_ok=True)
+        quiet_libraries()
+        start = time.perf_counter()
+        scores = Scores()
+        records: dict[str, list[dict[str, Any]]] = {r.name: [] for r in self.rows}
+        steps = self.recipe.steps + self.recipe.pretrain_steps
+        for seed in self.seeds:
+            init = None
+            if self.recipe.pretrain is not None:
+                base = self._trained(self.recipe.pretrain, seed, self.recipe.pretrain_steps, None, "stage 1")
+                init = Path(base["last_ckpt"])
+            for row in self.rows:
+                stage = "stage 2" if init else "training"
+                record = self._trained(row, seed, self.recipe.steps, init, stage)
+                if init is not None:
+                    record.setdefault("pretrain_minutes", base["train_minutes"])
+                name = self.run_name(row, seed)
+                self._score(name, record)
+                for key in record["scores"]:
+                    split, _, source = key.partition("@")
+                    pred_dir = self.pred_dir(name, split, source or "real")
+                    read = read_per_clip if split == self.temporal_split() else read_per_image
+                    per_image, clips = read(pred_dir)
+                    scores.add(row.name + (f"@{source}" if source else ""), split, seed, per_image, clips)
+                records[row.name].append(record)
+        all_views = views(self.root, scores.clips)
+        multi = [r.name for r in self.rows if records[r.name] and records[r.name][0]["frames"] > 1]
+        frames = sorted({records[n][0]["frames"] for n in multi})
+        oracles = self._oracles(scores, frames, _postprocess_of(Path(records[self.rows[0].name][0]["run"])))
+        differences = scores.differences("models", pairs, all_views)
+        for name in multi:
+            differences += scores.differences("history_key", [(name, f"{name}@key")], all_views)
+            differences += scores.differences("history_other", [(name, f"{name}@other_clip")], all_views)
+        for t in frames:
+            if f"oracle:history-{t}f" in oracles:
+                differences += scores.differences("headroom", [(f"oracle:history-{t}f", "oracle:key")], all_views)
+        models = []
+        for row in self.rows:
+            runs = records[row.name]
+            probes = {s: scores.values(f"{row.name}@{s}", all_views) for s in PROBES if row.name in multi}
+            models.append(
+                ModelEntry(
+                    row.name,
+                    row.label,
+                    row.paper,
+                    [f"configs/{c}" for c in row.configs],
+                    runs[0]["frames"],
+                    steps,
+                    [_run_entry(r) for r in runs],
+                    scores.values(row.name, all_views),
+                    {s: v for s, v in probes.items() if v},
+                )
+            )
+        summary = Summary(
+            data=str(self.root),
+            splits_sha256={
+                split: _sha256(self.root / f"{split}.json")
+                for split in (*self.splits, *filter(None, [self.temporal_split()]))
+            },
+            seeds=list(self.seeds),
+            recipe={
+                "name": self.recipe.name,
+                "pretrain_steps": self.recipe.pretrain_steps,
+                "steps": self.recipe.steps,
+                "row_args": list(self.recipe.row_args),
+            },
+            bf16=self.bf16,
+            iou_width=iou_width(image_size(self.root)),
+            models=models,
+            oracles={o: scores.values(o, all_views) for o in oracles},
+            differences=differences,
+            minutes=round((time.perf_counter() - start) / 60, 2),
+        )
+        summary.write(self.out / "summary.json")
+        return summary
+
+
+def _hardware() -> str:
+    """The CPU (or GPU), threads and torch version a run trained on."""
+    import platform
+
+    import torch
+
+    if torch.cuda.is_available():
+        return f"cuda: {torch.cuda.get_device_name(0)}, torch {torch.__version__}"
+    name = platform.processor() or platform.machine()
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        name = next(
+            (ln.split(":", 1)[1].strip() for ln in cpuinfo.read_text().splitlines() if ln.startswith("model name")),
+            name,
+        )
+    return f"cpu: {name}, {torch.get_num_threads()} threads, torch {torch.__version__}"
+
+
+def _run_entry(record: dict[str, Any]) -> RunEntry:
+    return RunEntry(
+        record["seed"],
+        round(record["train_minutes"] + record.get("pretrain_minutes", 0.0), 2),
+        record["run"],
+        record["last_ckpt"],
+        record["frames"],
+        record["scores"],
+    )
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()

@@ -1,0 +1,70 @@
+"""``stamlane report``: the tables of experiment summaries (``stamlane demo`` / ``stamlane ablate`` output).
+
+    stamlane report SUMMARY                                    # one summary's tables (markdown)
+    stamlane report SUMMARY --models stam4 single              # only these models and their differences
+    stamlane report SUMMARY [SUMMARY ...] --paper [--tables 1 2 3 4 7 8]   # the paper's tables; several run sets
+    stamlane report SUMMARY_1 SUMMARY_2 --replication          # rows trained in both sets, side by side
+    stamlane report SUMMARY --csv summary.csv --plot history_use.png --out tables.md
+
+Reads summaries of this version and those written before the typed summary (converted as they are read).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+
+__all__ = ["main"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = OneLineParser(prog="stamlane report", description=__doc__.split("\n")[0])
+    p.add_argument("summary", type=Path, nargs="+", help="summary.json; several with --paper / --replication")
+    p.add_argument("--models", nargs="+", metavar="NAME", help="only these models of the summary")
+    p.add_argument("--paper", action="store_true", help="the paper's tables (configs/paper/tables.yaml)")
+    p.add_argument("--tables", nargs="+", default=["1", "2", "3", "4", "7", "8"], help="which of the paper's tables")
+    p.add_argument("--index", type=Path, help="table index (default configs/paper/tables.yaml)")
+    p.add_argument("--replication", action="store_true", help="rows trained in several run sets, side by side")
+    p.add_argument("--csv", type=Path, help="also write every value and difference of the (first) summary as csv")
+    p.add_argument("--plot", type=Path, help="also draw the history use per factor (png)")
+    p.add_argument("--out", type=Path, help="also write the tables to this file")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_or_status(_parser(), argv)
+    if isinstance(args, int):
+        return args
+    from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
+    from stamlane.experiments.store import write_atomic
+    from stamlane.experiments.summary import Summary, SummaryError
+    from stamlane.experiments.tables import load_tables
+
+    try:
+        summaries = [Summary.read(path) for path in args.summary]
+        if args.paper or args.replication:
+            index = load_tables(args.index)
+            text = replication(summaries, index) if args.replication else paper_tables(summaries, index, args.tables)
+        elif len(summaries) > 1:
+            raise ValueError("several summaries go with --paper or --replication")
+        else:
+            text = tables(summaries[0], args.models)
+    except (SummaryError, ValueError, KeyError, FileNotFoundError) as err:
+        message = err.args[0] if isinstance(err, KeyError) and err.args else err
+        print(f"stamlane report: {message}", file=sys.stderr)
+        return 2
+    if args.csv:
+        write_csv(args.csv, summaries[0])
+    if args.plot:
+        plot_history_use(summaries[0], args.plot)
+    if args.out:
+        write_atomic(args.out, text + "\n")
+    sys.stdout.write(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+"""The engine follows clips frame after frame: predictions of every frame of the temporal subset, each with its own
+history, scored with RVLD's temporal stability per clip, and the per-clip counts in the summary's values."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from stamlane_eval import temporal
+from stamlane_eval.io import read_tusimple, tusimple_points
+from stamlane_eval.video import Frame
+
+from stamlane.experiments.engine import Experiment, Recipe, Row
+from stamlane.synth.generator import FIRST_KEY, TEMPORAL_LABELS
+
+torch.set_num_threads(1)
+SHRINK = (
+    "--data.image_size=[32, 64]",
+    "--data.batch_size=2",
+    "--data.num_workers=0",
+    "--data.align=true",
+    "--model.encoder.width=0.125",
+    "--model.channels_last=false",
+    "--trainer.enable_progress_bar=false",
+)
+
+
+@pytest.mark.usefixtures("plain_argv")
+def test_clips_followed_frame_after_frame(tiny_synthetic, tmp_path: Path) -> None:
+    root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=1, challenging=8)  # 3 frames with history
+    labels = [json.loads(line) for line in (root / TEMPORAL_LABELS).read_text().splitlines()]
+    assert len(labels) == 8 * 3  # one clip per factor, frames 8, 9 and 10
+    recipe = Recipe("paper", steps=2)
+    row = Row.paper_row("f2_mixed_cs_features")
+    experiment = Experiment([row], recipe, [0], root, tmp_path / "out", probes=False, extra=SHRINK, max_overlays=0)
+    summary = experiment.run([])
+    run = summary.model(row.name).runs[0]
+    frames = experiment.temporal_split()
+    assert run.scores[frames]["clips"] == 8 and run.scores[frames]["frames"] == 24
+    # the counts are RVLD's on the run's own predictions, grouped by clip in time order
+    preds = {
+        p["raw_file"]: p for p in read_tusimple(experiment.pred_dir(f"{row.name}-s0", frames) / "predictions.json")
+    }
+    sequences: dict[str, list[Frame]] = {}
+    for gt in labels:
+        pred = preds[gt["raw_file"]]
+        sequences.setdefault(gt["raw_file"].rsplit("/", 1)[0], []).append(
+            Frame(tusimple_points(pred["lanes"], gt["h_samples"]), tusimple_points(gt["lanes"], gt["h_samples"]))
+        )
+    expected = temporal.evaluate(sequences, (0.5, 0.8), (72, 128)).totals[0.5]
+    assert expected.total > 0  # annotated lanes matched between frames are counted whatever was predicted
+    for key, want in (("temporal_rs@0.5", expected.rs), ("temporal_rm@0.5", expected.rm)):
+        value = summary.value(row.name, key, frames)
+        assert value.mean == pytest.approx(want, abs=1e-12) and value.images == 8
+    rows = [
+        json.loads(line)
+        for line in (experiment.pred_dir(f"{row.name}-s0", frames) / "per_clip.jsonl").read_text().splitlines()
+    ]
+    assert [r["frames"] for r in rows] == [3] * 8 and sum(r["temporal"]["0.5"][0] for r in rows) == expected.ns
