@@ -223,6 +223,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             res = tusimple.evaluate(preds, gts, time_limit=args.time_limit)
+            tusimple.check_rates(res)
     except tusimple.TuSimpleInputError as e:
         where = {"pred": args.pred, "gt": args.gt}.get(e.source or "", f"{args.pred} / {args.gt}")
         line = f": line {e.line}" if e.line is not None else ""

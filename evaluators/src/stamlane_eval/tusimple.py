@@ -9,8 +9,8 @@ so the per-image numbers, the dataset numbers, the CLI and the torchmetrics clas
 
 What is scored and what is refused (docs/evaluators.md): every input lane.py scores to a rate is scored to
 lane.py's number, a prediction's huge, negative, fractional or non-finite x included; where lane.py crashes, or
-its numbers would not be rates (a ground truth naming an image twice, totals outside [0, 1]), the input is
-refused with a `TuSimpleInputError`.
+its numbers would not be rates (a ground truth naming an image twice; totals outside [0, 1], refused by
+:func:`check_rates`, which the command line applies), the input is refused with a `TuSimpleInputError`.
 
 A TuSimple lane is a list of x values, one per ``h_samples`` row; negative values (``-2``) mean "no lane on
 this row". Coordinates are original-image pixels (1280x720 for TuSimple).
@@ -38,6 +38,7 @@ __all__ = [
     "TuSimpleImageResult",
     "TuSimpleInputError",
     "TuSimpleResult",
+    "check_rates",
     "evaluate",
     "evaluate_batch",
     "evaluate_image",
@@ -356,9 +357,10 @@ def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool 
         lane-count precision/recall/F1 and the per-image results in prediction order.
 
     Raises:
-        TuSimpleInputError: where lane.py raises, where its numbers would not be rates (a gt naming an image
-            twice, a total outside [0, 1], no image), and where a file breaks the format's types or a label is
-            no pixel coordinate (``stamlane_eval.io.check_tusimple``).
+        TuSimpleInputError: where lane.py raises, where its numbers would mean nothing (a gt naming an image
+            twice, no image), and where a file breaks the format's types or a label is no pixel coordinate
+            (``stamlane_eval.io.check_tusimple``). Totals outside [0, 1] are returned as lane.py computes them;
+            :func:`check_rates` refuses them, as the command line does.
 
     Warns:
         UserWarning: once, when prediction values are no pixel coordinate (not finite, or beyond
@@ -396,17 +398,28 @@ def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool 
     return _result(per_image)
 
 
-def _result(per_image: list[TuSimpleImageResult]) -> TuSimpleResult:
-    """The dataset numbers (`stamlane_eval.aggregate`), refused where they are not rates."""
-    sums = tusimple_update(TuSimpleSums(), per_image)
-    vals = tusimple_compute(sums)
+def check_rates(result: TuSimpleResult) -> None:
+    """Refuse totals that are not rates, as ``stamlane-eval tusimple`` does (docs/evaluators.md): lane.py's
+    accuracy, FP and FN outside [0, 1] beyond float rounding (`RATE_TOLERANCE`). :func:`evaluate` itself returns
+    lane.py's numbers whatever they are, as the torchmetrics class does: a run that logs them does not stop.
+
+    Raises:
+        TuSimpleInputError: naming the number and why lane.py's arithmetic gave it.
+    """
     for name, why in (
         ("accuracy", f"images with more than {MAX_SCORED_LANES + 1} gt lanes count for more than one image"),
         ("fn", f"images with more than {MAX_SCORED_LANES + 1} gt lanes count for more than one image"),
         ("fp", "one predicted lane matching several gt lanes (lane.py matches no one-to-one) counts below 0"),
     ):
-        if not -RATE_TOLERANCE <= vals[name] <= 1.0 + RATE_TOLERANCE:
-            raise TuSimpleInputError(f"lane.py's {name} would be {vals[name]!r}, not a rate in [0, 1]: {why}")
+        value = getattr(result, name)
+        if not -RATE_TOLERANCE <= value <= 1.0 + RATE_TOLERANCE:
+            raise TuSimpleInputError(f"lane.py's {name} would be {value!r}, not a rate in [0, 1]: {why}")
+
+
+def _result(per_image: list[TuSimpleImageResult]) -> TuSimpleResult:
+    """The dataset numbers (`stamlane_eval.aggregate`)."""
+    sums = tusimple_update(TuSimpleSums(), per_image)
+    vals = tusimple_compute(sums)
     return TuSimpleResult(
         accuracy=vals["accuracy"],
         fp=vals["fp"],

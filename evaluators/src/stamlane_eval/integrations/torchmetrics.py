@@ -33,9 +33,9 @@ class TuSimpleMetric(Metric):
     """TuSimple accuracy / FP / FN (official ``lane.py``), the paper's F1 and lane-count precision/recall/F1.
 
     The sums and the division are ``tusimple.evaluate``'s (``stamlane_eval.aggregate``): over the images given to
-    ``update``, which the function refuses to see twice (a gt naming an image twice). Unlike the function,
-    ``compute`` returns totals outside [0, 1] as they are (images with more than 5 gt lanes; FP below 0): a
-    training run logs them rather than stopping.
+    ``update``, which the function refuses to see twice (a gt naming an image twice). As the function, ``compute``
+    returns totals outside [0, 1] as lane.py computes them (images with more than 5 gt lanes; FP below 0): a
+    training run logs them rather than stopping (``stamlane-eval`` refuses them: ``tusimple.check_rates``).
     """
 
     full_state_update = False
