@@ -15,6 +15,7 @@ the command-line tools print it and exit with status 2.
 from __future__ import annotations
 
 import pickle
+import re
 import struct
 import zipfile
 from collections.abc import Iterator
@@ -23,10 +24,23 @@ from typing import Any
 
 import torch
 
-__all__ = ["ALLOWED_CLASSES", "INSTANTIATOR", "CheckpointError", "check_classes", "read_checkpoint"]
+__all__ = [
+    "ALLOWED_CLASSES",
+    "CONFIG_ALLOWED_CLASSES",
+    "INSTANTIATOR",
+    "CheckpointError",
+    "check_classes",
+    "check_config",
+    "read_checkpoint",
+]
 
 ALLOWED_CLASSES = ("stamlane.", "torch.optim.")
 """Prefixes of the ``class_path`` names a checkpoint may ask to build (``torch.optim.lr_scheduler`` included)."""
+CONFIG_ALLOWED_CLASSES = (*ALLOWED_CLASSES, "lightning.pytorch.callbacks.", "lightning.pytorch.loggers.")
+"""What a run's config found in a checkpoint or a results folder may name: the network's classes and Lightning's
+callbacks and loggers (what ``stamlane fit`` configs use). A config the USER gives with ``--config`` is code,
+like a script, and may name any class of the user's; one read from a file the user only points at is data."""
+_DOTTED = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)+")
 INSTANTIATOR = "lightning.pytorch.cli.instantiate_module"
 """The only ``_instantiator`` accepted: what LightningCLI writes into the checkpoints of ``stamlane fit``."""
 
@@ -98,4 +112,47 @@ def check_classes(hparams: dict[str, Any], source: str | Path) -> None:
         if not name.startswith(ALLOWED_CLASSES) or ".." in name:
             raise CheckpointError(
                 f"checkpoint {source} asks to build {name!r}; only stamlane's classes and torch.optim may be built"
+            )
+
+
+_IMPORT_KEYS = frozenset(
+    {"encoder", "fusion", "decoder", "loss", "optimizer", "scheduler", "callbacks", "logger", "plugins", "profiler"}
+)
+"""Config keys whose string values jsonargparse imports (a class or a callable named by its dotted path)."""
+
+
+def _import_names(value: Any) -> Iterator[str]:
+    """Every name in a config that jsonargparse would import: ``class_path`` values, and dotted strings given
+    where a class or a callable is expected (``optimizer: torch.optim.SGD``, ``callbacks: [pkg.Callback]``)."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            names = item if isinstance(item, list) else [item]
+            if key == "class_path" or key in _IMPORT_KEYS:
+                yield from (n for n in names if isinstance(n, str) and _DOTTED.fullmatch(n))
+            yield from _import_names(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from _import_names(item)
+
+
+def check_config(text: str, source: str | Path) -> None:
+    """Refuse a run config, read from a checkpoint or a results folder, that would import anything but
+    `CONFIG_ALLOWED_CLASSES`: every ``class_path``, and every dotted name where a class or a callable is expected
+    (``optimizer: os.system`` would be imported as a callable), is checked before the config is parsed.
+
+    Raises:
+        CheckpointError: not YAML, or naming the first foreign name.
+    """
+    import yaml
+
+    try:
+        config = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise CheckpointError(f"the config of {source} is not YAML: {str(err).splitlines()[0]}") from None
+    for name in _import_names(config):
+        if not name.startswith(CONFIG_ALLOWED_CLASSES) or ".." in name:
+            raise CheckpointError(
+                f"the config of {source} names {name!r}; a config read from a checkpoint or a run folder may name "
+                f"only stamlane's classes, torch.optim and Lightning's callbacks and loggers (give your own config "
+                f"with --config to use other classes)"
             )

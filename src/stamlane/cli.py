@@ -123,11 +123,15 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     if command == "fit" or given or ckpt in (None, "last", "best"):
         yield []
         return
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane_eval.cli_tools import check_input_file
+    from stamlane_eval.io import read_text
+
+    from stamlane.checkpoints import CheckpointError, check_config, read_checkpoint
     from stamlane.lightning_cli import CONFIG_KEY
 
     config = read_checkpoint(ckpt).get(CONFIG_KEY)
     if isinstance(config, str):
+        check_config(config, ckpt)  # data, not the user's code: no class outside the allow-list gets imported
         with tempfile.TemporaryDirectory(prefix="stamlane-config-") as folder:
             path = Path(folder) / "config.yaml"
             path.write_text(config)
@@ -135,9 +139,36 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
         return
     beside = Path(ckpt).resolve().parent.parent / "config.yaml"
     if beside.is_file():
+        check_input_file(beside, "run config")
+        check_config(read_text(beside, limit=_MAX_CONFIG_BYTES), beside)
         yield ["--config", str(beside)]
         return
     raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
+
+
+_MAX_CONFIG_BYTES = 16 << 20
+"""Largest config file read (16 MiB; the paper's table configs take a few KiB)."""
+_FILE_OPTIONS = ("--config", "--ckpt_path", "--source")
+
+
+def _check_input_files(rest: list[str]) -> None:
+    """Refuse, before jsonargparse or torch reads them, a ``--config`` or ``--ckpt_path`` that is a FIFO, a device or
+    a directory (a FIFO would block the command forever, ``/dev/zero`` fill the memory) and a config over 16 MiB;
+    ``--source`` may be a folder of frames or a video, not a FIFO or a device."""
+    from stamlane_eval.cli_tools import InputError, check_input_file
+
+    for i, arg in enumerate(rest):
+        option, eq, value = arg.partition("=")
+        if option not in _FILE_OPTIONS:
+            continue
+        value = value if eq else (rest[i + 1] if i + 1 < len(rest) else "")
+        if not value or (option == "--ckpt_path" and value in ("last", "best", "hpc", "registry")):
+            continue
+        if not Path(value).exists() or (option == "--source" and Path(value).is_dir()):
+            continue  # a missing file is said later, in jsonargparse's or the checkpoint reader's words
+        check_input_file(value, option[2:])
+        if option == "--config" and Path(value).stat().st_size > _MAX_CONFIG_BYTES:
+            raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
 
 
 def one_line(err: BaseException) -> str:
@@ -189,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
             quiet_libraries()
 
         try:
+            _check_input_files(rest)
             with _config_from_checkpoint(command, rest) as extra:
                 # args=None when they are sys.argv's own (LightningCLI warns when given both); a bad option or
                 # config raises instead of printing jsonargparse's hundred-line usage

@@ -10,6 +10,7 @@ from typing import Any
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
+from stamlane_eval.cli_tools import check_output
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.checkpoints import CheckpointError, read_checkpoint
@@ -138,7 +139,27 @@ class StamLaneCLI(LightningCLI):
     def _check(self, subcommand: str) -> None:
         if self.config[subcommand].get("source"):
             raise SystemExit(f"stamlane {subcommand}: --source is for predict only")
+        self._check_outputs(subcommand)
         self._safe_load(subcommand)
+
+    def _check_outputs(self, subcommand: str) -> None:
+        """No output folder (``--trainer.default_root_dir``, a logger's ``save_dir``, ``--predictions.output_dir``)
+        may be an input or lie inside one (the data root, ``--source``, a ``--config`` file), symlinks resolved:
+        logs, checkpoints and predictions never land among the frames and labels they are made from.
+
+        Raises:
+            OutputError: naming the output and the input.
+        """
+        config = self.config[subcommand]
+        inputs = [getattr(self.datamodule, "root", None), config.get("source")]
+        inputs += [str(c) for c in config.get("config") or []]
+        outputs = [self.trainer.default_root_dir]
+        outputs += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
+        if subcommand == "predict":
+            outputs += [cb.output_dir for cb in self.trainer.callbacks if isinstance(cb, LanePredictionWriter)]
+        for out in outputs:
+            if out is not None:
+                check_output(out, inputs)
 
     def _safe_load(self, subcommand: str) -> None:
         # our checkpoints hold only tensors and plain values, so they load with weights_only=True (Lightning
@@ -163,6 +184,7 @@ class StamLaneCLI(LightningCLI):
         return found[-1]
 
     def before_predict(self) -> None:
+        self._check_outputs("predict")
         self._safe_load("predict")
         source = self.config["predict"].get("source")
         if not source:

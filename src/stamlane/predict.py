@@ -25,8 +25,9 @@ import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
 from stamlane_eval.io import culane_lines_path
 
+from stamlane.imageio import read_image
 from stamlane.overlay import draw_lanes
-from stamlane.writers import TusimpleWriter, write_culane_lines
+from stamlane.writers import TusimpleWriter, output_path, write_culane_lines
 
 __all__ = ["LanePredictionWriter"]
 
@@ -108,13 +109,13 @@ class LanePredictionWriter(BasePredictionWriter):
 
     def _write_overlay(self, meta: dict, lanes: list[np.ndarray], gt_lanes: list[np.ndarray] | None) -> None:
         key_path = self._data_root / meta["frame_paths"][-1] if meta.get("frame_paths") else None
-        image = cv2.imread(str(key_path)) if key_path is not None else None
+        image = read_image(key_path) if key_path is not None else None  # a FIFO or a bomb: no overlay, no hang
         if image is None:
             return
         path = culane_lines_path(self.output_dir / "overlays", str(meta["raw_file"])).with_suffix("")
         path = path.with_suffix(".jpg")  # <stem>.lines -> <stem>.jpg
         path.parent.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(path), draw_lanes(image, lanes, gt_lanes))
+        cv2.imwrite(str(output_path(self.output_dir, path)), draw_lanes(image, lanes, gt_lanes))
         self.written["overlays"] += 1
 
     def on_predict_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:

@@ -14,12 +14,20 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import TextIO
 
 import numpy as np
 
 from stamlane.types import Lanes
 
-__all__ = ["TusimpleWriter", "format_culane_lines", "tusimple_record", "write_culane_lines"]
+__all__ = [
+    "TusimpleWriter",
+    "format_culane_lines",
+    "open_output",
+    "output_path",
+    "tusimple_record",
+    "write_culane_lines",
+]
 
 
 def tusimple_record(raw_file: str, lanes: Lanes, h_samples: Sequence[int], run_time: float) -> dict:
@@ -55,7 +63,7 @@ class TusimpleWriter:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = self.path.open("w")
+        self._file = open_output(self.path.parent, self.path)
         self.count = 0
 
     def write(self, raw_file: str, lanes: Lanes, h_samples: Sequence[int], run_time: float) -> None:
@@ -96,5 +104,27 @@ def write_culane_lines(out_dir: str | Path, raw_file: str, lanes: Lanes) -> Path
 
     path = culane_lines_path(out_dir, raw_file)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(format_culane_lines(lanes))
+    with open_output(out_dir, path) as f:
+        f.write(format_culane_lines(lanes))
     return path
+
+
+def output_path(out_dir: str | Path, path: Path) -> Path:
+    """``path`` made safe to write as a new file of ``out_dir``: a link found in its place is removed (the file
+    replaces the link; nothing is written through it, into an input it may point at), and a folder on the way
+    that leads out of ``out_dir`` (a planted link) is refused.
+
+    Raises:
+        ValueError: the path would land outside ``out_dir``.
+    """
+    root = Path(out_dir).resolve()
+    if not path.parent.resolve().is_relative_to(root):
+        raise ValueError(f"{path}: a link on the way leads out of the output folder {out_dir}")
+    if path.is_symlink():
+        path.unlink()
+    return path
+
+
+def open_output(out_dir: str | Path, path: Path) -> TextIO:
+    """``open(path, "w")`` after `output_path`."""
+    return output_path(out_dir, path).open("w")

@@ -19,9 +19,9 @@ ROWS = list(range(20, 64, 10))
 HOSTILE = [
     ({"lanes": ["abc"]}, "lane 0 must be a list of numbers"),
     ({"lanes": [[60, "65", 70, 75, 80]]}, "lane 0 must be a list of numbers, got '65'"),
-    ({"lanes": [[60, True, 70, 75, 80]]}, "lane 0 must be a list of numbers, got True"),
+    ({"lanes": [[60, True, 70, 75, 80]]}, "a boolean"),
     ({"lanes": [[60, 1e12, 70, 75, 80]]}, "lane 0 has 1000000000000.0: not a pixel coordinate"),
-    ({"lanes": [[60, 1e400, 70, 75, 80]]}, "invalid JSON .non-finite number Infinity"),  # json.dumps: Infinity
+    ({"lanes": [[60, 1e400, 70, 75, 80]]}, "lane 0 has inf: not a pixel coordinate"),  # json.dumps: Infinity
     ({"lanes": [[60, 65, 70, 75]]}, "lane 0 has 4 x values, h_samples has 5"),
     ({"lanes": [], "h_samples": []}, "h_samples is empty"),
     ({"h_samples": {"a": 1}}, "h_samples must be a list of numbers"),
@@ -59,7 +59,9 @@ def test_duplicates_and_far_points_are_refused(tusimple_root: Path) -> None:
     label = tusimple_root / "label_data.json"
     first, second = label.read_text().splitlines()
     label.write_text("\n".join([first, second, first]) + "\n")
-    with pytest.raises(DataError, match=r"label_data.json:3: duplicate raw_file .*first at .*label_data.json:1"):
+    with pytest.raises(
+        DataError, match=r"label_data.json:3: raw_file .* again \(first at .*label_data.json:1\): two labels"
+    ):
         TuSimpleClips(tusimple_root, "label_data.json", num_frames=1, image_size=SIZE)
     far = _record(lanes=[[60, 65, 70, 75, 40 * W]])  # inside MAX_COORDINATE, far outside this small image
     label.write_text(json.dumps(far) + "\n" + second + "\n")

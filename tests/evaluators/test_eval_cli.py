@@ -109,7 +109,12 @@ TUSIMPLE_BAD = {
     "missing_key": ([{"raw_file": "a.jpg", "lanes": []}], [GT_REC], "pred", "run_time"),
     "gt_missing_key": ([PRED_REC], [{"raw_file": "a.jpg", "lanes": []}], "gt", "h_samples"),
     "lane_length": ([{**PRED_REC, "lanes": [[300] * 55]}], [GT_REC], "pred", "Format of lanes error"),
-    "gt_lane_length": ([PRED_REC], [{**GT_REC, "lanes": [[300] * 50]}], "gt", "Format of lanes error"),
+    "gt_lane_length": (
+        [PRED_REC],
+        [{**GT_REC, "lanes": [[300] * 50]}],
+        "gt",
+        "lane 0 has 50 x values, h_samples has 56",
+    ),
     "nan": (['{"raw_file": "a.jpg", "lanes": [[NaN]], "run_time": 1}'], [GT_REC], "pred", "line 1"),
     "null_values": ([{**PRED_REC, "lanes": [[None] * 56]}], [GT_REC], "pred", "Format of lanes error"),
     "unknown_raw_file": ([{**PRED_REC, "raw_file": "z.jpg"}], [GT_REC], "pred", "do not exist"),

@@ -22,6 +22,7 @@ def test_core_imports_and_runs_with_torch_blocked() -> None:
         f"code = stamlane_eval.cli.main(['tusimple', r'{golden / 'tusimple_pred.json'}', r'{golden / 'tusimple_gt.json'}', '--json'])\n"
         "assert code == 0, code\n"
         "assert not any(m.startswith(('torch', 'lightning')) and sys.modules[m] is not None for m in sys.modules)\n"
+        "assert 'cv2' not in sys.modules and 'scipy' not in sys.modules, 'the TuSimple path imports cv2 or scipy'\n"
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr

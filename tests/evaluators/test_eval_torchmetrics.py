@@ -45,6 +45,32 @@ def test_tusimple_metric_equals_function(golden: ModuleType) -> None:
     assert int(m.images) == 0
 
 
+@pytest.mark.parametrize("batch", [1, 3, 7, 1000])
+def test_class_and_function_share_one_aggregation(golden: ModuleType, batch: int) -> None:
+    """The golden images, then the same images again under other names (repeated content, early returns, a six-lane
+    image, a negative per-image FP among them), in batches of any size: the class and the function give the same
+    numbers to the last bit, dividing by the same count of images."""
+    preds, gts = golden.tusimple_records()
+    preds = preds + [{**p, "raw_file": "again/" + p["raw_file"]} for p in preds]
+    gts = gts + [{**g, "raw_file": "again/" + g["raw_file"]} for g in gts]
+    want = tusimple.evaluate(preds, gts)
+    assert any(r.early_return for r in want.per_image) and any(r.fp < 0 or r.acc > 1 for r in want.per_image)
+    by_name = {g["raw_file"]: g for g in gts}
+    m = TuSimpleMetric()
+    for s in range(0, len(preds), batch):
+        p = preds[s : s + batch]
+        g = [by_name[x["raw_file"]] for x in p]
+        m.update(
+            [x["lanes"] for x in p], [x["lanes"] for x in g], [x["h_samples"] for x in g], [x["run_time"] for x in p]
+        )
+    got = {k: float(v) for k, v in m.compute().items()}
+    assert int(m.images) == want.images == 2 * len(golden.tusimple_records()[0])
+    for name in ("accuracy", "fp", "fn", "f1", "lane_precision", "lane_recall", "lane_f1"):
+        assert got[name] == getattr(want, name), name
+    with pytest.raises(tusimple.TuSimpleInputError, match="two labels for one image"):  # the function refuses a
+        tusimple.evaluate(preds + preds[:1], gts + gts[:1])  # repeated NAME; the class, given no names, cannot see one
+
+
 @pytest.mark.parametrize("variant", ["official", "lanedet"])
 def test_culane_metric_equals_function(variant: str, golden: ModuleType) -> None:
     preds, gts = golden.culane_lanes()

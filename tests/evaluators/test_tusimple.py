@@ -35,13 +35,19 @@ def test_fixture_per_image_and_totals_exact(shared_dir: Path) -> None:
 
 
 def test_fixture_quirk_cases(shared_dir: Path, tmp_path: Path) -> None:
+    """lane.py's number where it scores to rates; refused where it raises, or (the one case of the set) where its
+    accuracy stops being a rate: a ground truth naming an image twice (lane.py: 1.5)."""
     cases = json.loads((_fixture(shared_dir) / "quirk_cases.json").read_text())["cases"]
     assert len(cases) == 14
     for case in cases:
         (tmp_path / "p.json").write_text(case["pred_text"])
         (tmp_path / "g.json").write_text(case["gt_text"])
         want = case["result"]
-        if want["status"] == "ok":
+        if case["name"] == "gt_duplicate_raw_file_divides_by_unique":
+            assert want["accuracy"] == 1.5
+            with pytest.raises(tusimple.TuSimpleInputError, match="two labels for one image"):
+                tusimple.evaluate(read_tusimple(tmp_path / "p.json"), read_tusimple(tmp_path / "g.json"))
+        elif want["status"] == "ok":
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = tusimple.evaluate(read_tusimple(tmp_path / "p.json"), read_tusimple(tmp_path / "g.json"))
@@ -54,12 +60,12 @@ def test_fixture_quirk_cases(shared_dir: Path, tmp_path: Path) -> None:
                 assert official in str(err.value), (case["name"], str(err.value))
 
 
-def test_duplicate_gt_warns_and_divides_by_unique() -> None:
+def test_duplicate_gt_is_refused() -> None:
+    """lane.py sums both lines and divides by the unique names: accuracy 2.0 here. Refused, naming both lines."""
     gt = {"raw_file": "a", "lanes": [[300] * 56], "h_samples": H56}
     pred = {"raw_file": "a", "lanes": [[300] * 56], "run_time": 1}
-    with pytest.warns(UserWarning, match="duplicate gt raw_file"):
-        res = tusimple.evaluate([pred, pred], [gt, gt])
-    assert res.accuracy == 2.0 and res.images == 1
+    with pytest.raises(tusimple.TuSimpleInputError, match=r"gt line 2: raw_file 'a' again \(first at line 1\)"):
+        tusimple.evaluate([pred, pred], [gt, gt])
 
 
 def test_duplicate_prediction_is_refused() -> None:
@@ -102,8 +108,8 @@ def test_quirks_by_hand() -> None:
 def test_format_errors() -> None:
     with pytest.raises(tusimple.TuSimpleInputError, match="Format of lanes error"):
         tusimple.evaluate_image([[300.0] * 55], [[300.0] * 56], H56)
-    with pytest.raises(tusimple.TuSimpleInputError, match="non-finite"):
-        tusimple.evaluate_image([[float("nan")] * 56], [[300.0] * 56], H56)
+    with pytest.raises(tusimple.TuSimpleInputError, match="not a pixel coordinate"):
+        tusimple.evaluate_image([[300.0] * 56], [[float("nan")] * 56], H56)  # a label; a prediction's NaN is absent
     with pytest.raises(tusimple.TuSimpleInputError, match="Format of lanes error"):
         tusimple.evaluate_image([["300"] * 56], [[300.0] * 56], H56)
     with pytest.raises(tusimple.TuSimpleInputError, match="empty"):

@@ -5,9 +5,17 @@ torchmetrics metrics and the Lightning callback live in ``stamlane_eval.integrat
 request.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+__all__ = ["__version__"]
 
-try:
-    __version__ = version("stamlane-eval")  # written once, in evaluators/pyproject.toml
-except PackageNotFoundError:  # a source tree that was never installed
-    __version__ = "unknown"
+
+def __getattr__(name: str) -> str:
+    """``__version__``, read from the installed distribution on first use (importlib.metadata costs 70 ms, which
+    every ``stamlane-eval`` run would pay)."""
+    if name != "__version__":
+        raise AttributeError(f"module 'stamlane_eval' has no attribute {name!r}")
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("stamlane-eval")  # written once, in evaluators/pyproject.toml
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "unknown"

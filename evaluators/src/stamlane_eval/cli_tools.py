@@ -7,12 +7,23 @@ dependency runs from ``stamlane`` to ``stamlane_eval``, never back).
 from __future__ import annotations
 
 import argparse
+import os
+import stat
 import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import NoReturn
 
-__all__ = ["OneLineParser", "OutputError", "check_output", "format_wxh", "parse_or_status", "parse_wxh"]
+__all__ = [
+    "InputError",
+    "OneLineParser",
+    "OutputError",
+    "check_input_file",
+    "check_output",
+    "format_wxh",
+    "parse_or_status",
+    "parse_wxh",
+]
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -69,3 +80,23 @@ def check_output(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
         src = Path(source).resolve()
         if target == src or (src.is_dir() and target.is_relative_to(src)):
             raise OutputError(f"{path}: the output would overwrite or write into the input {source}")
+
+
+class InputError(ValueError):
+    """An input path that cannot be read as a file: missing, a directory, a FIFO, a device or a socket."""
+
+
+def check_input_file(path: str | os.PathLike, what: str = "input") -> None:
+    """Refuse an input that is not a regular file (symlinks followed), without reading it: a FIFO would block
+    the reader until something writes to it, a device such as ``/dev/zero`` never ends.
+
+    Raises:
+        InputError: naming the path and what it is.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as e:
+        raise InputError(f"{what} {path}: {e.strerror}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO, device or socket"
+        raise InputError(f"{what} {path} is {kind}, not a regular file")

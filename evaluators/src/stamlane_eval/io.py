@@ -6,25 +6,36 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import os
-from collections.abc import Iterator
+import stat
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 import numpy as np
 
 __all__ = [
     "MAX_COORDINATE",
+    "MAX_FILE_BYTES",
     "MAX_IMAGE_SIDE",
     "MAX_LANES",
     "MAX_LANE_POINTS",
     "MAX_LANE_WIDTH",
     "LaneFileError",
+    "TuSimpleFile",
+    "TuSimpleInputError",
+    "check_tusimple",
     "culane_entries",
     "culane_lines_path",
+    "duplicate_raw_file",
+    "inside",
     "iter_tusimple",
     "read_culane_lines",
+    "read_text",
     "read_tusimple",
     "read_vil100_json",
     "tusimple_points",
@@ -43,23 +54,93 @@ MAX_LANE_POINTS = 10000
 MAX_LANE_WIDTH = 1024
 """Widest lane line (px) the CULane metric may draw."""
 MAX_COORDINATE = 100_000.0
-"""Largest absolute pixel coordinate accepted in a label or prediction (6x ``MAX_IMAGE_SIDE``): a 1e12 is a bug
-in whatever wrote the file, not a lane (the official tools score it as a far-off point; we refuse it)."""
+"""Largest absolute pixel coordinate of a LABEL (6x ``MAX_IMAGE_SIDE``): a ground truth beyond it is refused. Not a
+limit on predictions: lane.py scores a prediction's 1e9 as a miss, and so do we (with one warning line)."""
+MAX_FILE_BYTES = 512 << 20
+"""Largest input text file (512 MiB): TuSimple's 2,782 test predictions take 4 MiB, and parsed json-lines cost about
+9x their size in memory."""
 
 
 class LaneFileError(ValueError):
     """An input file that cannot be evaluated; the message names the file and the problem."""
 
 
+class TuSimpleInputError(ValueError):
+    """TuSimple records that cannot be scored: the official script crashes on them, or its numbers would not be
+    rates (see docs/evaluators.md, "What is scored and what is refused").
+
+    Attributes:
+        message: the problem, without the place.
+        source: ``"pred"`` or ``"gt"``: which input is at fault (``None`` when both or neither).
+        line: 1-based line (record index + 1) at fault, or ``None``.
+    """
+
+    def __init__(self, message: str, source: str | None = None, line: int | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.source = source
+        self.line = line
+
+    def __str__(self) -> str:
+        where = f"{self.source} line {self.line}: " if self.line is not None else ""
+        return where + self.message
+
+
 def _reject_constant(name: str) -> float:
     raise ValueError(f"non-finite number {name}")
+
+
+def read_text(path: str | os.PathLike, limit: int = MAX_FILE_BYTES, universal_newlines: bool = True) -> str:
+    """The text of a regular file of at most ``limit`` bytes; with ``universal_newlines`` "\\r\\n" and "\\r" read
+    as "\\n", as ``open(path).read()`` (lane.py's reading).
+
+    A FIFO, a device (``/dev/zero``), a socket or a directory is refused at once, never read: reading one would
+    wait for a writer or never end.
+
+    Raises:
+        FileNotFoundError: no such file (callers that treat a missing file as empty catch it).
+        LaneFileError: anything else that cannot be read: not a regular file, larger than ``limit``, not UTF-8.
+    """
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK)  # O_NONBLOCK: a FIFO opens without waiting for a writer
+    except FileNotFoundError:
+        raise
+    except OSError as e:
+        raise LaneFileError(f"{p}: cannot read: {e.strerror}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO, device or socket"
+            raise LaneFileError(f"{p}: cannot read: {kind}, not a regular file")
+        with os.fdopen(os.dup(fd), "rb") as f:
+            data = f.read(limit + 1)
+    finally:
+        os.close(fd)
+    if len(data) > limit:
+        raise LaneFileError(f"{p}: larger than the limit of {limit >> 20} MiB")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise LaneFileError(f"{p}: cannot read: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    if universal_newlines and "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
+
+
+def _read(path: str | os.PathLike) -> str:
+    try:
+        return read_text(path)
+    except FileNotFoundError as e:
+        raise LaneFileError(f"{path}: cannot read: {e.strerror}") from None
 
 
 def read_tusimple(path: str | os.PathLike) -> list[dict]:
     """Read a TuSimple json-lines file (predictions or ground truth).
 
     As the official ``lane.py`` (``[json.loads(line) for line in readlines()]``), every line must be one JSON
-    object: a blank line, including a blank line at the end of the file, is an error.
+    object: a blank line, including a blank line at the end of the file, is an error. ``NaN`` and ``Infinity``
+    read as numbers, as lane.py's ujson reads them (`check_tusimple` decides where they may stand).
 
     Args:
         path: the file.
@@ -68,19 +149,17 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
         The records in file order.
 
     Raises:
-        LaneFileError: unreadable file, invalid JSON (with its line number), a line that is not an object,
-            NaN/Infinity literals, or an empty file.
+        LaneFileError: unreadable file, invalid JSON (with its line number), a line that is not an object, a
+            JSON ``true``/``false`` where a number belongs, or an empty file.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise LaneFileError(f"{p}: cannot read: {e}") from None
+    text = _read(p)
     if not text.strip():
         raise LaneFileError(f"{p}: empty file")
     body = text[:-1] if text.endswith("\n") else text
     try:  # fast path: one parse for the whole file (a blank line makes ",," and falls to the slow path)
-        records = json.loads("[" + body.replace("\n", ",") + "]", parse_constant=_reject_constant)
+        with _gc_paused():
+            records = json.loads("[" + body.replace("\n", ",") + "]")
         if len(records) == body.count("\n") + 1 and all(type(r) is dict for r in records):
             _refuse_booleans(records, text, p)
             return records
@@ -93,6 +172,19 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
         out.append(rec)
     _refuse_booleans(out, text, p)
     return out
+
+
+@contextmanager
+def _gc_paused() -> Iterator[None]:
+    """The cyclic garbage collector off while JSON builds its (acyclic) lists: it would walk them again and again
+    as they pile up, a third of the time of reading a TuSimple file."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _one_document(text: str) -> bool:
@@ -124,16 +216,16 @@ def iter_tusimple(
     """
     p = Path(path)
     if text is None:
-        try:
-            text = p.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            raise LaneFileError(f"{p}: cannot read: {e}") from None
-    for i, line in enumerate(text.splitlines(), 1):
+        text = _read(p)
+    lines = text.split("\n")  # lane.py's readlines(): only "\n" ends a line (str.splitlines also splits at U+2028)
+    if lines and lines[-1] == "":
+        lines.pop()
+    for i, line in enumerate(lines, 1):
         if not line.strip():
             yield i, LaneFileError(f"{p}: line {i} is blank (every line must be one JSON object, as lane.py requires)")
             continue
         try:
-            rec = json.loads(line, parse_constant=_reject_constant)
+            rec = json.loads(line)
         except ValueError as e:
             if i == 1 and _one_document(text):
                 raise LaneFileError(
@@ -148,16 +240,22 @@ def iter_tusimple(
         if not isinstance(rec, dict):
             yield i, LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
             continue
+        if role is not None and ("true" in line or "false" in line):
+            try:
+                _refuse_booleans([rec], line, p, first_line=i)
+            except LaneFileError as err:
+                yield i, err
+                continue
         problem = tusimple_record_error(rec, role) if role else None
         yield i, (LaneFileError(f"{p}: line {i}: {problem}") if problem else rec)
 
 
-def _refuse_booleans(records: list[dict], text: str, path: Path) -> None:
-    """JSON ``true``/``false`` where a number belongs (lane.py would read them as 1 and 0): refused. Only
-    looked for when the words occur in the file at all."""
+def _refuse_booleans(records: list[dict], text: str, path: Path, first_line: int = 1) -> None:
+    """JSON ``true``/``false`` where a number belongs (lane.py would read them as 1 and 0): refused, a type error.
+    Only looked for when the words occur in the text at all."""
     if "true" not in text and "false" not in text:
         return
-    for i, rec in enumerate(records, 1):
+    for i, rec in enumerate(records, first_line):
         values = [rec.get("run_time"), *_numbers(rec.get("h_samples"))]
         lanes = rec.get("lanes")
         for lane in lanes if isinstance(lanes, list) else []:
@@ -170,62 +268,245 @@ def _numbers(value: object) -> list:
     return value if isinstance(value, list) else []
 
 
-def _number_list_error(values: object, what: str) -> str | None:
-    if not isinstance(values, list):
-        return f"{what} must be a list of numbers, got {values!r:.60}"
-    for v in values:
-        if type(v) not in (int, float):
-            return f"{what} must be a list of numbers, got {v!r:.40} in it"
-        if not math.isfinite(v) or abs(v) > MAX_COORDINATE:
-            return f"{what} has {v!r}: not a pixel coordinate (finite, |v| <= {MAX_COORDINATE:g})"
-    return None
+# ------------------------------------------------------------------------------- the TuSimple validator
+_FILL = -100.0  # lane.py replaces every negative x by -100 before comparing; padding uses the same value
+_KEYS = {
+    "gt": (("raw_file", "lanes", "h_samples"), "raw_file or lanes or h_samples not in gt"),
+    "pred": (("raw_file", "lanes", "run_time"), "raw_file or lanes or run_time not in some predictions."),
+}
+_SEQUENCES = (list, tuple, np.ndarray)
+_LANE_ERROR = {"pred": "Format of lanes error: ", "gt": ""}  # lane.py's message for a prediction it cannot read
+
+
+@dataclass(frozen=True)
+class TuSimpleFile:
+    """A TuSimple file that passed `check_tusimple`, as arrays.
+
+    Attributes:
+        names: ``raw_file`` per record, in file order.
+        lanes: ``(L, W)`` float64: every lane of every record in file order, padded with -100 past its length.
+        lengths: ``(L,)`` values in each lane.
+        counts: ``(n,)`` lanes per record.
+        h_samples: ``(n, R)`` float64 rows per record, padded with -100 (gt), or None (pred).
+        rows: ``(n,)`` ``len(h_samples)`` (gt), or None.
+        run_times: ``(n,)`` milliseconds (pred), or None.
+        odd: prediction values that are no pixel coordinate (not finite, or beyond ``MAX_COORDINATE``), which
+            are scored as lane.py scores them: ``(count, "line N: lane K has x = V")`` of the first, or None.
+    """
+
+    names: list[str]
+    lanes: np.ndarray
+    lengths: np.ndarray
+    counts: np.ndarray
+    h_samples: np.ndarray | None = None
+    rows: np.ndarray | None = None
+    run_times: np.ndarray | None = None
+    odd: tuple[int, str] | None = None
+
+
+def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
+    """THE check of the TuSimple format (docs/evaluators.md, "What is scored and what is refused"), shared by
+    ``stamlane_eval.tusimple.evaluate``, ``stamlane-eval`` and the training datasets (per record, through
+    `tusimple_record_error`).
+
+    - Types are the format's: objects with the keys lane.py reads, ``raw_file`` a non-empty string, ``lanes`` a
+      list of lists of numbers, ``h_samples`` (gt) a list of numbers, ``run_time`` (pred) a number.
+    - Sizes are bounded (memory): ``MAX_LANES`` lanes per image, ``MAX_LANE_POINTS`` rows.
+    - A ground truth is a label: finite pixel coordinates (``|v| <= MAX_COORDINATE``), every lane as long as a
+      non-empty ``h_samples``, and each ``raw_file`` once (lane.py would sum every line but divide by the
+      unique names: an accuracy above 1).
+    - A prediction's VALUES are free, as in lane.py: a huge, negative, fractional, NaN or infinite x is scored
+      as lane.py scores it (NaN and negatives: no point on that row; huge: a miss); ``odd`` counts the values
+      that are no pixel coordinate, for one warning. Its lane lengths are checked against the ground truth's
+      rows by the evaluator.
+
+    Args:
+        records: the parsed lines (dicts), in file order.
+        role: ``"gt"`` or ``"pred"``.
+
+    Returns:
+        The records as arrays.
+
+    Raises:
+        TuSimpleInputError: naming the record (``line``), ``source = role``.
+    """
+    if role not in _KEYS:
+        raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
+    keys, missing_message = _KEYS[role]
+    names: list[str] = []
+    lanes_of: list[object] = []
+    extra: list[object] = []  # h_samples (gt) or run_time (pred)
+    first: dict[str, int] = {}
+    for i, rec in enumerate(records):
+        if type(rec) is not dict or keys[0] not in rec or keys[1] not in rec or keys[2] not in rec:
+            if not isinstance(rec, dict):
+                raise TuSimpleInputError(f"expected a JSON object, got {type(rec).__name__}", role, i + 1)
+            raise TuSimpleInputError(f"{missing_message} (has keys {sorted(rec)[:6]}, needs {list(keys)})", role, i + 1)
+        name = rec["raw_file"]
+        if type(name) is not str or not name.strip():
+            raise TuSimpleInputError(f"raw_file must be a non-empty string, got {name!r:.60}", role, i + 1)
+        if role == "gt":
+            if name in first:
+                raise TuSimpleInputError(duplicate_raw_file(name, f"line {first[name] + 1}"), role, i + 1)
+            first[name] = i
+        if not isinstance(rec["lanes"], _SEQUENCES):
+            raise TuSimpleInputError(f"lanes must be a list of lists of numbers, got {rec['lanes']!r:.60}", role, i + 1)
+        names.append(name)
+        lanes_of.append(rec["lanes"])
+        extra.append(rec[keys[2]])
+    counts = np.fromiter(map(len, lanes_of), dtype=np.int64, count=len(lanes_of))
+    if len(counts) and counts.max() > MAX_LANES:
+        i = int(np.argmax(counts))
+        raise TuSimpleInputError(f"{counts[i]} lanes, more than the limit of {MAX_LANES}", role, i + 1)
+    if role == "gt":
+        rows = _row_lengths(extra, role, "h_samples")
+        h_samples, _ = _stack(extra, rows, np.arange(len(extra)), role, "h_samples", finite=True)
+        empty = np.flatnonzero(rows == 0)
+        if len(empty):
+            raise TuSimpleInputError("h_samples is empty: no row to score", role, int(empty[0]) + 1)
+    flat = [lane for lanes in lanes_of for lane in lanes]
+    owner = np.repeat(np.arange(len(lanes_of)), counts)
+    lengths = _row_lengths(flat, role, "lane", owner)
+    lanes, odd = _stack(flat, lengths, owner, role, "lane", finite=role == "gt")
+    if role == "gt":
+        bad = np.flatnonzero(lengths != rows[owner])
+        if len(bad):
+            i = int(owner[bad[0]])
+            raise TuSimpleInputError(
+                f"{_name('lane', owner, int(bad[0]))} has {lengths[bad[0]]} x values, h_samples has {rows[i]}",
+                role,
+                i + 1,
+            )
+        return TuSimpleFile(names, lanes, lengths, counts, h_samples=h_samples, rows=rows)
+    run_times = np.zeros(len(extra))
+    for i, rt in enumerate(extra):
+        if type(rt) not in (int, float):
+            raise TuSimpleInputError(f"Format of lanes error: run_time must be a number, got {rt!r:.40}", role, i + 1)
+        run_times[i] = _to_float(rt)
+    odd_rt = np.flatnonzero(~np.isfinite(run_times))
+    if len(odd_rt):
+        first_rt = f"line {odd_rt[0] + 1}: run_time {run_times[odd_rt[0]]!r}"
+        odd = (len(odd_rt) + (odd[0] if odd else 0), odd[1] if odd else first_rt)
+    return TuSimpleFile(names, lanes, lengths, counts, run_times=run_times, odd=odd)
+
+
+def duplicate_raw_file(name: str, first: str) -> str:
+    """The one message for a ``raw_file`` named twice in ground truth (evaluator and training datasets)."""
+    return (
+        f"raw_file {name!r} again (first at {first}): two labels for one image (lane.py would sum both and "
+        f"divide by the unique names, an accuracy above 1)"
+    )
+
+
+def _row_lengths(rows: list[object], role: str, kind: str, owner: np.ndarray | None = None) -> np.ndarray:
+    """Lengths of number lists (each a list/tuple/array), checked against ``MAX_LANE_POINTS``."""
+    for j, row in enumerate(rows):
+        if not isinstance(row, _SEQUENCES):
+            line = int(owner[j]) + 1 if owner is not None else j + 1
+            raise TuSimpleInputError(
+                f"{_LANE_ERROR[role]}{_name(kind, owner, j)} must be a list of numbers, got {row!r:.60}", role, line
+            )
+    lengths = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+    if len(lengths) and lengths.max() > MAX_LANE_POINTS:
+        j = int(np.argmax(lengths))
+        line = int(owner[j]) + 1 if owner is not None else j + 1
+        raise TuSimpleInputError(f"{kind} of {lengths[j]} values, more than the limit of {MAX_LANE_POINTS}", role, line)
+    return lengths
+
+
+def _to_float(v: int | float) -> float:
+    """A JSON number as float64; an integer beyond the float range becomes +-inf (lane.py compares the exact
+    integer: the same outcome, a miss or an absent row)."""
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf if v > 0 else -math.inf
+
+
+def _stack(
+    rows: list[object], lengths: np.ndarray, owner: np.ndarray, role: str, kind: str, finite: bool
+) -> tuple[np.ndarray, tuple[int, str] | None]:
+    """Number lists as one ``(len(rows), max length)`` float64 array padded with -100.
+
+    Args:
+        rows: the lists.
+        lengths: their lengths.
+        owner: the record of each list (for messages).
+        role: ``"gt"`` or ``"pred"``.
+        kind: ``"lane"`` or ``"h_samples"``.
+        finite: refuse values that are no pixel coordinate (labels); else count them.
+
+    Returns:
+        The array and ``(count, description of the first)`` of the values that are no pixel coordinate.
+    """
+    width = int(lengths.max(initial=0))
+    out = np.full((len(rows), width), _FILL)
+    uniq = np.unique(lengths)
+    for length in uniq.tolist():
+        idx = np.flatnonzero(lengths == length) if len(uniq) > 1 else np.arange(len(rows))
+        sub = rows if len(uniq) == 1 else [rows[j] for j in idx.tolist()]
+        try:
+            arr = np.array(sub)
+        except (ValueError, TypeError, OverflowError):
+            arr = np.zeros(0, dtype=object)
+        if arr.ndim != 2 or arr.dtype.kind not in "iuf":
+            arr = np.array([[_number(v, role, kind, owner, j) for v in rows[j]] for j in idx.tolist()])
+            arr = arr.reshape(len(idx), length)
+        out[idx, :length] = arr
+    if out.size == 0:
+        return out, None
+    valid = np.arange(width)[None, :] < lengths[:, None]
+    with np.errstate(invalid="ignore"):
+        odd_mask = valid & ~(np.abs(out) <= MAX_COORDINATE)  # NaN fails <=
+    if not odd_mask.any():
+        return out, None
+    j, col = (int(v[0]) for v in np.nonzero(odd_mask))
+    where = f"line {owner[j] + 1}: {_name(kind, owner, j)} has {float(out[j, col])!r}"
+    if finite:
+        raise TuSimpleInputError(
+            f"{_name(kind, owner, j)} has {float(out[j, col])!r}: not a pixel coordinate (a label must be finite, "
+            f"|v| <= {MAX_COORDINATE:g})",
+            role,
+            int(owner[j]) + 1,
+        )
+    return out, (int(odd_mask.sum()), where)
+
+
+def _name(kind: str, owner: np.ndarray | None, j: int) -> str:
+    """``"lane K"`` (K counted within its record) or ``"h_samples"``, for messages."""
+    if kind == "h_samples" or owner is None:
+        return kind
+    return f"lane {j - int(np.searchsorted(owner, owner[j]))}"
+
+
+def _number(v: object, role: str, kind: str, owner: np.ndarray, j: int) -> float:
+    if type(v) is float or type(v) is int:
+        return _to_float(v)
+    if isinstance(v, (np.floating, np.integer)) and not isinstance(v, np.bool_):
+        return float(v)
+    what = "a boolean" if isinstance(v, (bool, np.bool_)) else repr(v)[:40]
+    raise TuSimpleInputError(
+        f"{_LANE_ERROR[role]}{_name(kind, owner, j)} must be a list of numbers, got {what} in it",
+        role,
+        int(owner[j]) + 1,
+    )
 
 
 def tusimple_record_error(rec: object, role: str) -> str | None:
-    """What is wrong with one TuSimple record, or None: the one typed check of the format that the datasets use
-    per record and that ``stamlane_eval.tusimple.evaluate`` applies (vectorised) to whole files.
+    """What is wrong with one TuSimple record, or None: `check_tusimple` on one record (what the training
+    datasets apply to every line).
 
     Args:
         rec: a parsed json line.
-        role: ``"gt"`` (``raw_file``, ``lanes``, ``h_samples`` required; every lane as long as ``h_samples``,
-            which is not empty) or ``"pred"`` (``raw_file``, ``lanes``; ``run_time`` a number when present;
-            lanes as long as ``h_samples`` when the record has them).
+        role: ``"gt"`` or ``"pred"``.
 
     Returns:
-        a one-line description naming the key, or None for a good record.
+        a one-line description, or None for a good record.
     """
-    if role not in ("gt", "pred"):
-        raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
-    if not isinstance(rec, dict):
-        return f"expected a JSON object, got {type(rec).__name__}"
-    needed = ("raw_file", "lanes", "h_samples") if role == "gt" else ("raw_file", "lanes")
-    missing = [k for k in needed if k not in rec]
-    if missing:
-        return f"missing key(s) {missing} (has {sorted(rec)[:6]})"
-    if not isinstance(rec["raw_file"], str) or not rec["raw_file"].strip():
-        return f"raw_file must be a non-empty string, got {rec['raw_file']!r:.60}"
-    lanes = rec["lanes"]
-    if not isinstance(lanes, list):
-        return f"lanes must be a list of lists, got {lanes!r:.60}"
-    if len(lanes) > MAX_LANES:
-        return f"{len(lanes)} lanes, more than the limit of {MAX_LANES}"
-    rows = rec.get("h_samples")
-    if rows is not None or role == "gt":
-        problem = _number_list_error(rows, "h_samples")
-        if problem:
-            return problem
-        if not rows:
-            return "h_samples is empty: no row to score"
-    if role == "pred" and "run_time" in rec:
-        rt = rec["run_time"]
-        if type(rt) not in (int, float) or not math.isfinite(rt):
-            return f"run_time must be a finite number, got {rt!r:.40}"
-    for k, lane in enumerate(lanes):
-        problem = _number_list_error(lane, f"lane {k}")
-        if problem:
-            return problem
-        if rows is not None and len(lane) != len(rows):
-            return f"lane {k} has {len(lane)} x values, h_samples has {len(rows)}"
+    try:
+        check_tusimple([rec], role)
+    except TuSimpleInputError as e:
+        return e.message
     return None
 
 
@@ -261,27 +542,31 @@ def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_text(p, universal_newlines=False)
     except FileNotFoundError:
         if missing_ok:
             return []
         raise LaneFileError(f"{p}: no such file") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise LaneFileError(f"{p}: cannot read: {e}") from None
     lanes = []
-    for i, line in enumerate(text.splitlines(), 1):
-        fields = line.split()
+    lines = text.split("\n")  # as the C++ getline: only "\n" ends a line; "\r" is whitespace inside one
+    if lines[-1] == "":
+        lines.pop()
+    for i, line in enumerate(lines, 1):
+        raw = line.encode()
         try:
-            vals = [float(v) for v in fields]
+            if b"_" in raw:  # Python's float() reads 1_000, the C++ does not
+                raise ValueError
+            vals = list(map(float, raw.split()))  # C isspace: the ASCII blanks only, as the C++ ">>" skips them
         except ValueError:
             raise LaneFileError(f"{p}: line {i}: not a number in {line.strip()[:60]!r}") from None
         if len(vals) % 2:
             raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
-        if not all(math.isfinite(v) for v in vals):
-            raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
         if len(vals) // 2 > MAX_LANE_POINTS:
             raise LaneFileError(f"{p}: line {i}: {len(vals) // 2} points, more than the limit of {MAX_LANE_POINTS}")
-        lanes.append(np.array(vals, dtype=np.float64).reshape(-1, 2))
+        lane = np.array(vals, dtype=np.float64).reshape(-1, 2)
+        if not np.isfinite(lane).all():
+            raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
+        lanes.append(lane)
         if len(lanes) > MAX_LANES:
             raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image")
     return lanes
@@ -308,6 +593,19 @@ def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
     return Path(root) / (stem + ".lines.txt")
 
 
+def inside(path: Path, root: Path) -> Path:
+    """``path`` after checking that, symlinks resolved, it lies in ``root``: a link in a prediction or annotation
+    folder never makes the evaluator read (and quote in an error) a file elsewhere.
+
+    Raises:
+        LaneFileError: naming the link and where it leads.
+    """
+    real = path.resolve()
+    if not real.is_relative_to(root.resolve()):
+        raise LaneFileError(f"{path}: a link to {real}, outside the folder {root}")
+    return path
+
+
 def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | None = None) -> list[str]:
     """The images to evaluate: the lines of ``list_file``, or every ``.lines.txt`` under ``gt_dir`` (sorted).
 
@@ -319,10 +617,7 @@ def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | Non
     if not root.is_dir():
         raise LaneFileError(f"{root}: not a directory")
     if list_file is not None:
-        try:
-            entries = [ln.strip() for ln in Path(list_file).read_text(encoding="utf-8").splitlines() if ln.strip()]
-        except (OSError, UnicodeDecodeError) as e:
-            raise LaneFileError(f"{list_file}: cannot read: {e}") from None
+        entries = [ln.strip() for ln in _read(list_file).split("\n") if ln.strip()]
         if not entries:
             raise LaneFileError(f"{list_file}: empty list")
         first: dict[Path, int] = {}
@@ -359,10 +654,9 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
         LaneFileError: unreadable file, invalid JSON, or a missing/odd ``annotations.lane`` entry.
     """
     p = Path(path)
+    text = _read(p)
     try:
-        data = json.loads(p.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (OSError, UnicodeDecodeError) as e:
-        raise LaneFileError(f"{p}: cannot read: {e}") from None
+        data = json.loads(text, parse_constant=_reject_constant)
     except ValueError as e:
         raise LaneFileError(f"{p}: invalid JSON ({e})") from None
     except RecursionError:

@@ -31,7 +31,6 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from stamlane_eval.io import MAX_COORDINATE
@@ -246,6 +245,8 @@ def _draw(pts: np.ndarray, size: tuple[int, int]) -> _Drawn:
     The drawing is translation invariant, so the crop holds the pixels of the script's full image; a
     zero-length segment only repeats the end cap the previous one drew, so repeated points are skipped.
     """
+    import cv2  # here, not at the top: `stamlane-eval tusimple` imports the command line, which imports this
+
     h_img, w_img = size
     keep = np.ones(len(pts), dtype=bool)
     keep[1:] = (pts[1:] != pts[:-1]).any(axis=1)
@@ -275,6 +276,8 @@ def _inter(a: _Drawn, b: _Drawn) -> int:
         return 0
     ma = a.mask[y0 - a.y0 : y1 - a.y0, x0 - a.x0 : x1 - a.x0]
     mb = b.mask[y0 - b.y0 : y1 - b.y0, x0 - b.x0 : x1 - b.x0]
+    import cv2  # see _draw
+
     return cv2.countNonZero(cv2.bitwise_and(ma, mb))
 
 

@@ -3,8 +3,14 @@
 Reference: TuSimple/tusimple-benchmark @ d1f5ef1b, ``evaluate/lane.py`` (``LaneEval.bench`` per image,
 ``LaneEval.bench_one_submit`` for a submission). Every quirk of that script is kept and commented where it
 happens. The computation is vectorised over images (one code path: :func:`evaluate_image` is
-:func:`evaluate_batch` on one image), so the per-image numbers, the dataset numbers, the CLI and the
-torchmetrics class cannot drift apart.
+:func:`evaluate_batch` on one image), the files are checked by ``stamlane_eval.io.check_tusimple`` (the one
+check of the format) and the totals folded by ``stamlane_eval.aggregate`` (shared with the torchmetrics class),
+so the per-image numbers, the dataset numbers, the CLI and the torchmetrics class cannot drift apart.
+
+What is scored and what is refused (docs/evaluators.md): every input lane.py scores to a rate is scored to
+lane.py's number, a prediction's huge, negative, fractional or non-finite x included; where lane.py crashes, or
+its numbers would not be rates (a ground truth naming an image twice; totals outside [0, 1], refused by
+:func:`check_rates`, which the command line applies), the input is refused with a `TuSimpleInputError`.
 
 A TuSimple lane is a list of x values, one per ``h_samples`` row; negative values (``-2``) mean "no lane on
 this row". Coordinates are original-image pixels (1280x720 for TuSimple).
@@ -12,15 +18,14 @@ this row". Coordinates are original-image pixels (1280x720 for TuSimple).
 
 from __future__ import annotations
 
-import math
 import warnings
-from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from stamlane_eval.io import MAX_COORDINATE
+from stamlane_eval.aggregate import TuSimpleSums, paper_f1, prf, tusimple_compute, tusimple_update
+from stamlane_eval.io import TuSimpleFile, TuSimpleInputError, check_tusimple
 
 __all__ = [
     "ABSENT",
@@ -29,9 +34,11 @@ __all__ = [
     "MAX_SCORED_LANES",
     "PIXEL_THRESH",
     "POINT_THRESH",
+    "RATE_TOLERANCE",
     "TuSimpleImageResult",
     "TuSimpleInputError",
     "TuSimpleResult",
+    "check_rates",
     "evaluate",
     "evaluate_batch",
     "evaluate_image",
@@ -46,26 +53,9 @@ MAX_RUN_TIME_MS = 200.0  # run_time above this scores the image (acc 0, fp 0, fn
 EXTRA_PRED_LANES = 2  # more than len(gt) + 2 predicted lanes scores the image (acc 0, fp 0, fn 1)
 MAX_SCORED_LANES = 4  # images with more gt lanes drop their worst lane (see _bench)
 ABSENT = -2.0  # the benchmark's "no lane on this row" value
+BLOCK_CELLS = 1 << 22  # pred x gt x row comparisons per vectorised block (~100 MB of temporaries at most)
+RATE_TOLERANCE = 1e-9  # a total may pass [0, 1] by float rounding (1.0000000000000002), not by more
 _NEGATIVE_FILL = -100.0  # lane.py replaces every negative value in pred and gt by -100 before comparing
-
-
-class TuSimpleInputError(ValueError):
-    """A submission or ground truth the official script would reject (or score meaninglessly).
-
-    Attributes:
-        source: ``"pred"`` or ``"gt"``: which input is at fault (``None`` when both or neither).
-        line: 1-based line (record index + 1) at fault, or ``None``.
-    """
-
-    def __init__(self, message: str, source: str | None = None, line: int | None = None) -> None:
-        super().__init__(message)
-        self.message = message
-        self.source = source
-        self.line = line
-
-    def __str__(self) -> str:
-        where = f"{self.source} line {self.line}: " if self.line is not None else ""
-        return where + self.message
 
 
 @dataclass(frozen=True)
@@ -130,92 +120,6 @@ class TuSimpleResult:
             "lane_recall": self.lane_recall,
             "lane_f1": self.lane_f1,
         }
-
-
-def paper_f1(fp: float, fn: float) -> float:
-    """The paper's F1: harmonic mean of ``1 - fp`` and ``1 - fn`` (F1 96.81 from FP 0.0339, FN 0.0299)."""
-    a, b = 1.0 - fp, 1.0 - fn
-    return 2.0 * a * b / (a + b) if a + b != 0 else 0.0
-
-
-def prf(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
-    """Precision, recall, F1 from counts; each is 0 where its denominator is 0 (F1 is 0 when TP is 0)."""
-    p = tp / (tp + fp) if tp + fp > 0 else 0.0
-    r = tp / (tp + fn) if tp + fn > 0 else 0.0
-    f = 2 * p * r / (p + r) if p + r > 0 else 0.0
-    return p, r, f
-
-
-def _fmt_error(what: str, i: int, message: str) -> TuSimpleInputError:
-    return TuSimpleInputError(f"Format of lanes error: {message}", what, i + 1)
-
-
-def _stack_rows(
-    rows: list[object], lengths: np.ndarray, owner: np.ndarray, width: int, what: str, kind: str
-) -> np.ndarray:
-    """Stack number lists of the given lengths into a ``(len(rows), width)`` float array padded with -100.
-
-    ``owner[j]`` is the image of row j (for the error message); ``kind`` names the rows ("lane", "h_samples").
-    """
-    out = np.full((len(rows), width), _NEGATIVE_FILL)
-    uniq = np.unique(lengths)
-    for length in uniq.tolist():
-        idx = np.flatnonzero(lengths == length) if len(uniq) > 1 else np.arange(len(rows))
-        sub = rows if len(uniq) == 1 else [rows[j] for j in idx.tolist()]
-        try:
-            arr = np.array(sub)
-        except (ValueError, TypeError):
-            arr = np.zeros(0, dtype=object)
-        if arr.ndim != 2 or arr.dtype.kind not in "iuf":
-            for j in idx.tolist():  # find the culprit for the message
-                one = np.asarray(rows[j]) if isinstance(rows[j], (list, tuple, np.ndarray)) else np.zeros(0, object)
-                if one.ndim != 1 or one.dtype.kind not in "iuf":
-                    raise _fmt_error(
-                        what, int(owner[j]), f"{what} {kind} must be a list of numbers, got {rows[j]!r:.80}"
-                    )
-            raise _fmt_error(what, int(owner[idx[0]]), f"{what} {kind}s must be lists of numbers")
-        if not np.isfinite(arr).all():
-            # lane.py would silently treat NaN as absent and inf as a miss; we refuse instead.
-            bad = idx[np.flatnonzero(~np.isfinite(arr).all(axis=1))[0]]
-            raise TuSimpleInputError(f"non-finite (NaN/inf) value in {what} {kind}", what, int(owner[bad]) + 1)
-        if arr.size and np.abs(arr).max() > MAX_COORDINATE:  # a 1e12 is a bug, not a far-off lane point
-            bad = idx[np.flatnonzero(np.abs(arr).max(axis=1) > MAX_COORDINATE)[0]]
-            raise TuSimpleInputError(
-                f"{what} {kind} value beyond +-{MAX_COORDINATE:g} px: not a pixel coordinate", what, int(owner[bad]) + 1
-            )
-        out[idx, :length] = arr
-    return out
-
-
-def _flatten_lanes(
-    per_image: Sequence[object], n_rows: np.ndarray, what: str, skip: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """All lanes of all images as one ``(L, R_max)`` array (padded with -100) and per-image lane counts.
-
-    Raises lane.py's 'Format of lanes error.' (naming the image) for a lane whose length is not len(h_samples).
-    """
-    n = len(per_image)
-    counts = np.zeros(n, dtype=np.int64)
-    flat: list[object] = []
-    for i, lanes in enumerate(per_image):
-        if skip is not None and skip[i]:
-            continue  # quirk: the gt of an early-returned image is never looked at
-        if not isinstance(lanes, (list, tuple, np.ndarray)):
-            raise _fmt_error(what, i, f"{what} lanes must be a list of lists, got {lanes!r:.80}")
-        counts[i] = len(lanes)
-        flat.extend(lanes)
-    owner = np.repeat(np.arange(n), counts)
-    try:
-        lengths = np.fromiter(map(len, flat), dtype=np.int64, count=len(flat))
-    except TypeError:
-        j = next(j for j, lane in enumerate(flat) if not isinstance(lane, (list, tuple, np.ndarray)))
-        raise _fmt_error(what, int(owner[j]), f"a {what} lane must be a list of numbers, got {flat[j]!r:.80}") from None
-    bad = np.flatnonzero(lengths != n_rows[owner])
-    if len(bad):
-        i = int(owner[bad[0]])
-        raise _fmt_error(what, i, f"a {what} lane has {lengths[bad[0]]} values, h_samples has {n_rows[i]}")
-    width = int(n_rows.max(initial=0))
-    return _stack_rows(flat, lengths, owner, width, what, "lane"), counts
 
 
 def _bench(
@@ -320,53 +224,82 @@ def evaluate_batch(
         gts: per image, ground-truth lanes, same form ``(G, R)``.
         h_samples: per image, the ``R`` row y values.
         run_times: per image, run time in ms (default 0).
-        chunk: images per vectorised block (bounds memory).
+        chunk: at most this many images per vectorised block (fewer when they have many lanes and rows:
+            ``BLOCK_CELLS`` bounds the memory).
 
     Returns:
         One :class:`TuSimpleImageResult` per image.
 
     Raises:
-        TuSimpleInputError: where lane.py raises ('Format of lanes error.') or on NaN/inf values; ``line`` is
-            the 1-based position of the image in the batch.
+        TuSimpleInputError: as :func:`evaluate` (``stamlane_eval.io.check_tusimple``); ``line`` is the 1-based
+            position of the image in the batch.
     """
     n = len(preds)
     if len(gts) != n or len(h_samples) != n:
         raise ValueError(f"got {n} preds, {len(gts)} gts and {len(h_samples)} h_samples lists; they must match")
-    rt = np.zeros(n) if run_times is None else np.asarray(run_times, dtype=np.float64)
-    if rt.shape != (n,):
-        raise ValueError(f"expected {n} run_times, got shape {rt.shape}")
+    rt = [0.0] * n if run_times is None else [float(v) for v in run_times]
+    if len(rt) != n:
+        raise ValueError(f"expected {n} run_times, got {len(rt)}")
     if n == 0:
         return []
-    for i, h in enumerate(h_samples):
-        if not isinstance(h, (list, tuple, np.ndarray)):
-            raise TuSimpleInputError(f"h_samples must be a list of numbers, got {h!r:.80}", "gt", i + 1)
-    n_rows = np.fromiter(map(len, h_samples), dtype=np.int64, count=n)
-    if not n_rows.all():  # lane.py would divide by zero
-        raise TuSimpleInputError("h_samples is empty: no row to score", "gt", int(np.argmin(n_rows)) + 1)
-    ys = _stack_rows(list(h_samples), n_rows, np.arange(n), int(n_rows.max()), "gt", "h_samples")
-    # Quirk (order of checks): the pred lane lengths are checked first, for every image; then the
-    # run_time / count rule; gt lanes only for the images that get past it (where lane.py's indexing fails).
-    pred_flat, n_pred = _flatten_lanes(preds, n_rows, "pred")
-    n_gt = np.fromiter((len(g) if isinstance(g, (list, tuple, np.ndarray)) else 0 for g in gts), np.int64, count=n)
+    names = [str(i) for i in range(n)]
+    gt = check_tusimple([{"raw_file": k, "lanes": g, "h_samples": h} for k, g, h in zip(names, gts, h_samples)], "gt")
+    pred = check_tusimple([{"raw_file": k, "lanes": p, "run_time": t} for k, p, t in zip(names, preds, rt)], "pred")
+    return _score(pred, gt, np.arange(n), pred.run_times, chunk)
+
+
+def _pad(lanes: np.ndarray, width: int) -> np.ndarray:
+    """``(L, w)`` lanes padded with -100 to ``(L, width)``."""
+    if lanes.shape[1] == width:
+        return lanes
+    return np.pad(lanes[:, :width], ((0, 0), (0, max(width - lanes.shape[1], 0))), constant_values=_NEGATIVE_FILL)
+
+
+def _score(
+    pred: TuSimpleFile, gt: TuSimpleFile, take: np.ndarray, run_times: np.ndarray | None, chunk: int = 512
+) -> list[TuSimpleImageResult]:
+    """``LaneEval.bench`` of every prediction record against gt record ``take[i]``.
+
+    Raises:
+        TuSimpleInputError: lane.py's 'Format of lanes error.': a predicted lane not as long as the image's
+            ``h_samples``.
+    """
+    n = len(take)
+    n_rows = gt.rows[take]
+    n_pred, n_gt = pred.counts, gt.counts[take]
+    owner = np.repeat(np.arange(n), n_pred)
+    bad = np.flatnonzero(pred.lengths != n_rows[owner])
+    if len(bad):
+        i = int(owner[bad[0]])
+        raise TuSimpleInputError(
+            f"Format of lanes error: a pred lane has {pred.lengths[bad[0]]} values, h_samples has {n_rows[i]}",
+            "pred",
+            i + 1,
+        )
+    r_max = gt.h_samples.shape[1]
+    pred_flat, gt_flat, ys = _pad(pred.lanes, r_max), _pad(gt.lanes, r_max), gt.h_samples[take]
+    rt = np.zeros(n) if run_times is None else run_times
+    # Quirk (order of checks): the lane lengths are checked first, for every image; then the run_time / count rule
     early = (rt > MAX_RUN_TIME_MS) | (n_gt + EXTRA_PRED_LANES < n_pred)
-    gt_flat, gt_drawn = _flatten_lanes(gts, n_rows, "gt", skip=early)
     # Images with the same lane counts are scored together, so that no block pads lanes it does not have.
-    p_start, g_start = np.cumsum(n_pred) - n_pred, np.cumsum(gt_drawn) - gt_drawn
+    p_start = np.cumsum(n_pred) - n_pred
+    g_start = (np.cumsum(gt.counts) - gt.counts)[take]
     acc, fp, fn = np.zeros(n), np.zeros(n), np.zeros(n)
     matched = np.zeros(n, dtype=np.int64)
-    order = np.lexsort((gt_drawn, n_pred))
-    key = n_pred[order] * (int(gt_drawn.max()) + 1) + gt_drawn[order]
+    order = np.lexsort((n_gt, n_pred))
+    key = n_pred[order] * (int(n_gt.max()) + 1) + n_gt[order]
     bounds = np.flatnonzero(np.diff(key)) + 1
     for group in np.split(order, bounds):
-        for s in range(0, len(group), chunk):
-            ids = group[s : s + chunk]
-            p_idx = _lane_index(p_start[ids], n_pred[ids])
-            g_idx = _lane_index(g_start[ids], gt_drawn[ids])
+        # images per block: at most `chunk`, and few enough that the (images, P, G, R) comparison stays small
+        cells = max(int(n_pred[group[0]]), 1) * max(int(n_gt[group[0]]), 1) * r_max
+        step = max(1, min(chunk, BLOCK_CELLS // cells))
+        for s in range(0, len(group), step):
+            ids = group[s : s + step]
             res = _bench(
-                pred_flat[p_idx],
+                pred_flat[_lane_index(p_start[ids], n_pred[ids])],
                 n_pred[ids],
-                gt_flat[g_idx],
-                gt_drawn[ids],
+                gt_flat[_lane_index(g_start[ids], n_gt[ids])],
+                n_gt[ids],
                 n_gt[ids],
                 ys[ids],
                 n_rows[ids],
@@ -409,15 +342,6 @@ def evaluate_image(
     return evaluate_batch([preds], [target], [h_samples], [run_time])[0]
 
 
-def _check_keys(rec: object, keys: tuple[str, ...], source: str, i: int, message: str) -> Mapping:
-    if type(rec) is dict and keys[0] in rec and keys[1] in rec and keys[2] in rec:
-        return rec  # fast path
-    if not isinstance(rec, Mapping) or any(k not in rec for k in keys):
-        have = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
-        raise TuSimpleInputError(f"{message} (has keys {have}, needs {list(keys)})", source, i + 1)
-    return rec
-
-
 def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool = True) -> TuSimpleResult:
     """Score a submission exactly as ``LaneEval.bench_one_submit`` (records as read from the json-lines files).
 
@@ -429,91 +353,85 @@ def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool 
             run times were measured on a busy or slow machine; ``run_time`` is still required and checked.
 
     Returns:
-        Official accuracy/FP/FN (summed in prediction order, divided by the number of unique gt raw_files),
-        the paper's F1, lane-count precision/recall/F1 and the per-image results in prediction order.
+        Official accuracy/FP/FN (summed in prediction order, divided by the number of images), the paper's F1,
+        lane-count precision/recall/F1 and the per-image results in prediction order.
 
     Raises:
-        TuSimpleInputError: for every condition where lane.py raises, plus duplicate predictions and
-            NaN/inf values. A duplicate gt raw_file is accepted as lane.py does (the last one wins and the
-            mean divides by unique names) with a warning.
+        TuSimpleInputError: where lane.py raises, where its numbers would mean nothing (a gt naming an image
+            twice, no image), and where a file breaks the format's types or a label is no pixel coordinate
+            (``stamlane_eval.io.check_tusimple``). Totals outside [0, 1] are returned as lane.py computes them;
+            :func:`check_rates` refuses them, as the command line does.
+
+    Warns:
+        UserWarning: once, when prediction values are no pixel coordinate (not finite, or beyond
+            ``stamlane_eval.io.MAX_COORDINATE``): they are scored as lane.py scores them.
     """
     if len(gts) == 0 and len(preds) == 0:
-        # lane.py: ZeroDivisionError ('float division by zero') on two empty files.
-        raise TuSimpleInputError("both files are empty: nothing to evaluate")
+        raise TuSimpleInputError("both files are empty: nothing to evaluate (lane.py divides 0 by 0)")
     if len(gts) != len(preds):
         raise TuSimpleInputError(
             f"We do not get the predictions of all the test tasks: {len(preds)} predictions for {len(gts)} gt images"
         )
-    gt_by_name: dict[str, Mapping] = {}
-    gt_line: dict[str, int] = {}
-    for i, g in enumerate(gts):
-        g = _check_keys(g, ("raw_file", "lanes", "h_samples"), "gt", i, "raw_file or lanes or h_samples not in gt")
-        if not isinstance(g["raw_file"], str):
-            raise TuSimpleInputError(f"raw_file must be a string, got {g['raw_file']!r:.80}", "gt", i + 1)
-        gt_by_name[g["raw_file"]] = g  # quirk: a duplicate raw_file keeps the LAST record
-        gt_line[g["raw_file"]] = i + 1
-    gt_count = Counter(g["raw_file"] for g in gts)
-    dups = [name for name, c in gt_count.items() if c > 1]
-    if dups:
-        warnings.warn(
-            f"{len(dups)} duplicate gt raw_file(s) (e.g. {dups[0]!r}): as lane.py, the last record is used and "
-            f"the mean divides by the {len(gt_by_name)} unique names",
-            stacklevel=2,
-        )
-    pred_count: Counter[str] = Counter()
-    p_lanes, g_lanes, hs, rts = [], [], [], []
-    for i, p in enumerate(preds):
-        p = _check_keys(
-            p, ("raw_file", "lanes", "run_time"), "pred", i, "raw_file or lanes or run_time not in some predictions."
-        )
-        name = p["raw_file"]
-        if not isinstance(name, str) or name not in gt_by_name:
+    gt = check_tusimple(gts, "gt")
+    pred = check_tusimple(preds, "pred")
+    index = {name: i for i, name in enumerate(gt.names)}
+    take = np.empty(len(preds), dtype=np.int64)
+    seen = np.zeros(len(gts), dtype=bool)
+    for i, name in enumerate(pred.names):
+        j = index.get(name)
+        if j is None:
             raise TuSimpleInputError(
                 f"Some raw_file from your predictions do not exist in the test tasks: {name!r}", "pred", i + 1
             )
-        pred_count[name] += 1
-        if pred_count[name] > gt_count[name]:
-            # lane.py would score the image twice and another gt image never; refuse.
+        if seen[j]:  # lane.py would score the image twice and another gt image never
             raise TuSimpleInputError(f"duplicate prediction for raw_file {name!r}", "pred", i + 1)
-        rt = p["run_time"]
-        if isinstance(rt, bool) or not isinstance(rt, (int, float)) or not math.isfinite(rt):
-            raise TuSimpleInputError(
-                f"Format of lanes error: run_time must be a finite number, got {rt!r}", "pred", i + 1
-            )
-        g = gt_by_name[name]
-        p_lanes.append(p["lanes"])
-        g_lanes.append(g["lanes"])
-        hs.append(g["h_samples"])
-        rts.append(float(rt))
-    try:
-        per_image = evaluate_batch(p_lanes, g_lanes, hs, rts if time_limit else None)
-    except TuSimpleInputError as e:
-        if e.source == "gt" and e.line is not None:  # batch position -> line of that image in the gt file
-            raise TuSimpleInputError(e.message, "gt", gt_line[preds[e.line - 1]["raw_file"]]) from None
-        raise
-    accuracy = fp = fn = 0.0
-    for r in per_image:  # plain float sums in file order, as lane.py, to match to the last bit
-        accuracy += r.acc
-        fp += r.fp
-        fn += r.fn
-    num = len(gt_by_name)
-    accuracy, fp, fn = accuracy / num, fp / num, fn / num
-    tp = sum(r.matched for r in per_image)
-    n_pred = sum(r.n_pred for r in per_image)
-    n_gt = sum(r.n_gt for r in per_image)
-    lp, lr, lf = prf(tp, n_pred - tp, n_gt - tp)
+        seen[j] = True
+        take[i] = j
+    if pred.odd:
+        count, first = pred.odd
+        warnings.warn(
+            f"{count} prediction value(s) are no pixel coordinate ({first}): scored as lane.py scores them "
+            f"(a negative or NaN x: no point on that row; a huge one: a miss; run_time NaN: within the limit)",
+            stacklevel=2,
+        )
+    per_image = _score(pred, gt, take, pred.run_times if time_limit else None)
+    return _result(per_image)
+
+
+def check_rates(result: TuSimpleResult) -> None:
+    """Refuse totals that are not rates, as ``stamlane-eval tusimple`` does (docs/evaluators.md): lane.py's
+    accuracy, FP and FN outside [0, 1] beyond float rounding (`RATE_TOLERANCE`). :func:`evaluate` itself returns
+    lane.py's numbers whatever they are, as the torchmetrics class does: a run that logs them does not stop.
+
+    Raises:
+        TuSimpleInputError: naming the number and why lane.py's arithmetic gave it.
+    """
+    for name, why in (
+        ("accuracy", f"images with more than {MAX_SCORED_LANES + 1} gt lanes count for more than one image"),
+        ("fn", f"images with more than {MAX_SCORED_LANES + 1} gt lanes count for more than one image"),
+        ("fp", "one predicted lane matching several gt lanes (lane.py matches no one-to-one) counts below 0"),
+    ):
+        value = getattr(result, name)
+        if not -RATE_TOLERANCE <= value <= 1.0 + RATE_TOLERANCE:
+            raise TuSimpleInputError(f"lane.py's {name} would be {value!r}, not a rate in [0, 1]: {why}")
+
+
+def _result(per_image: list[TuSimpleImageResult]) -> TuSimpleResult:
+    """The dataset numbers (`stamlane_eval.aggregate`)."""
+    sums = tusimple_update(TuSimpleSums(), per_image)
+    vals = tusimple_compute(sums)
     return TuSimpleResult(
-        accuracy=accuracy,
-        fp=fp,
-        fn=fn,
-        f1=paper_f1(fp, fn),
-        images=num,
-        lane_tp=tp,
-        lane_fp=n_pred - tp,
-        lane_fn=n_gt - tp,
-        lane_precision=lp,
-        lane_recall=lr,
-        lane_f1=lf,
+        accuracy=vals["accuracy"],
+        fp=vals["fp"],
+        fn=vals["fn"],
+        f1=vals["f1"],
+        images=sums.images,
+        lane_tp=sums.lane_tp,
+        lane_fp=sums.lane_pred - sums.lane_tp,
+        lane_fn=sums.lane_gt - sums.lane_tp,
+        lane_precision=vals["lane_precision"],
+        lane_recall=vals["lane_recall"],
+        lane_f1=vals["lane_f1"],
         per_image=per_image,
     )
 

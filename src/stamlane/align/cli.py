@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
 from tqdm import tqdm
 
 from stamlane.align.cache import (
@@ -255,6 +255,13 @@ def main(argv: list[str]) -> int:
     for bad, message in problems:
         if bad:
             print(f"stamlane align: {message}", file=sys.stderr)
+            return 2
+    for option, out in (("--write-frames", args.write_frames), ("--visualize", args.visualize)):
+        try:  # warped frames and pictures never land among the frames they are made from (symlinks resolved)
+            if out is not None:
+                check_output(out, [args.root])
+        except OutputError as err:
+            print(f"stamlane align: {option} {err}", file=sys.stderr)
             return 2
     root = args.root.resolve()  # clip folders are then absolute; cache_file reads relative ones as under root
     clips = find_clip_dirs(root)

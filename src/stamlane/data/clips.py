@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from stamlane_eval.io import duplicate_raw_file
 from torch.utils.data import Dataset
 
 from stamlane.data.alignment import WARP_MODES, ClipAligner
@@ -380,12 +381,8 @@ class TuSimpleClips(ClipDataset):
                     out.append(rec)
                     continue
                 source = f"{path}:{number}"
-                if rec["raw_file"] in seen:  # two labels for one image: which one is right?
-                    out.append(
-                        DataError(
-                            f"{source}: duplicate raw_file {rec['raw_file']!r} (first at {seen[rec['raw_file']]})"
-                        )
-                    )
+                if rec["raw_file"] in seen:  # two labels for one image: the evaluator's check, the same message
+                    out.append(DataError(f"{source}: {duplicate_raw_file(rec['raw_file'], seen[rec['raw_file']])}"))
                     continue
                 seen[rec["raw_file"]] = source
                 try:

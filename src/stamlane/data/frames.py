@@ -15,6 +15,7 @@ from tqdm import tqdm
 
 from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.labels import DataError
+from stamlane.imageio import open_video
 
 __all__ = ["VIDEO_SUFFIXES", "FolderClips", "decode_video"]
 
@@ -43,9 +44,7 @@ class FolderClips(ClipDataset):
 
 def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path:
     """Decode a video into ``out_dir/000000.jpg, 000001.jpg, ...`` (every ``every``-th frame); returns ``out_dir``."""
-    capture = cv2.VideoCapture(str(video))
-    if not capture.isOpened():
-        raise DataError(f"cannot open video {video}")
+    capture = open_video(video, DataError)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None

@@ -59,7 +59,7 @@ def resolve_inside(root: Path, rel: str, source: str) -> Path:
 
 def read_tusimple_labels(path: Path) -> Iterator[tuple[int, TuSimpleRecord | DataError]]:
     """Parse a TuSimple label file (json-lines) with the evaluator's typed check of every record
-    (``stamlane_eval.io.tusimple_record_error``: numbers only, finite, within ``MAX_COORDINATE``, lanes as long
+    (``stamlane_eval.io.tusimple_record_error``: numbers only, finite, within ``MAX_COORDINATE``, each raw_file once in a file, lanes as long
     as a non-empty ``h_samples``).
 
     Yields:

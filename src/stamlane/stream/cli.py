@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, check_output, parse_or_status
 
-from stamlane.imageio import read_image
+from stamlane.imageio import open_video, read_image
 
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
@@ -79,9 +79,7 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
                 yield image
 
         return read_images(), len(paths), None
-    capture = cv2.VideoCapture(str(source))
-    if not capture.isOpened():
-        raise StreamError(f"cannot open video {source}")
+    capture = open_video(source, StreamError)
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
     if max_frames and count:

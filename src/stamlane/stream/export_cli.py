@@ -67,7 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not 16 <= opset <= 21:
             raise ValueError(f"--opset must be in 16..21, got {opset}")
-        check_output(output, [args.ckpt_path])
+        for out in (output, args.streaming):
+            if out is not None:
+                check_output(out, [args.ckpt_path])
         if output.suffix != ".onnx":
             raise ValueError(f"--output must end in .onnx, got {output}")
         module = StamLaneModule.from_checkpoint(args.ckpt_path)

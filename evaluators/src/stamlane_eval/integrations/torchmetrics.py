@@ -1,7 +1,10 @@
-"""torchmetrics versions of the metrics: ``update`` calls the same per-image functions as the CLI.
+"""torchmetrics versions of the metrics: ``update`` calls the same per-image functions as the CLI, and both
+``update`` and ``compute`` fold with the same helpers as the functions (``stamlane_eval.aggregate``), so the class
+and ``tusimple.evaluate`` / ``culane.evaluate`` give the same numbers on the same images, to the last bit.
 
-States are summed across processes (``dist_reduce_fx="sum"``), so DDP gives the numbers of one process
-(floating-point sums may differ in the last bits because the order of addition differs).
+States are the sums of ``stamlane_eval.aggregate`` summed across processes (``dist_reduce_fx="sum"``), so DDP
+gives the numbers of one process (floating-point sums may differ in the last bits because the order of addition
+differs).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from torchmetrics import Metric
 from torchmetrics.utilities import dim_zero_cat
 
 from stamlane_eval import culane, temporal, tusimple, video
+from stamlane_eval.aggregate import TuSimpleSums, culane_update, prf, tusimple_compute, tusimple_update
 
 __all__ = ["CULaneMetric", "TemporalStabilityMetric", "TuSimpleMetric", "VideoMetric"]
 
@@ -28,19 +32,27 @@ def _to_numpy(lane: object) -> np.ndarray:
 class TuSimpleMetric(Metric):
     """TuSimple accuracy / FP / FN (official ``lane.py``), the paper's F1 and lane-count precision/recall/F1.
 
-    ``compute`` divides the sums by the number of images given to ``update`` (the official tool divides by
-    the number of unique gt ``raw_file``s: the same unless the gt repeats an image).
+    The sums and the division are ``tusimple.evaluate``'s (``stamlane_eval.aggregate``): over the images given to
+    ``update``, which the function refuses to see twice (a gt naming an image twice). As the function, ``compute``
+    returns totals outside [0, 1] as lane.py computes them (images with more than 5 gt lanes; FP below 0): a
+    training run logs them rather than stopping (``stamlane-eval`` refuses them: ``tusimple.check_rates``).
     """
 
     full_state_update = False
     higher_is_better = True
+    _FLOATS = ("acc", "fp", "fn")
+    _INTS = ("images", "lane_tp", "lane_pred", "lane_gt")
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(**kwargs)
-        for name in ("acc_sum", "fp_sum", "fn_sum"):
-            self.add_state(name, default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
-        for name in ("images", "lane_tp", "lane_pred", "lane_gt"):
+        for name in self._FLOATS:
+            self.add_state(f"{name}_sum", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
+        for name in self._INTS:
             self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+
+    def _sums(self) -> TuSimpleSums:
+        floats = {name: float(getattr(self, f"{name}_sum")) for name in self._FLOATS}
+        return TuSimpleSums(**floats, **{name: int(getattr(self, name)) for name in self._INTS})
 
     def update(
         self,
@@ -58,31 +70,15 @@ class TuSimpleMetric(Metric):
             h_samples: per image, the ``R`` row y values.
             run_times: per image, milliseconds (default 0).
         """
-        for r in tusimple.evaluate_batch(preds, target, h_samples, run_times):
-            self.acc_sum += r.acc  # one image at a time: the official left-to-right float sum
-            self.fp_sum += r.fp
-            self.fn_sum += r.fn
-            self.images += 1
-            self.lane_tp += r.matched
-            self.lane_pred += r.n_pred
-            self.lane_gt += r.n_gt
+        sums = tusimple_update(self._sums(), tusimple.evaluate_batch(preds, target, h_samples, run_times))
+        for name in self._FLOATS:
+            getattr(self, f"{name}_sum").fill_(getattr(sums, name))
+        for name in self._INTS:
+            getattr(self, name).fill_(getattr(sums, name))
 
     def compute(self) -> dict[str, torch.Tensor]:
         """``accuracy``, ``fp``, ``fn``, ``f1`` (paper), ``lane_precision``, ``lane_recall``, ``lane_f1``."""
-        n = max(int(self.images), 1)
-        acc, fp, fn = float(self.acc_sum) / n, float(self.fp_sum) / n, float(self.fn_sum) / n
-        tp, n_pred, n_gt = int(self.lane_tp), int(self.lane_pred), int(self.lane_gt)
-        lp, lr, lf = tusimple.prf(tp, n_pred - tp, n_gt - tp)
-        vals = {
-            "accuracy": acc,
-            "fp": fp,
-            "fn": fn,
-            "f1": tusimple.paper_f1(fp, fn),
-            "lane_precision": lp,
-            "lane_recall": lr,
-            "lane_f1": lf,
-        }
-        return {k: torch.tensor(v, dtype=torch.float64) for k, v in vals.items()}
+        return {k: torch.tensor(v, dtype=torch.float64) for k, v in tusimple_compute(self._sums()).items()}
 
 
 class CULaneMetric(Metric):
@@ -135,31 +131,33 @@ class CULaneMetric(Metric):
             raise ValueError(f"got {len(preds)} prediction images and {len(target)} target images")
         if sizes is not None and len(sizes) != len(preds):
             raise ValueError(f"got {len(sizes)} sizes for {len(preds)} images")
-        for i, (p, g) in enumerate(zip(preds, target, strict=True)):
-            size = self.size if sizes is None else (int(sizes[i][0]), int(sizes[i][1]))
-            r = culane.evaluate_image(
+        per_image = [
+            culane.evaluate_image(
                 [_to_numpy(x) for x in p],
                 [_to_numpy(x) for x in g],
                 self.iou_thresholds,
                 self.width,
-                size,
+                self.size if sizes is None else (int(sizes[i][0]), int(sizes[i][1])),
                 self.variant,
             )
-            counts = torch.tensor([r.counts[t] for t in self.iou_thresholds], dtype=torch.int64, device=self.tp.device)
-            self.tp += counts[:, 0]
-            self.fp += counts[:, 1]
-            self.fn += counts[:, 2]
-            self.images += 1
+            for i, (p, g) in enumerate(zip(preds, target, strict=True))
+        ]
+        sums = culane_update(torch.stack([self.tp, self.fp, self.fn], 1).tolist(), per_image, self.iou_thresholds)
+        counts = torch.tensor(sums, dtype=torch.int64, device=self.tp.device)
+        self.tp.copy_(counts[:, 0])
+        self.fp.copy_(counts[:, 1])
+        self.fn.copy_(counts[:, 2])
+        self.images += len(per_image)
 
     def compute(self) -> dict[str, torch.Tensor]:
         """``{f"precision@{t}", f"recall@{t}", f"f1@{t}", f"tp@{t}", f"fp@{t}", f"fn@{t}"}`` for each threshold."""
         out = {}
         for i, t in enumerate(self.iou_thresholds):
-            c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
-            for name in ("precision", "recall", "f1"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
-            for name in ("tp", "fp", "fn"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+            counts = (int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
+            for name, v in zip(("precision", "recall", "f1"), prf(*counts), strict=True):
+                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.float64)
+            for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
+                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.int64)
         return out
 
 
