@@ -174,6 +174,14 @@ def test_a_tampered_run_folder_is_refused_in_one_line(tmp_path: Path, capsys: py
         err = capsys.readouterr().err.strip()
         assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
     done.write_text(json.dumps(record))
+    config = out / "single-s0" / "run" / "config.yaml"
+    original = config.read_text()
+    config.write_text(original.replace("class_path: torch.optim.AdamW", "class_path: os.system", 1))
+    capsys.readouterr()
+    assert main(["demo", "--quick", "--out", str(out)]) == 2  # a run folder's config may not import anything
+    err = capsys.readouterr().err.strip()
+    assert "names 'os.system'" in err and len(err.splitlines()) == 1
+    config.write_text(original)
     (out / "summary.json").write_text("{tampered")
     assert main(["demo", "--quick", "--out", str(out)]) == 0  # the summary is rewritten from the runs
 

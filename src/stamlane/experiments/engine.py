@@ -142,6 +142,20 @@ def _cli(args: list[str]) -> Any:
         sys.argv = argv
 
 
+def _check_run_config(run: Path) -> None:
+    """A run folder's ``config.yaml`` is data, not the user's code: it may name only allow-listed classes
+    (`stamlane.checkpoints.check_config`); a tampered one is refused in one line."""
+    from stamlane.checkpoints import CheckpointError, check_config
+
+    path = run / "config.yaml"
+    try:
+        check_config(path.read_text(), path)
+    except (OSError, UnicodeDecodeError) as err:
+        raise ExperimentError(f"{path}: cannot read the run's config ({err}); delete the run folder") from None
+    except CheckpointError as err:
+        raise ExperimentError(str(err)) from None
+
+
 def _frames_of(run: Path) -> int:
     config = yaml.safe_load((run / "config.yaml").read_text())
     return int(config["data"]["num_frames"])
@@ -250,6 +264,7 @@ class Experiment:
         """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks; returns the
         predictions folder."""
         pred_dir = self.pred_dir(name, split, source)
+        _check_run_config(run)
         _cli(
             [
                 "predict",
@@ -277,6 +292,7 @@ class Experiment:
         except StoreError as err:
             raise ExperimentError(str(err)) from None
         if record is not None:
+            _check_run_config(Path(record["run"]))
             self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
             return record
         self.log(f"seed {seed}, {label}: {row.label}, {steps} steps")
