@@ -127,6 +127,21 @@ def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: p
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
 
 
+def test_single_clean_is_the_single_frame_trained_without_the_key_frame_corruption(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--single-clean", "--out", str(out)]) == 0
+    assert "key_corruption: 0.5" in (out / "single-s0" / "run" / "config.yaml").read_text()
+    assert "key_corruption: 0.0" in (out / "single_clean-s0" / "run" / "config.yaml").read_text()
+    assert json.loads((out / "single_clean-s0" / "done.json").read_text())["recipe_args"] is False
+    summary = Summary.read(out / "summary.json")
+    assert [m.name for m in summary.models] == ["stam4", "single", "single_clean"]
+    for a, b in (("stam4", "single_clean"), ("single", "single_clean")):  # compared, with a clip interval
+        diff = summary.difference(a, b, "challenging", "tusimple_f1")
+        assert diff.ci95[0] <= diff.diff <= diff.ci95[1]
+    compared = {(d.a, d.b) for d in summary.differences if d.kind == "models"}
+    assert compared == {("stam4", "single"), ("stam4", "single_clean"), ("single", "single_clean")}
+
+
 def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0

@@ -1,7 +1,8 @@
 """``stamlane demo``: README command 1 — the experiment engine on three models of synthetic clips, and pictures.
 
     stamlane demo [--out outputs/demo] [--data DIR] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
-                  [--bf16 auto|true|false] [--no-noalign] [--rows ID ...] [--max-overlays 12] [--quick]
+                  [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--max-overlays 12]
+                  [--quick]
 
 Generates the default synthetic set when missing, then runs `stamlane.experiments.engine` with the CPU recipe
 (the single-frame network from scratch, then each model from its weights: every model gets the same steps on the
@@ -27,15 +28,19 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
 
-__all__ = ["MODELS", "PAIRS", "main", "pairs"]
+__all__ = ["MODELS", "PAIRS", "SINGLE_CLEAN", "main", "pairs"]
 
 MODELS = (
     Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",), paper="f4_mixed_cs_features"),
     Row("single", "1 frame (baseline)", ("demo_single.yaml",), paper="f1_keyonly"),
     Row("stam4_noalign", "4 frames, no alignment, STAM", ("demo_noalign.yaml",), paper="f4_noalign_mixed_cs_features"),
 )
+SINGLE_CLEAN = Row("single_clean", "1 frame, no key-frame corruption", ("demo_single.yaml",), recipe_args=False)
+"""``--single-clean``: the single frame trained without the recipe's key-frame corruption, which it cannot undo."""
 PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noalign"))
-"""The demo's comparisons, A against B: what the history frames bring, with and without alignment."""
+PAIRS += (("stam4", "single_clean"), ("single", "single_clean"))
+"""The demo's comparisons, A against B: what the history frames bring, with and without alignment; what the
+key-frame corruption costs a single frame and whether STAM is ahead of one trained without it."""
 
 
 def pairs(rows: list[Row]) -> list[tuple[str, str]]:
@@ -44,7 +49,7 @@ def pairs(rows: list[Row]) -> list[tuple[str, str]]:
     from stamlane.experiments.tables import baseline_pairs
 
     names = {r.name for r in rows}
-    found = [*PAIRS, *((r.name, other) for r in rows if r not in MODELS for other in ("single", "stam4"))]
+    found = [*PAIRS, *((r.name, other) for r in rows if r.paper and r not in MODELS for other in ("single", "stam4"))]
     found += baseline_pairs({r.paper: r.name for r in rows if r.paper})
     return [(a, b) for a, b in dict.fromkeys(found) if a in names and b in names]
 
@@ -65,6 +70,7 @@ def _parser() -> argparse.ArgumentParser:
         help="bfloat16 autocast (auto: where the CPU runs it natively; false: float32, as on an AVX2-only CPU)",
     )
     p.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
+    p.add_argument("--single-clean", action="store_true", help="also the single frame without key-frame corruption")
     p.add_argument(
         "--rows",
         nargs="+",
@@ -127,6 +133,7 @@ def run(args: argparse.Namespace) -> None:
 
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
     rows = [m for m in MODELS if not ((args.no_noalign or args.quick) and m.name == "stam4_noalign")]
+    rows += [SINGLE_CLEAN] if args.single_clean else []
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
     if args.out.exists() and not args.out.is_dir():

@@ -72,12 +72,14 @@ class ExperimentError(Exception):
 @dataclass(frozen=True)
 class Row:
     """A model of an experiment: a name (its folders), a label (its tables), its ``stamlane fit`` configs
-    (relative to ``configs/``, in order) and the paper row it is (``configs/paper/tables.yaml``), if any."""
+    (relative to ``configs/``, in order), the paper row it is (``configs/paper/tables.yaml``), if any, and whether
+    the recipe's ``row_args`` (the key-frame corruption of the CPU recipe) apply to it."""
 
     name: str
     label: str
     configs: tuple[str, ...]
     paper: str | None = None
+    recipe_args: bool = True
 
     @classmethod
     def paper_row(cls, row: str, base: str = "demo.yaml") -> Row:
@@ -240,7 +242,7 @@ class Experiment:
         val_every = max(1, steps // max(checks, 1))
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
-        row_args = self.recipe.row_args if row is not self.recipe.pretrain else ()
+        row_args = self.recipe.row_args if row is not self.recipe.pretrain and row.recipe_args else ()
         cli = _cli(
             [
                 "fit",
@@ -293,6 +295,8 @@ class Experiment:
             raise ExperimentError(str(err)) from None
         if record is not None:
             _check_run_config(Path(record["run"]))
+            if record.get("recipe_args", True) != row.recipe_args:
+                raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")
             self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
             return record
         self.log(f"seed {seed}, {label}: {row.label}, {steps} steps")
@@ -305,6 +309,7 @@ class Experiment:
             "last_ckpt": str(run / "checkpoints" / "last.ckpt"),
             "frames": _frames_of(run),
             "hardware": _hardware(),
+            "recipe_args": row.recipe_args,
         }
         mark_finished(self.out / name, record)
         return record
