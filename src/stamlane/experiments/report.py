@@ -425,14 +425,16 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
 
 def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequence[int], path: Path) -> Path:
     """Validation F1 over training steps of the runs ``(name, label, first step)`` of an experiment folder, one line
-    per run and seed (from each run's ``metrics.csv``); a dotted line where a second stage starts."""
+    per run and seed (from each run's ``metrics.csv``), one colour per run; a dotted line where a second stage
+    starts."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for name, label, first in runs:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for colour, (name, label, first) in enumerate(runs):
+        labelled = False
         for seed in seeds:
             metrics = out / f"{name}-s{seed}" / "run" / "metrics.csv"
             rows = list(csv.DictReader(metrics.open())) if metrics.is_file() else []
@@ -440,7 +442,11 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
                 (int(r["step"]) + 1 + first, float(r["val/tusimple_f1"])) for r in rows if r.get("val/tusimple_f1")
             ]
             if points:
-                ax.plot(*zip(*points), marker="o", label=f"{label}, seed {seed}")
+                seeds_label = f"{label} ({len(seeds)} seeds)" if len(seeds) > 1 else label
+                ax.plot(
+                    *zip(*points), marker="o", color=f"C{colour}", alpha=0.8, label=None if labelled else seeds_label
+                )
+                labelled = True
     for start in {first for _, _, first in runs if first}:
         ax.axvline(start, color="grey", linestyle=":", linewidth=1)
     ax.set(xlabel="training step (a second stage right of the dotted line)", ylabel="validation F1 (TuSimple)")
