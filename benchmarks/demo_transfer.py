@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import yaml
 
+from stamlane.data.flat_options import clip_options
 from stamlane.demo import MODELS
 
 SPLITS = ("test", "challenging")
@@ -56,7 +57,7 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     scores = Scores()
     for name, runs in _runs(demo).items():
         for run in runs:
-            frames = int(yaml.safe_load((run / "config.yaml").read_text())["data"]["num_frames"])
+            frames = clip_options(yaml.safe_load((run / "config.yaml").read_text())["data"]).num_frames
             for split in SPLITS:
                 pred = experiment.predict(run.parent.name, run, split)
                 score_split(pred, root, split, frames)
@@ -91,7 +92,7 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
         ckpt = runs[0] / "checkpoints" / "last.ckpt"
         module = StamLaneModule.from_checkpoint(ckpt)
         data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
-        crop_top = module.hparams.get("crop_top") or data.get("crop_top") or 0.0  # older runs: the data's
+        crop_top = module.hparams.get("crop_top") or clip_options(data).crop_top  # older runs: the data's
         predictor = StreamingPredictor.from_module(module, crop_top=float(crop_top))
         predictors.append((name, predictor))
     rows = []

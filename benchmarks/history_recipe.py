@@ -59,9 +59,9 @@ class Variant:
 
 CLEAN = ("--data.train_labels=[train-clean.json]",)
 FACTORS = ()  # train.json: the clean clips and as many factor clips
-CORRUPT = ("--data.key_corruption=0.5",)
+CORRUPT = ("--data.augment.key_corruption=0.5",)
 VAL = ("--data.val_labels=[val.json]",)
-TRUE = ("--data.align=true",)  # the generator's exact homographies: alignment taken out of the question
+TRUE = ("--data.clip.align=true",)  # the generator's exact homographies: alignment taken out of the question
 STRIDE8 = ("--model.fuse_skip=true",)  # measured as --model.skip_fusion=STAM (reduction 4, features): the same network
 
 
@@ -114,20 +114,20 @@ VARIANTS = {
         _two_stage(
             "factors_blank2_stride8",
             "stage 2 only: the near road of the key frame blanked or the frame overexposed in half the clips",
-            (*FACTORS, *CORRUPT, "--data.key_corruption_kinds=[blank, glare]"),
+            (*FACTORS, *CORRUPT, "--data.augment.key_corruption_kinds=[blank, glare]"),
             extra=STRIDE8,
             stage1_data=FACTORS,
         ),
         _two_stage(
             "factors_blank2",
             "the same without the stride-8 fusion",
-            (*FACTORS, *CORRUPT, "--data.key_corruption_kinds=[blank, glare]"),
+            (*FACTORS, *CORRUPT, "--data.augment.key_corruption_kinds=[blank, glare]"),
             stage1_data=FACTORS,
         ),
         _two_stage(
             "factors_corrupt25_stride8",
             "the key frame corrupted in a quarter of the clips (both stages), stride-8 fusion",
-            (*FACTORS, "--data.key_corruption=0.25"),
+            (*FACTORS, "--data.augment.key_corruption=0.25"),
             extra=STRIDE8,
         ),
         _two_stage(

@@ -27,7 +27,7 @@ it, as streamed), ``none`` (no alignment); TuSimple accuracy / FP / FN / F1 by `
 pixel F1 against the binary target. ``--finetune-steps N`` also continues training the checkpoint N steps
 (batch 4, lr 0.005, no augmentation, on ``--finetune-labels``) twice, once with image-space and once with
 feature-space alignment (the library's ``warp="image"`` / ``warp="feature"`` data and `StamLaneModule`'s
-forward, as ``stamlane fit --data.warp feature`` trains), and evaluates both (same data and steps, so continued
+forward, as ``stamlane fit --data.clip.warp feature`` trains), and evaluates both (same data and steps, so continued
 training alone is not credited to feature-space alignment).
 
 Prints tables and writes json to ``--out`` (default ``outputs/bench/stream.json``).
@@ -57,6 +57,7 @@ from tqdm import tqdm
 
 from stamlane.data.clips import frame_order
 from stamlane.data.collate import collate_clips
+from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import net_homographies
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder, forward_feature_aligned
 from stamlane.postprocess import decode_lanes
@@ -209,40 +210,42 @@ def measure_end_to_end(
     return result
 
 
-def _load(ckpt: Path) -> tuple[torch.nn.Module, dict]:
-    """The StamLaneModule of a checkpoint (eval mode) and its data options."""
+def _load(ckpt: Path) -> tuple[torch.nn.Module, ClipOptions]:
+    """The StamLaneModule of a checkpoint (eval mode) and how its clips were read (flat older checkpoints too)."""
     from stamlane.checkpoints import read_checkpoint
+    from stamlane.data.flat_options import clip_options
     from stamlane.module import StamLaneModule
 
     module = StamLaneModule.from_checkpoint(ckpt)
-    data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
-    return module, data
+    return module, clip_options(read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {})
 
 
-def _dataset(module: torch.nn.Module, data: dict, root: Path, labels: list[str], warp: str = "image") -> object:
+def _dataset(module: torch.nn.Module, clip: ClipOptions, root: Path, labels: list[str], warp: str = "image") -> object:
     from stamlane.data.clips import TuSimpleClips
 
     return TuSimpleClips(
         root,
         list(labels),
-        num_frames=int(module.num_frames or data.get("num_frames", 4)),
-        stride=int(data.get("stride", 1)),
-        image_size=tuple(module.hparams.get("image_size") or data.get("image_size")),
+        num_frames=int(module.num_frames or clip.num_frames),
+        stride=clip.stride,
+        image_size=tuple(module.hparams.get("image_size") or clip.image_size),
         align="fly",
-        horizon_row=data.get("horizon_row"),
-        align_strategy=data.get("align_strategy", "chain"),
+        horizon_row=clip.horizon_row,
+        align_strategy=clip.align_strategy,
         warp=warp,
     )
 
 
-def finetune(module: torch.nn.Module, data: dict, root: Path, labels: list[str], steps: int, feature: bool) -> None:
+def finetune(
+    module: torch.nn.Module, clip: ClipOptions, root: Path, labels: list[str], steps: int, feature: bool
+) -> None:
     """Continue training ``module`` for ``steps`` SGD steps (batch 4, lr 0.005, momentum 0.9, no augmentation)
     on the clips of ``labels``, with history aligned in image space (``feature=False``) or in feature space.
 
     The samples are the library's (``warp="image"`` / ``warp="feature"`` data) and the forward pass is
     `StamLaneModule`'s, which runs feature-space alignment when a batch carries ``key_from_hist_net``.
     """
-    dataset = _dataset(module, data, root, labels, warp="feature" if feature else "image")
+    dataset = _dataset(module, clip, root, labels, warp="feature" if feature else "image")
     samples = [dataset.load(entry) for entry in tqdm(dataset.entries, desc="fine-tune data", unit="clip")]
     optimizer = torch.optim.SGD(module.net.parameters(), lr=0.005, momentum=0.9, weight_decay=5e-4)
     rng = np.random.default_rng(0)
@@ -258,7 +261,9 @@ def finetune(module: torch.nn.Module, data: dict, root: Path, labels: list[str],
     module.eval()
 
 
-def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: list[str], limit: int | None) -> dict:
+def measure_accuracy(
+    module: torch.nn.Module, clip: ClipOptions, root: Path, labels: list[str], limit: int | None
+) -> dict:
     """TuSimple metrics and pixel F1 of image-space vs feature-space vs no alignment, the module's weights.
 
     Pixel F1: lane pixels (probability > 0.5) against the key frame's binary target at network resolution,
@@ -266,7 +271,7 @@ def measure_accuracy(module: torch.nn.Module, data: dict, root: Path, labels: li
     """
     from stamlane_eval.tusimple import evaluate, lanes_to_xs
 
-    dataset = _dataset(module, data, root, labels)
+    dataset = _dataset(module, clip, root, labels)
     num_frames, size = dataset.num_frames, dataset.image_size
     gts = {}
     for name in labels:
@@ -348,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.ckpt.is_file():
             print(f"benchmarks/stream.py: checkpoint {args.ckpt} does not exist", file=sys.stderr)
             return 2
-        module, data = _load(args.ckpt)
+        module, clip = _load(args.ckpt)
         net = module.net
         num_frames = int(module.num_frames or args.num_frames)
         size = tuple(module.hparams.get("image_size") or args.image_size)
@@ -402,12 +407,12 @@ def main(argv: list[str] | None = None) -> int:
         report["accuracy"] = f"{args.data_root / missing[0]} does not exist"
         print(f"\naccuracy: {report['accuracy']}")
     else:
-        runs = {"trained": measure_accuracy(module, data, args.data_root, args.labels, args.limit)}
+        runs = {"trained": measure_accuracy(module, clip, args.data_root, args.labels, args.limit)}
         for feature in (False, True) if args.finetune_steps else ():
             tuned, _ = _load(args.ckpt)
-            finetune(tuned, data, args.data_root, args.finetune_labels, args.finetune_steps, feature)
+            finetune(tuned, clip, args.data_root, args.finetune_labels, args.finetune_steps, feature)
             name = f"finetuned_{'feature' if feature else 'image'}_space"
-            runs[name] = measure_accuracy(tuned, data, args.data_root, args.labels, args.limit)
+            runs[name] = measure_accuracy(tuned, clip, args.data_root, args.labels, args.limit)
         report["accuracy"] = runs
         if args.finetune_steps:
             report["finetune"] = {"steps": args.finetune_steps, "labels": args.finetune_labels, "batch": 4, "lr": 0.005}

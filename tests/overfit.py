@@ -10,11 +10,13 @@ import torch
 from lightning.pytorch import Callback, Trainer, seed_everything
 
 from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
 from stamlane.module import PolyLR, StamLaneModule
 from stamlane.postprocess import PostprocessConfig
 
 SIZE = (64, 128)  # network input (H, W)
+NO_AUGMENTATION = AugmentOptions(crop_scale=(1.0, 1.0), flip_prob=0.0, brightness=0.0, contrast=0.0, saturation=0.0)
 
 
 def tiny_module(num_frames: int, postprocess: PostprocessConfig | None = None) -> StamLaneModule:
@@ -36,16 +38,12 @@ def tiny_module(num_frames: int, postprocess: PostprocessConfig | None = None) -
 
 def tiny_data(root: Path, num_frames: int) -> ClipDataModule:
     """The set's train clips, exactly aligned, without augmentation; their key frames are the validation set."""
-    no_augmentation = {"crop_scale": (1.0, 1.0), "flip_prob": 0.0, "brightness": 0.0, "contrast": 0.0}
     return ClipDataModule(
         root=str(root),
-        num_frames=num_frames,
-        image_size=SIZE,
-        align="true",
-        batch_size=2,
+        clip=ClipOptions(num_frames=num_frames, image_size=SIZE, align="true"),
+        augment=NO_AUGMENTATION,
+        loader=LoaderOptions(batch_size=2),
         val_labels=["train.json"],
-        saturation=0.0,
-        **no_augmentation,
     )
 
 

@@ -22,10 +22,10 @@ torch.set_num_threads(1)
 
 # the demo config shrunk for a test: 32x64 frames, width 1/8, no progress bar
 SHRINK = [
-    "--data.image_size=[32, 64]",
-    "--data.batch_size=2",
-    "--data.num_workers=0",
-    "--data.align=true",  # the generator's exact homographies: no ORB in a unit test
+    "--data.clip.image_size=[32, 64]",
+    "--data.loader.batch_size=2",
+    "--data.loader.num_workers=0",
+    "--data.clip.align=true",  # the generator's exact homographies: no ORB in a unit test
     "--model.encoder.width=0.125",
     "--model.channels_last=false",
 ]

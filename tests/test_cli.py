@@ -39,11 +39,11 @@ def _args(root: Path, out: Path, *extra: str) -> list[str]:
         "--config",
         str(REPO / "configs" / "demo.yaml"),
         f"--data.root={root}",
-        "--data.num_frames=2",
-        "--data.image_size=[64, 128]",
-        "--data.batch_size=2",
-        "--data.num_workers=0",
-        "--data.align=none",
+        "--data.clip.num_frames=2",
+        "--data.clip.image_size=[64, 128]",
+        "--data.loader.batch_size=2",
+        "--data.loader.num_workers=0",
+        "--data.clip.align=none",
         "--model.encoder.width=0.125",
         "--model.bf16=false",
         "--model.channels_last=false",
@@ -208,7 +208,9 @@ def test_ddp_validate_equals_single_process(tiny_set: Path, tmp_path: Path) -> N
     cli.trainer.save_checkpoint(ckpt)
 
     def validate(out: Path, *extra: str) -> list[str]:
-        args = _args(tiny_set, out, "--data.batch_size=1", "--model.report_run_time=false", f"--ckpt_path={ckpt}")
+        args = _args(
+            tiny_set, out, "--data.loader.batch_size=1", "--model.report_run_time=false", f"--ckpt_path={ckpt}"
+        )
         return ["validate", *[a for a in args if not a.startswith("--trainer.callbacks")], *extra]
 
     assert main(validate(tmp_path / "single")) == 0
@@ -235,8 +237,8 @@ def test_ddp_validate_equals_single_process(tiny_set: Path, tmp_path: Path) -> N
 def test_the_sky_cut_travels_from_the_data_to_the_model_and_the_streaming_predictor() -> None:
     from stamlane.stream import StreamingPredictor
 
-    cli = StamLaneCLI(args=["--config", str(REPO / "configs" / "demo.yaml"), "--data.crop_top=0.3"], run=False)
-    assert cli.datamodule.hparams.crop_top == 0.3 and cli.model.crop_top == 0.3
+    cli = StamLaneCLI(args=["--config", str(REPO / "configs" / "demo.yaml"), "--data.clip.crop_top=0.3"], run=False)
+    assert cli.datamodule.clip.crop_top == 0.3 and cli.model.crop_top == 0.3
     assert cli.model.hparams["crop_top"] == 0.3  # in every checkpoint
     predictor = StreamingPredictor.from_module(cli.model)
     assert predictor.transform.crop_top == 0.3
@@ -282,8 +284,9 @@ def test_default_root_dir_moves_the_logs_and_tensorboard_logs_on_request(
     ("extra", "message"),
     [
         ("--trainer.max_steps=-5", "`max_steps` must be a non-negative integer or -1"),
-        ("--data.image_size=[-16, 64]", "image_size must be positive multiples of the encoder stride 16"),
-        ("--data.num_frames=0", "num_frames must be >= 1, got 0"),
+        ("--data.clip.image_size=[-16, 64]", "image_size must be (H, W) with sides >= 8, got (-16, 64)"),
+        ("--data.clip.image_size=[40, 64]", "image_size must be positive multiples of the encoder stride 16"),
+        ("--data.clip.num_frames=0", "num_frames must be >= 1, got 0"),
     ],
 )
 def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: str, message: str) -> None:
@@ -297,7 +300,7 @@ def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: 
     ("extra", "message"),
     [
         ("--trainer.max_stepz=3", "unrecognized arguments: --trainer.max_stepz=3"),
-        ("--data.num_frames=abc", 'Parser key "data.num_frames": Expected'),
+        ("--data.clip.num_frames=abc", 'Parser key "data.clip.num_frames": Expected'),
         ("--config=/nonexistent/x.yaml", "File does not exist"),
     ],
 )
@@ -319,7 +322,7 @@ def test_a_data_error_in_a_dataloader_worker_is_one_line(tiny_set: Path, tmp_pat
     key = json.loads((root / "train.json").read_text().splitlines()[0])["raw_file"]
     frame = root / key
     frame.write_bytes(frame.read_bytes()[: len(frame.read_bytes()) // 2])  # a truncated JPEG
-    args = _args(root, tmp_path / "out", "--trainer.max_steps=4", "--data.num_workers=1")
+    args = _args(root, tmp_path / "out", "--trainer.max_steps=4", "--data.loader.num_workers=1")
     assert main(["fit", *args]) == 2
     err = [line for line in capsys.readouterr().err.strip().splitlines() if line.startswith("stamlane")]
     assert len(err) == 1 and "cannot read image" in err[0] and key in err[0]

@@ -19,6 +19,7 @@ import stamlane.module
 from stamlane.cli import main as cli_main
 from stamlane.data import NET_HOMOGRAPHIES, TuSimpleClips, collate_clips, net_homographies
 from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.options import ClipOptions, LoaderOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_feature_aligned
 from stamlane.module import StamLaneModule
@@ -124,7 +125,7 @@ def test_collate_stacks_the_homographies_and_refuses_a_mix(root: Path) -> None:
 
 def test_a_wrong_warp_value_is_a_clear_error(root: Path) -> None:
     with pytest.raises(ValueError, match="'pixels'"):
-        ClipDataModule(root=str(root), warp="pixels")
+        ClipDataModule(root=str(root), clip=ClipOptions(warp="pixels"))
     with pytest.raises(ValueError, match="'Feature'"):
         TuSimpleClips(root, "train.json", warp="Feature", **CLIPS)
     with pytest.raises(ValueError, match=r"\(2, 3, 3, 3\).*\(2, 2, 3, 3\)"):
@@ -174,7 +175,8 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
         return forward_feature_aligned(net, clip, key_from_hist)
 
     monkeypatch.setattr(stamlane.module, "forward_feature_aligned", spy)
-    data = ClipDataModule(root=str(root), warp="feature", batch_size=2, predict_labels=["test.json"], **CLIPS)
+    clip = ClipOptions(warp="feature", **CLIPS)
+    data = ClipDataModule(root=str(root), clip=clip, loader=LoaderOptions(batch_size=2), predict_labels=["test.json"])
     module = _module(bf16=True, channels_last=True, report_run_time=False)
     trainer = Trainer(
         max_steps=3,
@@ -259,11 +261,11 @@ def test_cli_fit_and_predict_with_data_warp_feature(
         "--config",
         str(REPO / "configs" / "demo_feature_warp.yaml"),
         f"--data.root={root}",
-        "--data.num_frames=2",
-        "--data.image_size=[32, 64]",
-        "--data.batch_size=3",
-        "--data.num_workers=0",
-        "--data.align=true",
+        "--data.clip.num_frames=2",
+        "--data.clip.image_size=[32, 64]",
+        "--data.loader.batch_size=3",
+        "--data.loader.num_workers=0",
+        "--data.clip.align=true",
         "--model.encoder.width=0.125",
         f"--trainer.logger.save_dir={tmp_path}",
         "--trainer.max_steps=2",
@@ -279,7 +281,7 @@ def test_cli_fit_and_predict_with_data_warp_feature(
     out = tmp_path / "folder"
     frames = root / "clips" / "val-0000"
     predict = ["predict", "--config", config, f"--ckpt_path={ckpt}", "--trainer.logger=false", *common]
-    assert cli_main([*predict, f"--predictions.output_dir={out}", f"--source={frames}", "--data.align=none"]) == 0
+    assert cli_main([*predict, f"--predictions.output_dir={out}", f"--source={frames}", "--data.clip.align=none"]) == 0
     assert len(calls) == 6  # the folder's 8 clips in batches of 3: 3 more batches, in feature space too
     assert len(list((out / "lines").iterdir())) == 8
     # fine-tuning: a new fit that starts from the checkpoint's weights
@@ -303,7 +305,7 @@ def test_stream_benchmark_finetunes_through_the_library_path(root: Path, monkeyp
     )
     module = _module()
     before = [p.detach().clone() for p in module.parameters()]
-    data = {"num_frames": T, "image_size": list(SIZE), "stride": 2}
-    bench.finetune(module, data, root, ["train.json"], steps=1, feature=True)
+    clip = ClipOptions(num_frames=T, image_size=SIZE, stride=2)
+    bench.finetune(module, clip, root, ["train.json"], steps=1, feature=True)
     assert calls == [1] and not module.training
     assert any(not torch.equal(a, b) for a, b in zip(before, module.parameters()))

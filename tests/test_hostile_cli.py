@@ -180,8 +180,8 @@ def _fit_args(root: Path, *extra: str) -> list[str]:
         "--config",
         str(REPO / "configs" / "demo.yaml"),
         f"--data.root={root}",
-        "--data.num_frames=2",
-        "--data.image_size=[64, 128]",
+        "--data.clip.num_frames=2",
+        "--data.clip.image_size=[64, 128]",
         "--trainer.max_steps=1",
         *extra,
     ]

@@ -19,6 +19,7 @@ from stamlane_eval.cli_tools import format_wxh, parse_wxh
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions
 from stamlane.models import LaneDecoder, VGGEncoder
 from stamlane.models.aggregators import KeyFrameOnly
 from stamlane.module import StamLaneModule
@@ -60,16 +61,10 @@ def test_a_wide_image_scores_perfectly_end_to_end(tmp_path: Path) -> None:
     data = ClipDataModule(
         root=str(root),
         format="culane",
-        num_frames=1,
-        image_size=NET,
-        align="none",
-        batch_size=1,
+        clip=ClipOptions(num_frames=1, image_size=NET, align="none"),
+        augment=AugmentOptions(crop_scale=(1.0, 1.0), flip_prob=0.0, brightness=0.0, contrast=0.0, saturation=0.0),
+        loader=LoaderOptions(batch_size=1),
         val_labels=["list.txt"],
-        flip_prob=0.0,
-        crop_scale=(1.0, 1.0),
-        brightness=0.0,
-        contrast=0.0,
-        saturation=0.0,
     )
     data.setup("validate")
     sample = data.make_dataset("val")[0]

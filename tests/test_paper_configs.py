@@ -38,8 +38,8 @@ def _expected(row: Path, base_cfg: dict) -> dict:
     return {
         "class_path": fusion["class_path"],
         "init_args": fusion.get("init_args") or {},
-        "num_frames": raw["data"]["num_frames"],
-        "align": raw["data"].get("align", (base_cfg.get("data") or {}).get("align", "fly")),
+        "num_frames": raw["data"]["clip"]["num_frames"],
+        "align": raw["data"]["clip"].get("align", ((base_cfg.get("data") or {}).get("clip") or {}).get("align", "fly")),
     }
 
 
@@ -65,7 +65,7 @@ def test_print_config_of_a_row(capsys: pytest.CaptureFixture) -> None:
     assert stop.value.code in (0, None)
     cfg = yaml.safe_load(capsys.readouterr().out)
     assert cfg["model"]["fusion"] == {"class_path": "stamlane.models.STDANet", "init_args": {"reduction": 8}}
-    assert cfg["data"]["num_frames"] == 4  # (model.num_frames is linked from it, so not printed)
+    assert cfg["data"]["clip"]["num_frames"] == 4  # (model.num_frames is linked from it, so not printed)
     assert cfg["model"]["report_run_time"] is False  # the ablation layer
     assert cfg["model"]["encoder"]["init_args"]["width"] == 0.25  # the base
 
@@ -79,8 +79,8 @@ def test_every_row_parses_and_builds_a_working_model(cli: StamLaneCLI) -> None:
         assert fusion.class_path == want["class_path"], row.name
         for key, value in want["init_args"].items():
             assert fusion.init_args[key] == value, (row.name, key)
-        assert cfg.data.num_frames == cfg.model.num_frames == want["num_frames"], row.name
-        assert cfg.data.align == want["align"], row.name
+        assert cfg.data.clip.num_frames == cfg.model.num_frames == want["num_frames"], row.name
+        assert cfg.data.clip.align == want["align"], row.name
         model = cli.parser.instantiate_classes(cfg).model
         assert type(model.net.fusion).__name__ == want["class_path"].rsplit(".", 1)[1], row.name
         model.eval()
@@ -97,6 +97,6 @@ def test_rows_compose_with_the_real_data_bases(cli: StamLaneCLI, base: Path) -> 
         want = _expected(row, base_cfg)
         cfg = cli.parser.parse_args([*_configs(row, base), "--trainer.logger=false", "--trainer.callbacks=[]"])
         assert cfg.model.fusion.class_path == want["class_path"], row.name
-        assert cfg.data.num_frames == cfg.model.num_frames == want["num_frames"], row.name
-        if "align" in yaml.safe_load(row.read_text())["data"]:
-            assert cfg.data.align == "none", row.name
+        assert cfg.data.clip.num_frames == cfg.model.num_frames == want["num_frames"], row.name
+        if "align" in yaml.safe_load(row.read_text())["data"]["clip"]:
+            assert cfg.data.clip.align == "none", row.name

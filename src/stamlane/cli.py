@@ -6,8 +6,9 @@ knows both the LightningModule and the DataModule); the other subcommands are pl
 
 What `StamLaneCLI` adds to plain LightningCLI:
 
-- ``data.num_frames`` and ``data.image_size`` are linked into ``model.num_frames`` / ``model.image_size``
-  (written once, in the data section);
+- ``data.clip.num_frames``, ``data.clip.image_size`` and ``data.clip.crop_top`` are linked into ``model.num_frames``
+  / ``model.image_size`` / ``model.crop_top`` (written once, in the data section's clip options,
+  `stamlane.data.options`); a config with the flat data keys of before (``data.num_frames``) is read grouped;
 - ``LaneEvalCallback`` (stamlane-eval) is always on, configured under ``eval:`` (TuSimple metrics for
   frames with ``h_samples``, the CULane IoU F1 for all): validation logs ``val/tusimple_f1``,
   ``val/culane_f1@0.5``, ...;

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import re
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import yaml
+from jsonargparse import get_loader, set_loader
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
@@ -15,16 +18,28 @@ from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
+from stamlane.data.flat_options import check_flags, group_config
 from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
 
-__all__ = ["CONFIG_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "CONFIG_MODE", "ConfigInCheckpoint", "StamLaneCLI"]
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
+CONFIG_MODE = "stamlane-yaml"
+"""jsonargparse parser mode of `StamLaneCLI`: YAML, where a config whose ``data`` section has the flat keys of
+before the data options were grouped (a run folder's ``config.yaml``, the config inside a checkpoint, an old
+``--config`` file) is read in the grouped form (`stamlane.data.flat_options.group_config`)."""
+
+
+def _load_yaml(text: str) -> Any:
+    return group_config(get_loader("yaml")(text))
+
+
+set_loader(CONFIG_MODE, _load_yaml, exceptions=(yaml.YAMLError,))
 
 
 class ConfigInCheckpoint(Callback):
@@ -61,11 +76,14 @@ class StamLaneCLI(LightningCLI):
         kwargs.setdefault("save_config_kwargs", {"overwrite": True})
         super().__init__(StamLaneModule, ClipDataModule, args=args, run=run, **kwargs)
 
+    def init_parser(self, **kwargs: Any) -> LightningArgumentParser:
+        kwargs.setdefault("parser_mode", CONFIG_MODE)  # old configs read grouped (subcommands inherit the mode)
+        return super().init_parser(**kwargs)
+
     def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
-        # the data section is the one place these numbers are written
-        parser.link_arguments("data.num_frames", "model.num_frames")
-        parser.link_arguments("data.image_size", "model.image_size")
-        parser.link_arguments("data.crop_top", "model.crop_top")
+        # the data section's clip options are the one place these numbers are written
+        for name in ("num_frames", "image_size", "crop_top"):
+            parser.link_arguments(f"data.clip.{name}", f"model.{name}")
         parser.add_lightning_class_args(LaneEvalCallback, "eval")
         parser.add_lightning_class_args(LanePredictionWriter, "predictions")
         parser.add_argument(
@@ -76,8 +94,9 @@ class StamLaneCLI(LightningCLI):
         )
 
     def parse_arguments(self, parser: LightningArgumentParser, args: Any) -> None:
-        super().parse_arguments(parser, args)
         given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
+        check_flags(given)  # --data.num_frames: one line naming --data.clip.num_frames
+        super().parse_arguments(parser, args)
         self._logs_follow_root(given)
 
     def _logs_follow_root(self, given: list[str]) -> None:
@@ -189,17 +208,8 @@ class StamLaneCLI(LightningCLI):
         source = self.config["predict"].get("source")
         if not source:
             return
-        data = self.config["predict"]["data"]
-        align = data["align"] if data["align"] in ("fly", "none") else "fly"
-        self.datamodule = FramesDataModule(
-            source,
-            num_frames=data["num_frames"],
-            stride=data["stride"],
-            image_size=tuple(data["image_size"]),
-            crop_top=data.get("crop_top", 0.0),
-            align=align,
-            warp=data.get("warp", "image"),  # as trained: a feature-warp model gets unwarped frames + homographies
-            batch_size=data["batch_size"],
-            num_workers=data["num_workers"],
-            horizon_row=data["horizon_row"],
-        )
+        # read as the model was trained; a folder has no alignment cache nor true homographies: ORB on the fly
+        clip = self.datamodule.clip
+        if clip.align not in ("fly", "none"):
+            clip = replace(clip, align="fly", cache_dir=None)
+        self.datamodule = FramesDataModule(source, clip, self.datamodule.loader)

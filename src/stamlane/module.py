@@ -103,7 +103,7 @@ class StamLaneModule(LightningModule):
         num_frames: T, frames per clip the network expects (linked from the data); checked on every batch.
         image_size: ``(H, W)`` of the network input (linked from the data); must be multiples of the
             encoder's stride; sets ``example_input_array``.
-        crop_top: fraction of the frame height cut off above the network input (linked from ``data.crop_top``);
+        crop_top: fraction of the frame height cut off above the network input (linked from ``data.clip.crop_top``);
             recorded so that streaming and export feed the network as it was trained.
         bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
             ``"auto"`` (default): where the CPU runs bf16 natively (AMX / AVX512-BF16, ~3x faster than

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -15,25 +16,20 @@ import torch
 from stamlane.data import collate_clips
 from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
 from stamlane.data.labels import history_name
+from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
 from stamlane.synth.cli import main as synth_main
 from stamlane.synth.cli import split_counts
 from stamlane.synth.generator import SynthConfig, generate_dataset
 
-TINY_SYNTH = {
-    "synth_train": 2,
-    "synth_val": 1,
-    "synth_test": 1,
-    "synth_challenging": 0,
-    "synth_train_factors": 1,
-    "synth_val_factors": 0,
-    "synth_size": (64, 96),
-}
+TINY_SYNTH = SynthOptions(train=2, val=1, test=1, challenging=0, train_factors=1, val_factors=0, size=(64, 96))
 
 
 def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
     monkeypatch.chdir(tmp_path)
-    dm = ClipDataModule(image_size=(32, 64), batch_size=2, align="true", **TINY_SYNTH)
+    dm = ClipDataModule(
+        clip=ClipOptions(image_size=(32, 64), align="true"), synth=TINY_SYNTH, loader=LoaderOptions(batch_size=2)
+    )
     dm.prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").is_file()
     # 20-frame clips: train key frames 8..20 (key step 1), the other splits 8, 11, 14, 17, 20 (key step 3)
@@ -60,21 +56,18 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
     before = (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # same settings: found silently
-        ClipDataModule(**TINY_SYNTH).prepare_data()
+        ClipDataModule(synth=TINY_SYNTH).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
     with pytest.warns(UserWarning, match="other settings"):  # another size: kept, with a warning
-        ClipDataModule(**dict(TINY_SYNTH, synth_size=(64, 128))).prepare_data()
+        ClipDataModule(synth=replace(TINY_SYNTH, size=(64, 128))).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
 
 
 def test_datamodule_on_a_given_root(synthetic_root: Path):
     dm = ClipDataModule(
         root=str(synthetic_root),
-        num_frames=2,
-        stride=3,
-        image_size=(32, 48),
-        align="none",
-        batch_size=3,
+        clip=ClipOptions(num_frames=2, stride=3, image_size=(32, 48), align="none"),
+        loader=LoaderOptions(batch_size=3),
         test_labels=["test.json", "challenging.json"],
     )
     dm.setup("test")
@@ -88,8 +81,10 @@ def test_datamodule_on_a_given_root(synthetic_root: Path):
 def test_on_the_fly_alignment_is_close_to_the_true_one(tmp_path: Path):
     cfg = SynthConfig(width=640, height=360, num_frames=2, occluder_prob=0.0)
     generate_dataset(tmp_path, train=0, val=0, test=1, challenging=0, seed=11, config=cfg, progress=False)
-    kwargs = {"root": str(tmp_path), "num_frames": 2, "stride": 1, "image_size": (48, 80), "batch_size": 1}
-    fly, true = ClipDataModule(align="fly", **kwargs), ClipDataModule(align="true", **kwargs)
+    fly, true = (
+        ClipDataModule(str(tmp_path), clip=ClipOptions(2, 1, (48, 80), align=align), loader=LoaderOptions(1))
+        for align in ("fly", "true")
+    )
     fly.setup("test")
     true.setup("test")
     a = fly.datasets["test"][0]["key_from_hist"][0].double().numpy()
@@ -127,12 +122,21 @@ def test_cached_alignment_is_read_and_missing_pairs_are_estimated(synthetic_root
 def test_datamodule_rejects_bad_options():
     with pytest.raises(ValueError, match="format"):
         ClipDataModule(format="kitti")
-    with pytest.raises(ValueError, match="batch_size"):
-        ClipDataModule(batch_size=0)
-    with pytest.raises(ValueError, match="flip_prob"):
-        ClipDataModule(flip_prob=3.0)
+    with pytest.raises(ValueError, match="history_source"):
+        ClipDataModule(history_source="shuffled")
     with pytest.raises(ValueError, match="train_labels must be given"):
         ClipDataModule(root=".", format="culane").make_dataset("train")
+
+
+def test_a_datamodule_made_in_python_stores_plain_hyperparameters(tmp_path: Path):
+    from stamlane.data.flat_options import clip_options
+
+    dm = ClipDataModule(clip=ClipOptions(num_frames=2), loader=LoaderOptions(batch_size=3))
+    assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == {"batch_size": 3, "num_workers": 0}
+    assert dm.hparams_initial["clip"] == dm.hparams["clip"]  # what the loggers write
+    torch.save({"datamodule_hyper_parameters": dict(dm.hparams)}, tmp_path / "h.ckpt")  # as a checkpoint holds them
+    stored = torch.load(tmp_path / "h.ckpt", weights_only=True)["datamodule_hyper_parameters"]  # no dataclass
+    assert clip_options(stored) == dm.clip  # how `stamlane stream` reads them back
 
 
 def test_collate_rejects_mixed_shapes():

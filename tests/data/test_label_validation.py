@@ -84,12 +84,12 @@ def test_one_json_document_is_not_json_lines(tusimple_root: Path) -> None:
 
 def test_the_datamodule_reports_how_many_samples_it_skipped(tusimple_root: Path) -> None:
     from stamlane.data.datamodule import ClipDataModule
+    from stamlane.data.options import ClipOptions
 
     good = (tusimple_root / "label_data.json").read_text().splitlines()[1]
     (tusimple_root / "bad.json").write_text(json.dumps(_record(lanes=["abc"])) + "\n" + good + "\n")
-    data = ClipDataModule(
-        root=str(tusimple_root), test_labels=["bad.json"], num_frames=1, image_size=SIZE, on_error="skip"
-    )
+    clip = ClipOptions(num_frames=1, image_size=SIZE)
+    data = ClipDataModule(root=str(tusimple_root), clip=clip, test_labels=["bad.json"], on_error="skip")
     with pytest.warns(UserWarning, match=r"test: skipped 1 of 2 samples with bad data \(on_error: skip\)"):
         data.setup("test")
     assert len(data.datasets["test"]) == 1

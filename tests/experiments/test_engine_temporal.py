@@ -17,10 +17,10 @@ from stamlane.synth.generator import FIRST_KEY, TEMPORAL_LABELS
 
 torch.set_num_threads(1)
 SHRINK = (
-    "--data.image_size=[32, 64]",
-    "--data.batch_size=2",
-    "--data.num_workers=0",
-    "--data.align=true",
+    "--data.clip.image_size=[32, 64]",
+    "--data.loader.batch_size=2",
+    "--data.loader.num_workers=0",
+    "--data.clip.align=true",
     "--model.encoder.width=0.125",
     "--model.channels_last=false",
     "--trainer.enable_progress_bar=false",

@@ -1,5 +1,6 @@
-"""Read clips: datasets of the benchmark formats, targets, clip-consistent augmentation, the DataModule (the
-synthetic generator that makes the default set is ``stamlane.synth``).
+"""Read clips: datasets of the benchmark formats, targets, clip-consistent augmentation, the data options in their
+groups (``stamlane.data.options``), the DataModule (the synthetic generator that makes the default set is
+``stamlane.synth``).
 
 Lightning is imported only by ``stamlane.data.datamodule`` (import ``ClipDataModule`` from there, or
 from here: it is loaded on first access), so the tools ``stamlane synth`` and ``stamlane show`` start fast.
@@ -21,6 +22,7 @@ from stamlane.data.clips import (
 )
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
+from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipParams, ClipTransform, net_homographies
 
@@ -29,14 +31,18 @@ __all__ = [
     "NET_HOMOGRAPHIES",
     "WARP_MODES",
     "ApolloClips",
+    "AugmentOptions",
     "CULaneClips",
     "ClipAligner",
     "ClipDataModule",
     "ClipDataset",
     "ClipEntry",
+    "ClipOptions",
     "ClipParams",
     "ClipTransform",
     "DataError",
+    "LoaderOptions",
+    "SynthOptions",
     "TuSimpleClips",
     "VIL100Clips",
     "collate_clips",

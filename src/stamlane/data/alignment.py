@@ -31,9 +31,13 @@ import numpy as np
 
 from stamlane.data.labels import DataError
 
-__all__ = ["ALIGN_MODES", "WARP_MODES", "ClipAligner"]
+__all__ = ["ALIGN_MODES", "ALIGN_STRATEGIES", "WARP_MODES", "ClipAligner"]
 
 ALIGN_MODES = ("none", "fly", "cache", "true")
+
+ALIGN_STRATEGIES = ("chain", "direct")
+"""How ``"fly"`` matches a clip: consecutive frames, the homographies multiplied, or each history frame directly
+against the key frame."""
 
 WARP_MODES = ("image", "feature")
 
@@ -61,8 +65,8 @@ class ClipAligner:
             raise ValueError(f"align must be one of {ALIGN_MODES}, got {mode!r}")
         if mode == "cache" and cache_dir is None:
             raise ValueError("align='cache' needs cache_dir (the folder written by `stamlane align`)")
-        if strategy not in ("chain", "direct"):
-            raise ValueError(f"align strategy must be 'chain' or 'direct', got {strategy!r}")
+        if strategy not in ALIGN_STRATEGIES:
+            raise ValueError(f"align strategy must be one of {ALIGN_STRATEGIES}, got {strategy!r}")
         self.mode = mode
         self.strategy = strategy
         self.root = Path(root)

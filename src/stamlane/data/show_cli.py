@@ -19,6 +19,7 @@ from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, pa
 from stamlane.data.alignment import ALIGN_MODES
 from stamlane.data.clips import FORMATS, ClipDataset, make_clips
 from stamlane.data.labels import DataError
+from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
 
 __all__ = ["main", "render_grid"]
@@ -78,18 +79,14 @@ def main(argv: list[str] | None = None) -> int:
     except OutputError as err:
         print(f"stamlane show: {err}", file=sys.stderr)
         return 2
-    common = {
-        "num_frames": args.num_frames,
-        "stride": args.stride,
-        "image_size": args.size,
-        "align": args.align,
-        "cache_dir": args.cache_dir,
-    }
     try:
+        clip = ClipOptions(args.num_frames, args.stride, args.size, align=args.align, cache_dir=args.cache_dir)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             label_dir = args.label_dir if args.format == "apollo" else None
-            ds: ClipDataset = make_clips(args.format, args.root, args.labels, label_dir, **common)
+            ds: ClipDataset = make_clips(
+                args.format, args.root, args.labels, label_dir, transform=clip.transform(), **clip.dataset_kwargs()
+            )
         if len(ds) == 0:
             print(f"stamlane show: no samples in {args.labels} under {args.root}", file=sys.stderr)
             return 2

@@ -56,11 +56,11 @@ CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs"
 PROBES = ("key", "other_clip")
 """History probes of every multi-frame run (`stamlane.data.clips.HISTORY_SOURCES` other than ``real``)."""
 QUICK_OVERRIDES = (
-    "--data.image_size=[64, 128]",
+    "--data.clip.image_size=[64, 128]",
     "--model.encoder.width=0.125",
     "--model.channels_last=false",
-    "--data.batch_size=2",
-    "--data.num_workers=0",
+    "--data.loader.batch_size=2",
+    "--data.loader.num_workers=0",
 )
 """A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
 
@@ -121,7 +121,7 @@ class Recipe:
 
 
 PRETRAIN = Row("pretrain", "1 frame, stage 1 (every model starts here)", ("demo_single.yaml",))
-KEY_CORRUPTION = ("--data.key_corruption=0.5", "--data.key_corruption_kinds=[blank, glare]")
+KEY_CORRUPTION = ("--data.augment.key_corruption=0.5", "--data.augment.key_corruption_kinds=[blank, glare]")
 """Stage 2 of the CPU recipe: half the training clips have their key frame's near road blanked or the frame
 overexposed, history intact (`stamlane.data.corruption`): the reason to read the history (docs/training.md)."""
 RECIPES = {
@@ -159,8 +159,19 @@ def _check_run_config(run: Path) -> None:
 
 
 def _frames_of(run: Path) -> int:
+    from stamlane.data.flat_options import clip_options  # a run of before the data options were grouped too
+
     config = yaml.safe_load((run / "config.yaml").read_text())
-    return int(config["data"]["num_frames"])
+    return clip_options(config["data"]).num_frames
+
+
+def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
+    """A run record with the ``stamlane fit`` arguments it was made with (``row_args``, ``extra``) in today's
+    names: a run recorded with ``--data.key_corruption`` before the data options were grouped is the same run as
+    one with ``--data.augment.key_corruption``."""
+    from stamlane.data.flat_options import group_flags
+
+    return record | {k: group_flags(record[k]) for k in ("row_args", "extra") if isinstance(record.get(k), list)}
 
 
 def _postprocess_of(run: Path) -> dict[str, Any]:
@@ -290,7 +301,7 @@ class Experiment:
         """The finished record of a run, training it first when there is none."""
         name = self.run_name(row, seed)
         try:
-            record = finished(self.out / name, self.settings(), self.out)
+            record = finished(self.out / name, self.settings(), self.out, upgrade=_grouped_args)
         except StoreError as err:
             raise ExperimentError(str(err)) from None
         if record is not None:

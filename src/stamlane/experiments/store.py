@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +51,12 @@ def _inside(path: str, top: Path) -> bool:
     return True
 
 
-def finished(folder: Path, settings: dict[str, Any], top: Path) -> dict[str, Any] | None:
+def finished(
+    folder: Path,
+    settings: dict[str, Any],
+    top: Path,
+    upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+) -> dict[str, Any] | None:
     """The record of a finished run in ``folder``, or None when it has not finished.
 
     Args:
@@ -58,6 +64,8 @@ def finished(folder: Path, settings: dict[str, Any], top: Path) -> dict[str, Any
         settings: what every run of the experiment shares (data, steps, precision, ...); the record must hold
             the same values.
         top: the experiment's folder: every path the record names must lie inside it.
+        upgrade: how a record written by an older stamlane reads today, applied before anything is compared
+            (the record returned is the upgraded one).
 
     Raises:
         StoreError: the record does not parse, was made with other settings, names a path outside ``top``, or
@@ -72,6 +80,8 @@ def finished(folder: Path, settings: dict[str, Any], top: Path) -> dict[str, Any
         raise StoreError(f"{path} is not a run record ({err}); delete the folder to run it again") from None
     if not isinstance(record, dict):
         raise StoreError(f"{path} is not a run record (a JSON object); delete the folder to run it again")
+    if upgrade is not None:
+        record = upgrade(record)
     if {k: record.get(k) for k in settings} != settings:
         theirs = {k: record.get(k) for k in settings}
         raise StoreError(f"{folder} was made with other settings ({theirs}); use another --out")

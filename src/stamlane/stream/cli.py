@@ -26,13 +26,16 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, check_output, parse_or_status
 
 from stamlane.imageio import open_video, read_image
+
+if TYPE_CHECKING:
+    from stamlane.data.options import ClipOptions
 
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
@@ -102,12 +105,14 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
     return read_video(), count, fps
 
 
-def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
-    """The LightningModule and the data options (num_frames, image_size, horizon_row) it was trained with."""
+def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
+    """The LightningModule and how the clips it was trained on were read (`stamlane.data.options.ClipOptions`:
+    num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
+    of an older checkpoint too); None for a checkpoint without data options."""
     from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.data.flat_options import clip_options
     from stamlane.module import StamLaneModule
 
-    data: dict[str, Any] = {}
     if args.config:
         from stamlane.cli import build_cli
 
@@ -115,7 +120,6 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
             raise StreamError(f"config {args.config} does not exist")
         cli = build_cli(["--config", args.config], run=False)
         module = cli.model
-        data = dict(vars(cli.config["data"])) if hasattr(cli.config["data"], "__dict__") else dict(cli.config["data"])
         if args.ckpt:
             try:
                 module.load_state_dict(read_checkpoint(args.ckpt)["state_dict"])
@@ -126,17 +130,18 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
                 raise StreamError(
                     f"checkpoint {args.ckpt} does not fit the network of {args.config}: {first}"
                 ) from None
-        return module, data
+        return module, cli.datamodule.clip
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
     try:
         module = StamLaneModule.from_checkpoint(
             args.ckpt
         )  # only stamlane's classes and torch.optim may be built from it
-        data = dict(read_checkpoint(args.ckpt).get("datamodule_hyper_parameters") or {})
+        data = read_checkpoint(args.ckpt).get("datamodule_hyper_parameters")
+        clip = clip_options(data) if isinstance(data, dict) else None
     except CheckpointError as err:
         raise StreamError(str(err)) from None
-    return module, data
+    return module, clip
 
 
 def load_predictor(args: argparse.Namespace) -> Any:
@@ -145,15 +150,15 @@ def load_predictor(args: argparse.Namespace) -> Any:
 
     if args.ckpt and not Path(args.ckpt).is_file():
         raise StreamError(f"checkpoint {args.ckpt} does not exist")
-    module, data = _load_module(args)
+    module, clip = _load_module(args)
     module.eval()
     overrides: dict[str, Any] = {"align": not args.no_align}
-    num_frames = args.num_frames or getattr(module, "num_frames", None) or data.get("num_frames")
-    image_size = args.image_size or module.hparams.get("image_size") or data.get("image_size")
+    num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
+    image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
     if num_frames is None or image_size is None:
         raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
-    horizon_row = args.horizon_row if args.horizon_row is not None else data.get("horizon_row")
-    overrides["crop_top"] = float(module.hparams.get("crop_top") or data.get("crop_top") or 0.0)
+    horizon_row = args.horizon_row if args.horizon_row is not None else getattr(clip, "horizon_row", None)
+    overrides["crop_top"] = float(module.hparams.get("crop_top") or getattr(clip, "crop_top", None) or 0.0)
     return StreamingPredictor.from_module(
         module, num_frames=int(num_frames), image_size=tuple(image_size), horizon_row=horizon_row, **overrides
     )

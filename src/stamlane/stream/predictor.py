@@ -26,7 +26,7 @@ result. Convolutions commute with translations by whole cells only; forward ego-
 the vanishing point, and the features of a zoomed image are not the zoomed (bilinearly interpolated 16-pixel
 cells of the) features; borders with no source are zero features instead of the features of black pixels.
 With identity alignment the two are the same computation. Weights trained on image-aligned clips lose some
-accuracy when run this way; training or fine-tuning with feature-space alignment (``--data.warp feature``,
+accuracy when run this way; training or fine-tuning with feature-space alignment (``--data.clip.warp feature``,
 `stamlane.models.forward_feature_aligned`) recovers it (``benchmarks/stream.py``).
 """
 

@@ -1,0 +1,253 @@
+"""The data options, each declared once, in four groups (the ``data:`` section of a config).
+
+- `ClipOptions` (``data.clip``): how a clip is read and resized, what the network sees; shared by `ClipDataModule`
+  and `FramesDataModule`, linked into the model (``num_frames``, ``image_size``, ``crop_top``), read back from a
+  checkpoint by the streaming predictor.
+- `AugmentOptions` (``data.augment``): the training augmentation, one draw per clip.
+- `SynthOptions` (``data.synth``): the synthetic set generated when ``data.root`` is null.
+- `LoaderOptions` (``data.loader``): batches and worker processes, of both DataModules.
+
+On the command line a field is ``--data.<group>.<field>`` (``--data.clip.num_frames 2``); in YAML::
+
+    data:
+      clip: {num_frames: 4, image_size: [80, 256], crop_top: 0.4, align: fly}
+      loader: {batch_size: 4, num_workers: 1}
+
+What belongs to one labelled dataset (``root``, ``format``, label files, ``label_dir``, ``thickness``,
+``on_error``, ``history_source``) stays a plain argument of `ClipDataModule`. Each group is a frozen dataclass
+that checks its values when it is made, so a bad option fails when the config is read, not in the first epoch.
+Configs written before the groups existed (flat ``data.num_frames`` ...) are read by `stamlane.data.flat_options`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
+from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
+from stamlane.data.transforms import ClipTransform
+from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
+
+__all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
+
+
+def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple:
+    """``value`` as a tuple of two ``kind`` (YAML gives lists)."""
+    if len(value) != 2:
+        raise ValueError(f"{name} must have two values, got {value}")
+    return (kind(value[0]), kind(value[1]))
+
+
+@dataclass(frozen=True)
+class ClipOptions:
+    """How a clip is read and resized: what the network sees, the same in training, evaluation and prediction.
+
+    `ClipDataModule` and `FramesDataModule` read clips with it; ``num_frames``, ``image_size`` and ``crop_top`` are
+    linked into the model (``model.num_frames`` ...), so that a checkpoint carries them to ``stamlane stream``.
+
+    Attributes:
+        num_frames: frames per clip T >= 1, key frame last (the paper: 4 on TuSimple, 2 on ApolloScape).
+        stride: distance between clip frames >= 1, in frame numbers (30 for CULane's stored frames), or in
+            positions of the sorted listing (ApolloScape, a folder of frames).
+        image_size: network input ``(H, W)``, pixels.
+        crop_top: fraction of the frame height cut off at the top (sky) before resizing to ``image_size``, in
+            ``[0, 0.9)``, in every split (`stamlane.data.transforms.ClipTransform`).
+        align: where each history frame's ``key_from_hist`` comes from (`stamlane.data.alignment.ALIGN_MODES`):
+            ``"fly"`` (the paper's ORB pre-alignment, estimated per clip and memoised), ``"cache"`` (``stamlane
+            align`` output in ``cache_dir``), ``"none"`` (identity) or ``"true"`` (the synthetic generator's exact
+            homographies, an oracle for experiments). A folder or a video (``--source``) aligns ``"fly"`` or
+            ``"none"``.
+        warp: where that alignment is applied (`stamlane.data.alignment.WARP_MODES`): ``"image"`` (history frames
+            warped onto the key frame before the network, the paper's pre-alignment) or ``"feature"`` (frames
+            unwarped, the homographies in network pixels in the batch as ``key_from_hist_net``; the model warps
+            the history FEATURES, as the streaming predictor does: train with it for streaming).
+        cache_dir: the alignment cache folder for ``align="cache"``.
+        horizon_row: first ground row, original pixels, for ``align="fly"`` (None: ``stamlane.align``'s default).
+        align_strategy: ``"chain"`` (consecutive frames matched and multiplied) or ``"direct"`` (each history frame
+            against the key frame) for ``align="fly"``.
+        repeat_missing_history: a history frame that does not exist is replaced by the nearest later one instead
+            of making the clip bad (sets such as CULane, whose early frames may lack).
+    """
+
+    num_frames: int = 4
+    stride: int = 1
+    image_size: tuple[int, int] = (128, 256)
+    crop_top: float = 0.0
+    align: str = "fly"
+    warp: str = "image"
+    cache_dir: str | None = None
+    horizon_row: int | None = None
+    align_strategy: str = "chain"
+    repeat_missing_history: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "image_size", _pair(self.image_size, int, "image_size"))
+        if self.num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
+        if self.stride < 1:
+            raise ValueError(f"stride must be >= 1, got {self.stride}")
+        if self.align not in ALIGN_MODES:
+            raise ValueError(f"align must be one of {ALIGN_MODES}, got {self.align!r}")
+        if self.warp not in WARP_MODES:
+            raise ValueError(f"warp must be one of {WARP_MODES}, got {self.warp!r}")
+        if self.align_strategy not in ALIGN_STRATEGIES:
+            raise ValueError(f"align_strategy must be one of {ALIGN_STRATEGIES}, got {self.align_strategy!r}")
+        self.transform()  # ClipTransform checks image_size and crop_top
+
+    def transform(self) -> ClipTransform:
+        """The evaluation and prediction transform: the sky cut and the resize to ``image_size``, no augmentation."""
+        return ClipTransform(self.image_size, crop_top=self.crop_top)
+
+    def dataset_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of `stamlane.data.clips.ClipDataset` these options set (not the transform)."""
+        return {
+            "num_frames": self.num_frames,
+            "stride": self.stride,
+            "image_size": self.image_size,
+            "align": self.align,
+            "warp": self.warp,
+            "cache_dir": self.cache_dir,
+            "horizon_row": self.horizon_row,
+            "align_strategy": self.align_strategy,
+            "repeat_missing_history": self.repeat_missing_history,
+        }
+
+
+@dataclass(frozen=True)
+class AugmentOptions:
+    """The training augmentation, one random draw per clip applied to every frame alike (validation, test and
+    prediction only resize).
+
+    Attributes:
+        crop_scale: range of the crop side as a fraction of the frame side (both axes alike, aspect ratio kept);
+            ``(1, 1)``: no crop.
+        flip_prob: chance of a horizontal flip (lane order mirrored), in ``[0, 1]``.
+        brightness: brightness factor drawn from ``[1 - brightness, 1 + brightness]``, in ``[0, 1)``.
+        contrast: contrast factor drawn from ``[1 - contrast, 1 + contrast]``, in ``[0, 1)``.
+        saturation: saturation factor drawn from ``[1 - saturation, 1 + saturation]``, in ``[0, 1)``.
+        hue: hue shift drawn from ``[-hue, hue]``, in fractions of a full turn (<= 0.5).
+        key_corruption: chance that a training sample's key frame alone is corrupted, history intact
+            (`stamlane.data.corruption.KeyFrameCorruption`: dropped regions, glare, occluders, a blanked near
+            road); 0: never.
+        key_corruption_kinds: the kinds drawn from (`stamlane.data.corruption.CORRUPTIONS`).
+    """
+
+    crop_scale: tuple[float, float] = (0.85, 1.0)
+    flip_prob: float = 0.5
+    brightness: float = 0.2
+    contrast: float = 0.2
+    saturation: float = 0.2
+    hue: float = 0.0
+    key_corruption: float = 0.0
+    key_corruption_kinds: tuple[str, ...] = DEFAULT_KINDS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "crop_scale", _pair(self.crop_scale, float, "crop_scale"))
+        object.__setattr__(self, "key_corruption_kinds", tuple(self.key_corruption_kinds))
+        self.transform(ClipOptions())  # ClipTransform checks the geometry and the colour jitter
+        KeyFrameCorruption(self.key_corruption, self.key_corruption_kinds)  # checked even when unused
+
+    def transform(self, clip: ClipOptions) -> ClipTransform:
+        """The training transform of clips read as ``clip`` says: its sky cut and size, then this augmentation."""
+        return ClipTransform(
+            clip.image_size,
+            crop_top=clip.crop_top,
+            crop_scale=self.crop_scale,
+            flip_prob=self.flip_prob,
+            brightness=self.brightness,
+            contrast=self.contrast,
+            saturation=self.saturation,
+            hue=self.hue,
+        )
+
+    def corruption(self) -> KeyFrameCorruption | None:
+        """The key-frame corruption of training samples, None when ``key_corruption`` is 0."""
+        return KeyFrameCorruption(self.key_corruption, self.key_corruption_kinds) if self.key_corruption > 0 else None
+
+
+SYNTH_TRAIN_FACTORS = 120
+"""Factor clips (15 per factor) beside the 120 clean train clips of the default synthetic set (docs/training.md:
+what makes the fusion read its history)."""
+SYNTH_VAL_FACTORS = 32
+"""Factor clips (4 per factor) beside the 20 clean val clips of the default synthetic set."""
+
+
+@dataclass(frozen=True)
+class SynthOptions:
+    """The synthetic set `ClipDataModule` generates (with a progress bar) when ``data.root`` is null and
+    ``data/synthetic-v<format>`` is missing; the arguments of `stamlane.synth.generate_dataset`.
+
+    Attributes:
+        train: clean clips of the train split (>= 0).
+        val: clean clips of the val split (>= 0).
+        test: clips of the test split (>= 0).
+        challenging: clips of the challenging split, one challenging factor each (>= 0).
+        train_factors: clips with a challenging factor added to the train split after its clean clips (>= 0).
+        val_factors: clips with a challenging factor added to the val split after its clean clips (>= 0).
+        train_key_step: labelled key frames per train clip (`stamlane.synth.generator.key_frames`: 0 = the last
+            frame only, 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
+        eval_key_step: labelled key frames per clip of the val, test and challenging splits (as ``train_key_step``).
+        seed: master seed of the set.
+        size: frame size ``(H, W)``, pixels.
+    """
+
+    train: int = 120
+    val: int = 20
+    test: int = 100
+    challenging: int = 128
+    train_factors: int = SYNTH_TRAIN_FACTORS
+    val_factors: int = SYNTH_VAL_FACTORS
+    train_key_step: int = TRAIN_KEY_STEP
+    eval_key_step: int = EVAL_KEY_STEP
+    seed: int = 0
+    size: tuple[int, int] = (360, 640)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "size", _pair(self.size, int, "size"))
+        for name, count in self.splits().items():
+            if count < 0:
+                raise ValueError(f"synth.{name} must be >= 0, got {count}")
+        for name in ("train_key_step", "eval_key_step"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
+        if min(self.size) < 1:
+            raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
+
+    def splits(self) -> dict[str, int]:
+        """Clips per split as ``dataset.json`` records them (``train``, ``val``, ``test``, ``challenging``,
+        ``train_factors``, ``val_factors``)."""
+        names = ("train", "val", "test", "challenging", "train_factors", "val_factors")
+        return {name: getattr(self, name) for name in names}
+
+    def config(self) -> SynthConfig:
+        """The generator's settings of the set (its frame size; the rest the generator's defaults)."""
+        return SynthConfig(width=self.size[1], height=self.size[0])
+
+
+@dataclass(frozen=True)
+class LoaderOptions:
+    """How clips are batched.
+
+    Attributes:
+        batch_size: clips per batch (>= 1).
+        num_workers: DataLoader worker processes (>= 0; 0 loads in the main process).
+    """
+
+    batch_size: int = 4
+    num_workers: int = 0
+
+    def __post_init__(self) -> None:
+        if self.batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
+        if self.num_workers < 0:
+            raise ValueError(f"num_workers must be >= 0, got {self.num_workers}")
+
+
+GROUPS: dict[str, type] = {
+    "clip": ClipOptions,
+    "augment": AugmentOptions,
+    "synth": SynthOptions,
+    "loader": LoaderOptions,
+}
+"""The option groups by their key in the ``data:`` section."""
