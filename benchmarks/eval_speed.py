@@ -279,9 +279,11 @@ def _bench_tusimple(args: argparse.Namespace, folder: Path, refs: dict[str, Path
     return rows, results
 
 
-def _pinned(core: int | None) -> Callable[[], None] | None:
-    """A ``preexec_fn`` that pins the child (and its threads) to one core, or None for every core."""
-    return None if core is None else (lambda: os.sched_setaffinity(0, {core}))
+def _pinned(core: int | None) -> Callable[[], None]:
+    """A ``preexec_fn`` that pins the child (and its threads) to one core, or (None) lets it use every core, even
+    when this process runs under ``taskset``."""
+    cores = set(range(os.cpu_count() or 1)) if core is None else {core}
+    return lambda: os.sched_setaffinity(0, cores)
 
 
 def _timed(command: list[str], core: int | None, env: dict[str, str] | None = None) -> tuple[float, str]:
