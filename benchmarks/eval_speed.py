@@ -2,7 +2,7 @@
 
     python benchmarks/eval_speed.py [--runs 5] [--tusimple-images 2782] [--culane-images 2000]
                                     [--reference PATH ...] [--reference-python PYTHON] [--metrics tusimple culane]
-                                    [--out outputs/bench/eval_speed.json]
+                                    [--cpp PATH [--cpp-runs 3] [--core N]] [--out outputs/bench/eval_speed.json]
 
 Goals: end to end, in one process on one core, >= 40x lane.py on TuSimple's 2782 images and >= 5x the
 C++ tool on 2000 CULane images, with the same numbers. Give ``--reference lane.py`` (the official file) and
@@ -22,9 +22,19 @@ process with its interpreter start and imports):
 - The floor: a fresh interpreter that only imports numpy (what any numpy evaluator pays before reading a byte);
   ``floor ratio`` is the reference's end-to-end time over it, the most any such evaluator could reach.
 - CULane @ IoU 0.5: read the .lines.txt files + ``stamlane_eval.culane.evaluate`` (official C++ variant and the
-  lanedet variant), against lanedet's ``culane_metric`` when ``--reference culane_metric.py`` is given. The
-  official C++ binary is not run here; the figure measured before on this machine (about 20 s for 2000 images on 2
-  threads) is printed for comparison.
+  lanedet variant), against lanedet's ``culane_metric`` when ``--reference culane_metric.py`` is given.
+- CULane end to end, with ``--cpp PATH``: ``stamlane-eval culane PRED GT --list LIST --iou 0.5 --format official``
+  in a fresh process pinned to one core (``--core``), against the official C++ tool (its ``evaluate`` binary, built from
+  cfzd/Ultra-Fast-Lane-Detection ``evaluation/culane`` @ 0915cb68, the same code as XingangPan/SCNN's
+  ``tools/lane_evaluation``, with its own Makefile: ``make`` against OpenCV 4 via ``pkg-config opencv4``, which
+  sets no -O flag; the source is not in this repository). It is run as its users run it, ``evaluate -a GT/ -d
+  PRED/ -i IMG/ -l LIST -w 30 -t 0.5 -c 1640 -r 590 -f 1 -o OUT`` (it reads no image without ``-s``: IMG is an
+  empty folder), interleaved with ours, ``--cpp-runs`` times each: on one core (``OMP_NUM_THREADS=1``, pinned to
+  ``--core`` like ours: the goal's ratio, one core against one core) and with OpenMP's default threads on every
+  core (for information). Its TP/FP/FN and its printed precision / recall / F (6 significant digits) must equal
+  ``stamlane_eval.culane.evaluate`` on the same files, and its ``-o`` file our ``--format official`` output;
+  the table's "same" column says so. Without ``--cpp``, the figure measured before on this machine (about 20 s
+  for 2000 images on 2 threads) is printed for comparison instead.
 """
 
 from __future__ import annotations
@@ -45,7 +55,7 @@ import numpy as np
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
-CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine
+CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine (no --cpp)
 TUSIMPLE_GOAL = 40.0  # x lane.py, end to end: the project's goal
 CULANE_GOAL = 5.0  # x the C++ tool: the project's goal
 H_SAMPLES = list(range(160, 720, 10))
@@ -269,6 +279,167 @@ def _bench_tusimple(args: argparse.Namespace, folder: Path, refs: dict[str, Path
     return rows, results
 
 
+def _pinned(core: int | None) -> Callable[[], None]:
+    """A ``preexec_fn`` that pins the child (and its threads) to one core, or (None) lets it use every core, even
+    when this process runs under ``taskset``."""
+    cores = set(range(os.cpu_count() or 1)) if core is None else {core}
+    return lambda: os.sched_setaffinity(0, cores)
+
+
+def _timed(command: list[str], core: int | None, env: dict[str, str] | None = None) -> tuple[float, str]:
+    """Seconds of one run of ``command`` in a fresh process (start to exit, output read), and its stdout."""
+    t = time.perf_counter()
+    done = subprocess.run(command, check=True, capture_output=True, text=True, env=env, preexec_fn=_pinned(core))
+    return time.perf_counter() - t, done.stdout
+
+
+def _parse_cpp_output(text: str) -> dict[str, float | int]:
+    """The C++ tool's ``-o`` file: ``tp: N fp: N fn: N`` then ``precision: / recall: / Fmeasure:`` (6 digits)."""
+    out: dict[str, float | int] = {}
+    words = text.split()
+    for key, name in (("tp:", "tp"), ("fp:", "fp"), ("fn:", "fn")):
+        out[name] = int(words[words.index(key) + 1])
+    for key, name in (("precision:", "precision"), ("recall:", "recall"), ("Fmeasure:", "f1")):
+        out[name] = float(words[words.index(key) + 1])
+    return out
+
+
+def _culane_end_to_end(
+    args: argparse.Namespace,
+    folder: Path,
+    cu_pred: Path,
+    cu_gt: Path,
+    cu_list: Path,
+    ours: culane.CULaneResult,
+    rows: list,
+    t_in_process: float,
+) -> dict[str, float | str | bool]:
+    """``stamlane-eval culane`` end to end on one core, and the official C++ tool with ``--cpp`` (interleaved)."""
+    core = args.core
+    ours_cmd = [
+        str(Path(sys.executable).parent / "stamlane-eval"),
+        "culane",
+        str(cu_pred),
+        str(cu_gt),
+        "--list",
+        str(cu_list),
+        "--iou",
+        "0.5",
+        "--format",
+        "official",
+    ]
+    results: dict[str, float | str | bool] = {"culane_official_in_process_s": t_in_process, "core": core}
+    c = ours.totals[0.5]
+    if args.cpp is None:  # the C++ tool's time recorded before, against ours in process
+        cpp_s = CPP_SECONDS_2000 * args.culane_images / 2000
+        rows.append(
+            (
+                "CULane official",
+                args.culane_images,
+                t_in_process,
+                "C++ binary, 2 threads (measured before, not run here)",
+                cpp_s,
+                cpp_s / t_in_process,
+                None,
+            )
+        )
+        return results
+    rows.append(("CULane official", args.culane_images, t_in_process, "(in process: read + score)", None, None, None))
+
+    (folder / "img").mkdir(exist_ok=True)  # -i: read only with -s (visualisation); an empty folder
+    out_file = folder / "cpp_output.txt"
+    cpp_cmd = [
+        str(args.cpp),
+        "-a",
+        f"{cu_gt}/",
+        "-d",
+        f"{cu_pred}/",
+        "-i",
+        f"{folder / 'img'}/",
+        "-l",
+        str(cu_list),
+        "-w",
+        "30",
+        "-t",
+        "0.5",
+        "-c",
+        str(culane.CULANE_SIZE[1]),
+        "-r",
+        str(culane.CULANE_SIZE[0]),
+        "-f",
+        "1",
+        "-o",
+        str(out_file),
+    ]
+    env1 = dict(os.environ, OMP_NUM_THREADS="1")
+    env_all = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"}
+    times: dict[str, list[float]] = {"ours": [], "cpp_1": [], "cpp_all": []}
+    same = True
+    ours_text = ""
+    for r in range(args.cpp_runs):  # interleaved, so that the load of the shared machine hits all alike
+        print(f"CULane end to end, run {r + 1}/{args.cpp_runs} ...", file=sys.stderr)
+        t, ours_text = _timed(ours_cmd, core)
+        times["ours"].append(t)
+        for name, env, pin in (("cpp_1", env1, core), ("cpp_all", env_all, None)):
+            out_file.unlink(missing_ok=True)
+            times[name].append(_timed(cpp_cmd, pin, env)[0])
+            text = out_file.read_text()
+            cpp = _parse_cpp_output(text)
+            same &= (cpp["tp"], cpp["fp"], cpp["fn"]) == (c.tp, c.fp, c.fn)
+            same &= [f"{v:.6g}" for v in (cpp["precision"], cpp["recall"], cpp["f1"])] == [
+                f"{v:.6g}" for v in (c.precision, c.recall, c.f1)
+            ]
+            same &= text.split("\n", 1)[1].strip() == ours_text.strip()  # the -o file, less its "file:" line
+    t_ours, t_cpp1, t_cpp_all = (statistics.median(times[k]) for k in ("ours", "cpp_1", "cpp_all"))
+    floor = statistics.median(
+        _timed([sys.executable, "-c", "import stamlane_eval.cli, cv2"], core)[0] for _ in range(args.runs)
+    )
+    rows.append(
+        (
+            "CULane e2e",
+            args.culane_images,
+            t_ours,
+            f"official C++ tool, 1 thread, core {core} (the goal)",
+            t_cpp1,
+            t_cpp1 / t_ours,
+            same,
+        )
+    )
+    rows.append(
+        (
+            "CULane e2e",
+            args.culane_images,
+            t_ours,
+            f"official C++ tool, default threads ({os.cpu_count()} cores)",
+            t_cpp_all,
+            t_cpp_all / t_ours,
+            same,
+        )
+    )
+    print(
+        f"end to end: stamlane-eval culane {t_ours:.2f} s on core {core} (in process, read + score: "
+        f"{t_in_process:.2f} s; start + imports: {floor:.3f} s); C++ tool {t_cpp1:.2f} s on one core: "
+        f"{t_cpp1 / t_ours:.1f}x (goal {CULANE_GOAL:g}x), {t_cpp_all:.2f} s with its default threads: "
+        f"{t_cpp_all / t_ours:.1f}x; numbers equal: {same}",
+        file=sys.stderr,
+    )
+    results |= {
+        "cpp": str(args.cpp),
+        "culane_end_to_end_s": t_ours,
+        "culane_end_to_end_runs_s": times["ours"],
+        "cpp_one_core_s": t_cpp1,
+        "cpp_one_core_runs_s": times["cpp_1"],
+        "cpp_default_threads_s": t_cpp_all,
+        "cpp_default_threads_runs_s": times["cpp_all"],
+        "culane_start_and_imports_s": floor,
+        "culane_ratio_one_core": t_cpp1 / t_ours,
+        "culane_ratio_default_threads": t_cpp_all / t_ours,
+        "culane_same_numbers": same,
+        "cpp_tp_fp_fn": [c.tp, c.fp, c.fn],
+    }
+    return results
+
+
 def _bench_culane(args: argparse.Namespace, folder: Path, refs: dict[str, Path]) -> tuple[list, dict]:
     rows: list = []
     results: dict[str, float | str] = {}
@@ -281,18 +452,8 @@ def _bench_culane(args: argparse.Namespace, folder: Path, refs: dict[str, Path])
         gts = [read_culane_lines(culane_lines_path(cu_gt, e)) for e in entries]
         return culane.evaluate(preds, gts, (0.5,), variant=variant)
 
-    t_off, _ = _median(lambda: run_cu("official"), max(1, args.runs // 2))
-    rows.append(
-        (
-            "CULane official",
-            args.culane_images,
-            t_off,
-            "C++ binary, 2 threads (measured before, not run here)",
-            CPP_SECONDS_2000 * args.culane_images / 2000,
-            CPP_SECONDS_2000 * args.culane_images / 2000 / t_off,
-            None,
-        )
-    )
+    t_off, ours_off = _median(lambda: run_cu("official"), max(1, args.runs // 2))
+    results |= _culane_end_to_end(args, folder, cu_pred, cu_gt, cu_list, ours_off, rows, t_off)
     t_ld, ours_ld = _median(lambda: run_cu("lanedet"), max(1, args.runs // 2))
     results |= {"culane_official_s": t_off, "culane_lanedet_s": t_ld}
     if "lanedet" in refs:
@@ -343,6 +504,14 @@ def main(argv: list[str] | None = None) -> int:
         help="interpreter that runs lane.py end to end (one with numpy, scikit-learn and ujson)",
     )
     ap.add_argument("--metrics", nargs="+", choices=("tusimple", "culane"), default=["tusimple", "culane"])
+    ap.add_argument("--cpp", type=Path, help="the official C++ tool's evaluate binary: run it end to end")
+    ap.add_argument("--cpp-runs", type=int, default=3, help="interleaved end-to-end runs of ours and the C++ tool")
+    ap.add_argument(
+        "--core",
+        type=int,
+        default=max(os.sched_getaffinity(0)),
+        help="the core that one-core runs are pinned to (default: the last one this process may use)",
+    )
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/eval_speed.json"), help="figures as JSON")
     ap.add_argument("--run-reference", nargs=2, metavar=("PRED", "GT"), help=argparse.SUPPRESS)  # the e2e child
     args = ap.parse_args(argv)
@@ -355,6 +524,9 @@ def main(argv: list[str] | None = None) -> int:
         if not ref.is_file():
             print(f"eval_speed: error: {ref}: no such file", file=sys.stderr)
             return 2
+    if args.cpp is not None and not os.access(args.cpp, os.X_OK):
+        print(f"eval_speed: error: {args.cpp}: not an executable file", file=sys.stderr)
+        return 2
     refs = {("lane" if "LaneEval" in r.read_text() else "lanedet"): r for r in args.reference}
     results: dict[str, float | str] = {}
     rows = []

@@ -38,6 +38,7 @@ from stamlane_eval.cli_tools import (
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
+    Inside,
     LaneFileError,
     culane_entries,
     culane_lines_path,
@@ -299,8 +300,9 @@ def _run_culane(args: argparse.Namespace) -> int:
             raise LaneFileError(f"{args.pred}: not a directory")
         entries = culane_entries(args.gt, args.list)
         gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
-        gts = [read_culane_lines(inside(culane_lines_path(gt_root, e), gt_root), missing_ok=False) for e in entries]
-        preds = [read_culane_lines(inside(culane_lines_path(pred_root, e), pred_root)) for e in entries]
+        in_gt, in_pred = Inside(gt_root), Inside(pred_root)
+        gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
+        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e))) for e in entries]
     thresholds = sorted(set(args.iou))
     try:
         res = culane.evaluate(
