@@ -59,3 +59,23 @@ def test_clips_followed_frame_after_frame(tiny_synthetic, tmp_path: Path) -> Non
         for line in (experiment.pred_dir(f"{row.name}-s0", frames) / "per_clip.jsonl").read_text().splitlines()
     ]
     assert [r["frames"] for r in rows] == [3] * 8 and sum(r["temporal"]["0.5"][0] for r in rows) == expected.ns
+
+
+@pytest.mark.usefixtures("plain_argv")
+def test_frame_after_frame_with_the_key_frame_copied_into_the_history(tiny_synthetic, tmp_path: Path) -> None:
+    """History use of temporal stability: the clips followed again with the key frame in every history slot (not
+    with another clip's history, which would be one clip's for every frame), compared with the real history."""
+    from stamlane.experiments.report import tables
+
+    root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=2, challenging=8)
+    row = Row.paper_row("f2_mixed_cs_features")
+    experiment = Experiment([row], Recipe("paper", steps=2), [0], root, tmp_path / "out", extra=SHRINK, max_overlays=0)
+    summary = experiment.run([])
+    frames = experiment.temporal_split()
+    scores = summary.model(row.name).runs[0].scores
+    assert scores[f"{frames}@key"]["clips"] == 8 and f"{frames}@other_clip" not in scores
+    assert (experiment.pred_dir(f"{row.name}-s0", frames, "key") / "predictions.json").is_file()
+    real, copied = (summary.value(n, "temporal_rs@0.5", frames) for n in (row.name, f"{row.name}@key"))
+    use = summary.difference(row.name, f"{row.name}@key", frames, "temporal_rs@0.5")
+    assert use.kind == "history_key" and use.diff == pytest.approx(real.mean - copied.mean, abs=1e-9)
+    assert f"{row.name} − {row.name}@key" in tables(summary)

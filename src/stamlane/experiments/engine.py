@@ -348,15 +348,18 @@ class Experiment:
                 changed = True
             labels[split] = digest
         frames = self.temporal_split()
-        if frames is not None:
+        if frames is not None:  # the key-copied probe too: does the history itself make the lanes steadier?
             digest = _sha256(self.root / f"{frames}.json")
-            if labels.get(frames) != digest or frames not in scores:
-                pred_dir = self.pred_dir(name, frames)
+            for source in sources[:2]:  # another clip's history is one clip's for every frame: not a probe of time
+                key = frames if source == "real" else f"{frames}@{source}"
+                if labels.get(frames) == digest and key in scores:
+                    continue
+                pred_dir = self.pred_dir(name, frames, source)
                 if labels.get(frames) != digest or not (pred_dir / "predictions.json").is_file():
-                    self.predict(name, Path(record["run"]), frames)
-                scores[frames] = score_temporal(pred_dir, self.root, frames)
-                labels[frames] = digest
+                    self.predict(name, Path(record["run"]), frames, source)
+                scores[key] = score_temporal(pred_dir, self.root, frames)
                 changed = True
+            labels[frames] = digest
         if changed:
             record["scoring"] = SCORING
             mark_finished(self.out / name, record)

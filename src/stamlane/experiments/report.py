@@ -217,6 +217,10 @@ def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> l
         "",
         *_md(["model", *(t.label for t in TEMPORAL)], rows),
     ]
+    probed = [m.name for m in models if summary.difference(m.name, f"{m.name}@key", frames, TEMPORAL[0].key)]
+    if probed:  # history use: the same weights with the key frame copied into every history slot
+        lines += ["`M − M@key`: the same weights with the key frame copied into every history slot (history use)."]
+        pairs = [*pairs, *((name, f"{name}@key") for name in probed)]
     if pairs:
         keys = [t.key for t in TEMPORAL if t.key.startswith(("temporal_rs", "temporal_rj"))]
         diff_rows = [[f"{a} − {b}", *(diff_text(summary.difference(a, b, frames, k)) for k in keys)] for a, b in pairs]
