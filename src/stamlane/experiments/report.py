@@ -219,7 +219,7 @@ def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> l
     ]
     probed = [m.name for m in models if summary.difference(m.name, f"{m.name}@key", frames, TEMPORAL[0].key)]
     if probed:  # history use: the same weights with the key frame copied into every history slot
-        lines += ["`M − M@key`: the same weights with the key frame copied into every history slot (history use)."]
+        lines += ["`M − M@key`: the same weights with the key frame copied into every history slot (history use).", ""]
         pairs = [*pairs, *((name, f"{name}@key") for name in probed)]
     if pairs:
         keys = [t.key for t in TEMPORAL if t.key.startswith(("temporal_rs", "temporal_rj"))]
