@@ -1,17 +1,26 @@
 """Speed of the temporal stability metric (Rs/Rj/Rm) against RVLD's evaluate_temporal.py, in the same run.
 
     python benchmarks/video_speed.py [--frames 10000] [--sequence-length 100] [--size 1920x1080]
-                                     [--pred-points 100] [--runs 3] [--reference evaluate_temporal.py]
+                                     [--pred-points rvld|N] [--runs 3] [--reference evaluate_temporal.py]
                                      [--reference-frames 100] [--out outputs/bench/video_speed.json]
 
 Workload: VIL-100-like sequences (1920x1080 frames, 100 frames a video as VIL-100's, 3-5 annotated lanes of
-30-60 points written with one decimal as its anno_txt, predictions of 100 points with three decimals as RVLD
-writes them, perturbed, sometimes missed, sometimes a false lane), written to a temporary folder in the CULane
-layout so that reading is timed too. The time grows with the points drawn: every lane is resampled to
-(points - 1) * 5 + 1 points and drawn 30 px wide segment by segment, as the script does.
+30-60 points written with one decimal as its anno_txt; predictions perturbed, sometimes missed, sometimes a false
+lane, written with three decimals as RVLD writes them), in a temporary folder in the CULane layout so that
+reading is timed too. Predicted points: ``rvld`` (default) puts them where RVLD's VIL-100 code does, at its 100
+node rows (``config.py``: ``py_coord`` of the 384-row network input, ``crop_size`` 120, mapped to the frame by
+``rescale_pts``), only the nodes within the lane's height (``height_idx``): 65-81 points here; ``N``: N points
+evenly from the bottom row to the lane's top (the workload of the first figures, 100). The time grows with the
+points drawn: every lane is resampled to (points - 1) * 5 + 1 points and drawn 30 px wide segment by segment,
+as the script does.
 
-Timed in this process, one core (medians of ``--runs``): read every ``.lines.txt`` + ``stamlane_eval.temporal
-.evaluate`` at IoU 0.5, on all ``--frames``. With ``--reference``, the VIL-100 copy of RVLD's script
+Timed in this process, one core, the garbage collector off as ``stamlane-eval`` runs it (medians of ``--runs``):
+read every ``.lines.txt`` + ``stamlane_eval.temporal.evaluate`` at IoU 0.5, on all ``--frames``; then each stage
+alone on the same lanes (reading; the points as the script keeps them; the splines, FITPACK through scipy; the
+drawing, and OpenCV's ``polylines`` calls of it alone; what is left is the IoU of the crops and the Hungarian
+matching). Reading, the splines and OpenCV's drawing are the floor of any implementation that reproduces the
+script's pixels with scipy and OpenCV.
+With ``--reference``, the VIL-100 copy of RVLD's script
 (``Modeling/VIL-100/PLD/code/evaluation/evaluate_temporal.py``) is run unmodified on the first
 ``--reference-frames`` frames (its ``LaneEval_Temporal.measure_IoU``, which draws every lane on a full
 (H, W, 3) image and is far slower), with the I/O glue it needs (``libs.utils`` pickle helpers, ``p_tqdm.p_map``
@@ -23,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import io
 import json
 import os
@@ -35,6 +45,7 @@ import types
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
 import numpy as np
 from stamlane_eval import temporal
 from stamlane_eval.io import read_culane_lines
@@ -44,11 +55,28 @@ VIL100_SIZE = "1920x1080"  # WxH of most VIL-100 videos
 
 
 # ------------------------------------------------------------------------------------------- workload
-def _lane(xb: float, vx: float, n: int, y_bottom: float, y_top: float, bend: float) -> np.ndarray:
-    h = y_bottom
-    ys = np.linspace(h, y_top, n)
+def _lane(xb: float, vx: float, ys: np.ndarray, y_top: float, bend: float) -> np.ndarray:
+    """A lane from ``(xb, ys[0])`` bending towards ``(vx, y_top)``, at the rows ``ys`` (bottom first)."""
+    h = ys[0]
     t = (h - ys) / (h - y_top)
     return np.stack([xb + (vx - xb) * t + bend * t * (1 - t), ys], axis=1)
+
+
+def rvld_node_rows(height: int) -> np.ndarray:
+    """The frame rows of RVLD's 100 lane nodes (VIL-100 ``config.py`` + ``save_prediction.rescale_pts``),
+    bottom first: ``py_coord`` on the 384-row input (rows 54..383 of it, 100 of the 330 sampled), the 120
+    cropped rows added back, scaled to the frame's ``height``."""
+    net_h, crop, max_y, nodes = 384, 120, 330, 100
+    py = net_h - np.float32(np.round(np.linspace(max_y, 1, max_y)))
+    py = py[np.int32(np.linspace(0, max_y - 1, nodes))]
+    return ((py + crop) / (net_h + crop - 1) * (height - 1))[::-1].astype(np.float64)
+
+
+def _pred_rows(pred_points: int | str, height: int, y_top: float) -> np.ndarray:
+    if pred_points == "rvld":
+        rows = rvld_node_rows(height)
+        return rows[rows >= y_top]  # height_idx: only the nodes the lane reaches
+    return np.linspace(height - 1, y_top, int(pred_points))
 
 
 def _text(lanes: list[np.ndarray], decimals: int) -> str:
@@ -56,7 +84,7 @@ def _text(lanes: list[np.ndarray], decimals: int) -> str:
 
 
 def make_workload(
-    folder: Path, frames: int, length: int, size: tuple[int, int], pred_points: int = 100, seed: int = 0
+    folder: Path, frames: int, length: int, size: tuple[int, int], pred_points: int | str = "rvld", seed: int = 0
 ) -> list[str]:
     """Write ``anno/`` and ``pred/`` trees; returns the entries ``<sequence>/<frame>`` in time order."""
     rng = np.random.default_rng(seed)
@@ -74,16 +102,17 @@ def make_workload(
             bottoms += rng.normal(0, 6, n_lanes)  # the road drifts
             y_top = size[0] * rng.uniform(0.45, 0.55)
             anno = [
-                _lane(xb, vx, int(rng.integers(30, 61)), size[0] - 1, y_top, b)
+                _lane(xb, vx, np.linspace(size[0] - 1, y_top, int(rng.integers(30, 61))), y_top, b)
                 for xb, b in zip(bottoms, bends, strict=True)
             ]
+            rows = _pred_rows(pred_points, size[0], y_top + 20)
             pred = [
-                _lane(xb + rng.normal(0, noise), vx + rng.normal(0, noise), pred_points, size[0] - 1, y_top + 20, b)
+                _lane(xb + rng.normal(0, noise), vx + rng.normal(0, noise), rows, y_top + 20, b)
                 for xb, b in zip(bottoms, bends, strict=True)
                 if rng.random() > 0.1
             ]
             if rng.random() < 0.1:
-                pred.append(_lane(rng.uniform(0, size[1]), vx, pred_points, size[0] - 1, y_top + 20, 0.0))
+                pred.append(_lane(rng.uniform(0, size[1]), vx, rows, y_top + 20, 0.0))
             (folder / "anno" / seq / f"{f:05d}.lines.txt").write_text(_text(anno, 1))
             (folder / "pred" / seq / f"{f:05d}.lines.txt").write_text(_text(pred, 3))
             entries.append(f"{seq}/{f:05d}")
@@ -157,17 +186,62 @@ def _median(fn: Callable[[], object], runs: int) -> tuple[float, float, object]:
     return statistics.median(wall), statistics.median(cpu), out
 
 
+def breakdown(folder: Path, entries: list[str], size: tuple[int, int], runs: int, total_cpu: float) -> dict[str, float]:
+    """CPU seconds of each stage of ``temporal.evaluate`` on all frames, each timed alone on the same lanes
+    (medians of ``runs``); ``rest`` is the total minus the stages: the IoU of the crops and the matching."""
+    frames = [f for seq in read_sequences(folder, entries).values() for f in seq]
+    lanes = [lane for f in frames for lane in (*f.preds, *f.target)]
+    out: dict[str, float] = {}
+    out["read"] = _median(lambda: read_sequences(folder, entries), runs)[1]
+    _, out["points"], kept = _median(lambda: temporal._frame_lanes(lanes, "vil100", "a"), runs)
+    _, out["splines"], splines = _median(lambda: [temporal._spline(p) for p in kept], runs)
+    # the drawings are dropped as they are made, as evaluate drops them frame by frame (kept, they fill GBs)
+    out["drawing"] = _median(lambda: [temporal._draw(p, size).area for p in splines], runs)[1]
+    # OpenCV's share of it: the same polylines calls on canvases of the same sizes (views of one buffer)
+    jobs = []
+    for p in splines:
+        d = temporal._draw(p, size)
+        if d.area:
+            jobs.append((d.mask.shape, (p - np.array([d.x0, d.y0], p.dtype)).reshape(-1, 1, 2)))
+    buffer = np.zeros((max(s[0] for s, _ in jobs), max(s[1] for s, _ in jobs)), np.uint8)
+    width = temporal.LANE_WIDTH
+
+    def polylines() -> None:
+        for (h, w), q in jobs:
+            cv2.polylines(buffer[:h, :w], [q], False, 1, thickness=width)
+
+    out["opencv_polylines"] = _median(polylines, runs)[1]
+    out["rest"] = total_cpu - out["read"] - out["points"] - out["splines"] - out["drawing"]
+    out["floor"] = out["read"] + out["splines"] + out["opencv_polylines"]
+    return out
+
+
+def _pred_points(text: str) -> int | str:
+    if text == "rvld":
+        return text
+    if not text.isdigit() or int(text) < 2:
+        raise argparse.ArgumentTypeError(f"expected 'rvld' or a number of points >= 2, got {text!r}")
+    return int(text)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=10_000)
     ap.add_argument("--sequence-length", type=int, default=100, help="frames per sequence (VIL-100: 100)")
     ap.add_argument("--size", default=VIL100_SIZE, help="frame WxH")
-    ap.add_argument("--pred-points", type=int, default=100, help="points of a predicted lane (RVLD: up to 100)")
+    ap.add_argument(
+        "--pred-points",
+        type=_pred_points,
+        default="rvld",
+        help="points of a predicted lane: 'rvld' (RVLD's node rows within the lane, default) or a number N",
+    )
     ap.add_argument("--runs", type=int, default=3, help="runs per measurement (median reported)")
     ap.add_argument("--reference", type=Path, help="a copy of RVLD's VIL-100 evaluate_temporal.py")
     ap.add_argument("--reference-frames", type=int, default=100, help="frames the (slow) reference scores")
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/video_speed.json"), help="figures as JSON")
     args = ap.parse_args(argv)
+    cv2.setNumThreads(1)  # one core: OpenCV would otherwise spread some calls over the machine's cores
+    gc.disable()  # as `stamlane-eval` runs (cli.main): the collector would only walk the parsed lanes
     w, h = (int(v) for v in args.size.lower().split("x"))
     size = (h, w)
     if args.reference is not None and not args.reference.is_file():
@@ -190,6 +264,13 @@ def main(argv: list[str] | None = None) -> int:
             f"stamlane-eval temporal @0.5, {args.frames} frames ({res.sequences} sequences, {res.pairs} pairs, "
             f"{size[1]}x{size[0]}), read + score: {t_all:.2f} s wall, {cpu_all:.2f} s CPU "
             f"({1e3 * cpu_all / args.frames:.2f} ms a frame); Ns {c.ns} Nj {c.nj} Nm {c.nm}, Rs {c.rs:.4f}"
+        )
+        stages = breakdown(folder, entries, size, args.runs, cpu_all)
+        results["stages_cpu_s"] = stages
+        print(
+            "stages, CPU s (each alone, same lanes): "
+            + ", ".join(f"{k} {v:.2f}" for k, v in stages.items() if k != "floor")
+            + f"; floor (reading + splines + OpenCV's drawing): {stages['floor']:.2f} s"
         )
         if args.reference is not None:
             subset = entries[: args.reference_frames]

@@ -131,6 +131,35 @@ def test_intersections_of_crops_equal_full_images() -> None:
     assert _draw(np.array([[900, 10], [950, 0]], np.int32), SIZE).area == 0  # entirely outside
 
 
+def test_crops_hold_draw_lanes_pixels_with_repeated_points_and_at_the_borders() -> None:
+    """_draw keeps repeated points (a zero-length segment only repeats a cap) and crops 17 px around the
+    points: pixel for pixel draw_lane's full image, wherever the lane is, and the crop's border stays empty."""
+    rng = np.random.default_rng(11)
+    cases = [
+        np.array([[100, 100], [100, 100]], np.int32),  # one point twice: a round cap alone
+        np.array([[100, 100], [100, 100], [140, 200], [140, 200], [140, 200], [90, 300]], np.int32),
+        np.array([[5, 5], [5, 5], [7, 6]], np.int32),  # in the corner: the image clips it
+        np.array([[630, 350], [700, 400], [600, 359]], np.int32),  # out of the bottom right and back
+    ]
+    for _ in range(40):  # random walks of short steps, as the splines' truncated samples are
+        start = rng.integers(-20, [660, 380])
+        cases.append((start + np.cumsum(rng.integers(-4, 5, (int(rng.integers(2, 80)), 2)), 0)).astype(np.int32))
+    for pts in cases:
+        want = np.zeros((*SIZE, 3), np.uint8)
+        for p1, p2 in itertools.pairwise(pts):
+            cv2.line(want, tuple(int(v) for v in p1), tuple(int(v) for v in p2), (255, 255, 255), thickness=30)
+        d = _draw(pts, SIZE)
+        got = np.zeros(SIZE, bool)
+        h, w = d.mask.shape
+        got[d.y0 : d.y0 + h, d.x0 : d.x0 + w] = d.mask > 0
+        assert (got == (want[..., 0] > 0)).all() and d.area == np.count_nonzero(want[..., 0])
+        if d.area:  # two empty rows / columns inside the crop wherever it is not cut by the image
+            assert d.y0 == 0 or not d.mask[:2].any()
+            assert d.x0 == 0 or not d.mask[:, :2].any()
+            assert d.y0 + h == SIZE[0] or not d.mask[-2:].any()
+            assert d.x0 + w == SIZE[1] or not d.mask[:, -2:].any()
+
+
 # ------------------------------------------------------------------------------------------------ quirks
 def test_stable_jump_missing_and_the_threshold_itself() -> None:
     assert temporal.stability_counts(0.9, 0.7, 0.5) == (1, 0, 0)
@@ -223,6 +252,18 @@ def test_cli_temporal(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> Non
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "3 pairs of frames" in out and "0.5   2   2   1  40.00  40.00  20.00" in out
+
+
+def test_progress_bar_over_frames(capsys: pytest.CaptureFixture[str]) -> None:
+    """evaluate(progress=True): a bar over the frames on stderr (cleared when done), the same numbers."""
+    pytest.importorskip("tqdm")
+    seqs = golden_sequences("vil100")
+    quiet = temporal.evaluate(seqs, (0.5,))
+    capsys.readouterr()
+    shown = temporal.evaluate(seqs, (0.5,), progress=True)
+    err = capsys.readouterr().err
+    assert shown.as_dict() == quiet.as_dict()
+    assert "temporal:" in err and f" 0/{quiet.frames} " in err  # tqdm draws its first state at once
 
 
 def test_cli_temporal_list_order_and_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

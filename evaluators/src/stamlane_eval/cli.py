@@ -54,6 +54,7 @@ from stamlane_eval.io import (
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
+PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -312,7 +313,7 @@ def _run_culane(args: argparse.Namespace) -> int:
             args.width,
             size,
             args.variant,
-            progress=sys.stderr.isatty() and len(gts) > 200,
+            progress=sys.stderr.isatty() and len(gts) > PROGRESS_MIN_ITEMS,
             names=entries,
         )
     except ValueError as e:
@@ -428,6 +429,11 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
     return sequences
 
 
+def _show_progress(sequences: dict[str, list[video.Frame]]) -> bool:
+    """A progress bar on a terminal, for more than 200 frames (as for more than 200 CULane images)."""
+    return sys.stderr.isatty() and sum(len(f) for f in sequences.values()) > PROGRESS_MIN_ITEMS
+
+
 def _run_video(args: argparse.Namespace) -> int:
     if args.temporal:
         return _run_temporal(args)
@@ -436,7 +442,7 @@ def _run_video(args: argparse.Namespace) -> int:
     width = args.width or culane.LANE_WIDTH
     match_iou = video.MATCH_IOU if args.match_iou is None else args.match_iou
     try:
-        res = video.evaluate(sequences, thresholds, match_iou, width)
+        res = video.evaluate(sequences, thresholds, match_iou, width, progress=_show_progress(sequences))
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
@@ -467,7 +473,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
         sequences = {k: [video.Frame(f.preds, f.target) for f in v] for k, v in sequences.items()}
     thresholds = sorted(set(args.iou))
     try:
-        res = temporal.evaluate(sequences, thresholds, protocol=args.protocol)
+        res = temporal.evaluate(sequences, thresholds, protocol=args.protocol, progress=_show_progress(sequences))
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if not res.totals[thresholds[0]].total:

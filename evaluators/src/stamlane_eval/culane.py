@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stamlane_eval._progress import progress_bar
 from stamlane_eval.aggregate import culane_update, prf
 from stamlane_eval.cli_tools import format_wxh
 
@@ -519,14 +520,7 @@ def evaluate(
     if len(preds) != len(targets):
         raise ValueError(f"got {len(preds)} prediction images and {len(targets)} annotated images")
     names = list(names) if names is not None else [f"image {i}" for i in range(len(preds))]
-    bar = None
-    if progress:
-        try:
-            from tqdm import tqdm
-
-            bar = tqdm(total=len(preds), desc="culane", unit="img", leave=False)
-        except ImportError:
-            pass
+    bar = progress_bar(progress, len(preds), "culane", "img")
     per_image = []
     for s in range(0, len(preds), BATCH_IMAGES):
         chunk = slice(s, s + BATCH_IMAGES)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stamlane_eval._progress import sequences_with_progress
 from stamlane_eval.io import MAX_COORDINATE
 from stamlane_eval.video import Frame
 
@@ -224,7 +225,7 @@ def _splines(lanes: list[list[tuple[float, float]]], what: str) -> list[np.ndarr
 
 
 # ---------------------------------------------------------------------------------------- rasterisation
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class _Drawn:
     """A lane drawn ``LANE_WIDTH`` wide on an image, kept as the crop ``[y0:y0+h, x0:x0+w]`` that holds it
     (``mask``: uint8, 1 where drawn) and its pixel count."""
@@ -242,28 +243,28 @@ _FAR = 2**28  # px: beyond this a crop is not worth it (OpenCV's own clipping th
 def _draw(pts: np.ndarray, size: tuple[int, int]) -> _Drawn:
     """``draw_lane``: ``cv2.line`` of thickness 30 between consecutive points, here into a cropped canvas.
 
-    The drawing is translation invariant, so the crop holds the pixels of the script's full image; a
-    zero-length segment only repeats the end cap the previous one drew, so repeated points are skipped.
+    ``pts``: the ``(N >= 2, 2)`` int32 polyline. The drawing is translation invariant, so the crop holds the
+    pixels of the script's full image. Repeated points are drawn as they come: a zero-length segment draws
+    only the round cap its neighbour draws anyway, the same pixels (test_temporal checks against draw_lane).
     """
     import cv2  # here, not at the top: `stamlane-eval tusimple` imports the command line, which imports this
 
     h_img, w_img = size
-    keep = np.ones(len(pts), dtype=bool)
-    keep[1:] = (pts[1:] != pts[:-1]).any(axis=1)
-    pts = pts[keep] if keep.sum() >= 2 else pts[[0, 0]]
-    margin = LANE_WIDTH + 2
-    (xmin, ymin), (xmax, ymax) = pts.min(0).tolist(), pts.max(0).tolist()
-    if max(-xmin, -ymin, xmax, ymax) > _FAR:  # absurd points: draw on the whole image as the script does
-        x0, y0, x1, y1 = 0, 0, w_img, h_img
+    xmin, ymin, w, h = cv2.boundingRect(pts)  # one C call: min/max of both columns
+    # Nothing of a 30-px line reaches beyond 15 px of its points (corners at +-15 px, caps of radius 15): a
+    # canvas 17 px larger on each side never clips a drawing primitive, so no pixel moves (translation invariance)
+    margin = LANE_WIDTH // 2 + 2
+    if max(-xmin, -ymin, xmin + w - 1, ymin + h - 1) > _FAR:
+        x0, y0, x1, y1 = 0, 0, w_img, h_img  # absurd points: draw on the whole image as the script does
     else:
         x0, y0 = max(xmin - margin, 0), max(ymin - margin, 0)
-        x1, y1 = min(xmax + margin + 1, w_img), min(ymax + margin + 1, h_img)
+        x1, y1 = min(xmin + w + margin, w_img), min(ymin + h + margin, h_img)
     if x0 >= x1 or y0 >= y1:
         return _EMPTY  # entirely outside the image
     canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    local = (pts - np.array([x0, y0], dtype=pts.dtype)).reshape(-1, 1, 2)
+    local = pts - np.array([x0, y0], dtype=pts.dtype) if x0 or y0 else pts
     # cv2.polylines(open) draws exactly the union of the cv2.line calls of draw_lane (same caps at the joints)
-    cv2.polylines(canvas, [local], False, 1, thickness=LANE_WIDTH)
+    cv2.polylines(canvas, [local.reshape(-1, 1, 2)], False, 1, thickness=LANE_WIDTH)
     return _Drawn(y0, x0, canvas, cv2.countNonZero(canvas))
 
 
@@ -464,12 +465,14 @@ def evaluate(
     iou_thresholds: Sequence[float] = TEMPORAL_IOU_THRESHOLDS,
     size: tuple[int, int] | None = None,
     protocol: str = "vil100",
+    progress: bool = False,
 ) -> TemporalResult:
     """Score sequences and sum their counts (``total_ns``, ... of the script).
 
     Args:
         sequences: name -> frames in time order.
         iou_thresholds, size, protocol: as :func:`evaluate_sequence`.
+        progress: show a tqdm progress bar over the frames (when tqdm is installed).
 
     Returns:
         Dataset counts and ratios per threshold, and the per-sequence results (in the mapping's order).
@@ -478,7 +481,10 @@ def evaluate(
     if not sequences:
         raise ValueError("no sequence to evaluate")
     thresholds = tuple(float(t) for t in iou_thresholds)
-    per = [evaluate_sequence(f, n, thresholds, size, protocol) for n, f in sequences.items()]
+    per = [
+        evaluate_sequence(f, n, thresholds, size, protocol)
+        for n, f in sequences_with_progress(sequences, progress, "temporal")
+    ]
     totals = {t: StabilityCounts(0, 0, 0) for t in thresholds}
     for s in per:
         totals = {t: totals[t] + s.counts[t] for t in thresholds}

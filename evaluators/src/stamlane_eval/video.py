@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stamlane_eval import culane
+from stamlane_eval._progress import sequences_with_progress
 
 __all__ = [
     "MMA_NET_DIGITS",
@@ -246,19 +247,24 @@ def evaluate(
     match_iou: float = MATCH_IOU,
     width: int = culane.LANE_WIDTH,
     size: tuple[int, int] = culane.CULANE_SIZE,
+    progress: bool = False,
 ) -> VideoResult:
     """Score sequences and combine them (mIoU: mean over sequences; F and stability: summed counts).
 
     Args:
         sequences: name -> frames in time order.
         iou_thresholds, match_iou, width, size: as :func:`evaluate_sequence`.
+        progress: show a tqdm progress bar over the frames (when tqdm is installed).
 
     Returns:
         Dataset numbers and the per-sequence results (in the mapping's order).
     """
     if not sequences:
         raise ValueError("no sequence to evaluate")
-    per = [evaluate_sequence(f, n, iou_thresholds, match_iou, width, size) for n, f in sequences.items()]
+    per = [
+        evaluate_sequence(f, n, iou_thresholds, match_iou, width, size)
+        for n, f in sequences_with_progress(sequences, progress, "video")
+    ]
     thresholds = tuple(float(t) for t in iou_thresholds)
     totals = {t: culane.counts_to_prf(*(sum(s.counts[t][k] for s in per) for k in range(3))) for t in thresholds}
     mious = [s.miou for s in per if s.miou is not None]
