@@ -12,7 +12,7 @@ from types import ModuleType
 import cv2
 import numpy as np
 import pytest
-from stamlane_eval import temporal
+from stamlane_eval import temporal, video
 from stamlane_eval.cli import main
 from stamlane_eval.io import read_culane_lines
 from stamlane_eval.temporal import _draw, _inter, _spline, _unique_points
@@ -254,16 +254,18 @@ def test_cli_temporal(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> Non
     assert "3 pairs of frames" in out and "0.5   2   2   1  40.00  40.00  20.00" in out
 
 
-def test_progress_bar_over_frames(capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("metric", [temporal, video])
+def test_progress_bar_over_frames(metric: ModuleType, capsys: pytest.CaptureFixture[str]) -> None:
     """evaluate(progress=True): a bar over the frames on stderr (cleared when done), the same numbers."""
     pytest.importorskip("tqdm")
     seqs = golden_sequences("vil100")
-    quiet = temporal.evaluate(seqs, (0.5,))
+    quiet = metric.evaluate(seqs, (0.5,))
     capsys.readouterr()
-    shown = temporal.evaluate(seqs, (0.5,), progress=True)
+    shown = metric.evaluate(seqs, (0.5,), progress=True)
     err = capsys.readouterr().err
     assert shown.as_dict() == quiet.as_dict()
-    assert "temporal:" in err and f" 0/{quiet.frames} " in err  # tqdm draws its first state at once
+    name = metric.__name__.rsplit(".", 1)[-1]
+    assert f"{name}:" in err and f" 0/{quiet.frames} " in err  # tqdm draws its first state at once
 
 
 def test_cli_temporal_list_order_and_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
