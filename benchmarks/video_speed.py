@@ -1,7 +1,7 @@
 """Speed of the temporal stability metric (Rs/Rj/Rm) against RVLD's evaluate_temporal.py, in the same run.
 
     python benchmarks/video_speed.py [--frames 10000] [--sequence-length 100] [--size 1920x1080]
-                                     [--pred-points rvld|N] [--runs 3] [--reference evaluate_temporal.py]
+                                     [--pred-points rvld|N] [--runs 3] [--jobs N] [--reference evaluate_temporal.py]
                                      [--reference-frames 100] [--out outputs/bench/video_speed.json]
 
 Workload: VIL-100-like sequences (1920x1080 frames, 100 frames a video as VIL-100's, 3-5 annotated lanes of
@@ -19,7 +19,8 @@ read every ``.lines.txt`` + ``stamlane_eval.temporal.evaluate`` at IoU 0.5, on a
 alone on the same lanes (reading; the points as the script keeps them; the splines, FITPACK through scipy; the
 drawing, and OpenCV's ``polylines`` calls of it alone; what is left is the IoU of the crops and the Hungarian
 matching). Reading, the splines and OpenCV's drawing are the floor of any implementation that reproduces the
-script's pixels with scipy and OpenCV.
+script's pixels with scipy and OpenCV. ``--jobs N`` also times the sequences spread over N processes (wall time:
+what a user with N free cores waits).
 With ``--reference``, the VIL-100 copy of RVLD's script
 (``Modeling/VIL-100/PLD/code/evaluation/evaluate_temporal.py``) is run unmodified on the first
 ``--reference-frames`` frames (its ``LaneEval_Temporal.measure_IoU``, which draws every lane on a full
@@ -236,6 +237,12 @@ def main(argv: list[str] | None = None) -> int:
         help="points of a predicted lane: 'rvld' (RVLD's node rows within the lane, default) or a number N",
     )
     ap.add_argument("--runs", type=int, default=3, help="runs per measurement (median reported)")
+    ap.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="also time stamlane-eval with its sequences in N processes (0: one per core)",
+    )
     ap.add_argument("--reference", type=Path, help="a copy of RVLD's VIL-100 evaluate_temporal.py")
     ap.add_argument("--reference-frames", type=int, default=100, help="frames the (slow) reference scores")
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/video_speed.json"), help="figures as JSON")
@@ -265,6 +272,18 @@ def main(argv: list[str] | None = None) -> int:
             f"{size[1]}x{size[0]}), read + score: {t_all:.2f} s wall, {cpu_all:.2f} s CPU "
             f"({1e3 * cpu_all / args.frames:.2f} ms a frame); Ns {c.ns} Nj {c.nj} Nm {c.nm}, Rs {c.rs:.4f}"
         )
+        if args.jobs != 1:
+            jobs = args.jobs or os.cpu_count() or 1
+
+            def spread() -> temporal.TemporalResult:
+                return temporal.evaluate(read_sequences(folder, entries), (0.5,), size=size, jobs=jobs)
+
+            t_jobs, _, res_jobs = _median(spread, args.runs)
+            results |= {"jobs": jobs, "jobs_seconds": t_jobs, "jobs_same_numbers": res_jobs.as_dict() == res.as_dict()}
+            print(
+                f"the same in {jobs} processes (--jobs {jobs}), reading in this one: {t_all / t_jobs:.2f}x, "
+                f"{t_jobs:.2f} s wall; numbers {'equal' if res_jobs.as_dict() == res.as_dict() else 'DIFFERENT'}"
+            )
         stages = breakdown(folder, entries, size, args.runs, cpu_all)
         results["stages_cpu_s"] = stages
         print(

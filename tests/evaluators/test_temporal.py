@@ -252,6 +252,11 @@ def test_cli_temporal(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> Non
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "3 pairs of frames" in out and "0.5   2   2   1  40.00  40.00  20.00" in out
+    assert main([*args, "--jobs", "2"]) == 0 and capsys.readouterr().out == out
+    for bad in ("-1", "two"):
+        assert main([*args, "--jobs", bad]) == 2
+        err = capsys.readouterr().err
+        assert "expected a number of processes >= 0" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("metric", [temporal, video])
@@ -266,6 +271,30 @@ def test_progress_bar_over_frames(metric: ModuleType, capsys: pytest.CaptureFixt
     assert shown.as_dict() == quiet.as_dict()
     name = metric.__name__.rsplit(".", 1)[-1]
     assert f"{name}:" in err and f" 0/{quiet.frames} " in err  # tqdm draws its first state at once
+
+
+@pytest.mark.parametrize("metric", [temporal, video])
+def test_sequences_spread_over_processes_give_the_same_numbers(metric: ModuleType) -> None:
+    """evaluate(jobs=2): the same result, per sequence and per pair, as one process; the first failing
+    sequence in order is the one reported."""
+    seqs = golden_sequences("vil100")
+    one = metric.evaluate(seqs, (0.5, 0.8))
+    two = metric.evaluate(seqs, (0.5, 0.8), jobs=2)
+    assert two.as_dict() == one.as_dict()
+    assert [s.as_dict() for s in two.per_sequence] == [s.as_dict() for s in one.per_sequence]
+    if metric is temporal:
+        assert [s.per_pair for s in two.per_sequence] == [s.per_pair for s in one.per_sequence]
+    names = list(seqs)
+    broken = dict(seqs)
+    for name in (names[1], names[-1]):  # a predicted lane with a NaN: refused, naming the sequence
+        frames = list(broken[name])
+        frames[0] = Frame([np.array([[np.nan, 1.0], [2.0, 3.0]])], frames[0].target, size=frames[0].size)
+        broken[name] = frames
+    for jobs in (1, 2):
+        with pytest.raises(ValueError, match=f"^{names[1]} frame 0"):
+            metric.evaluate(broken, (0.5,), jobs=jobs)
+    with pytest.raises(ValueError, match="jobs must be >= 0"):
+        metric.evaluate(seqs, (0.5,), jobs=-1)
 
 
 def test_cli_temporal_list_order_and_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

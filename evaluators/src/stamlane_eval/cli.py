@@ -5,9 +5,9 @@
                          [--variant official|lanedet] [--json] [--per-image FILE]
     stamlane-eval apollo PRED_DIR GT_DIR ...     (the culane command with ApolloScape's 3384x2710)
     stamlane-eval video PRED_DIR GT_DIR [--list LIST] [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
-                        [--json] [--per-sequence FILE]
+                        [--jobs N] [--json] [--per-sequence FILE]
     stamlane-eval video PRED_DIR GT_DIR --temporal [--protocol vil100|openlane-v] [--list LIST] [--iou 0.5 0.8]
-                        [--size WxH] [--sizes FILE] [--json] [--per-sequence FILE]     (RVLD's Rs / Rj / Rm)
+                        [--size WxH] [--sizes FILE] [--jobs N] [--json] [--per-sequence FILE]   (RVLD's Rs/Rj/Rm)
 
 Bad input: one line on stderr naming the file and the problem, exit status 2, no traceback.
 """
@@ -85,6 +85,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
     if v <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def _jobs(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a number of processes >= 0 (0: one per core), got {text!r}")
     return v
 
 
@@ -190,6 +200,13 @@ def _build_parser() -> OneLineParser:
         choices=temporal.PROTOCOLS,
         default="vil100",
         help="with --temporal: which copy of RVLD's script (openlane-v: 1920x1280 lanes drawn at 960x640)",
+    )
+    vd.add_argument(
+        "--jobs",
+        type=_jobs,
+        default=1,
+        metavar="N",
+        help="score the sequences in N processes (0: one per core; default 1); the numbers do not change",
     )
     _output_format(vd, official=None)
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
@@ -442,7 +459,9 @@ def _run_video(args: argparse.Namespace) -> int:
     width = args.width or culane.LANE_WIDTH
     match_iou = video.MATCH_IOU if args.match_iou is None else args.match_iou
     try:
-        res = video.evaluate(sequences, thresholds, match_iou, width, progress=_show_progress(sequences))
+        res = video.evaluate(
+            sequences, thresholds, match_iou, width, progress=_show_progress(sequences), jobs=args.jobs
+        )
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
@@ -473,7 +492,9 @@ def _run_temporal(args: argparse.Namespace) -> int:
         sequences = {k: [video.Frame(f.preds, f.target) for f in v] for k, v in sequences.items()}
     thresholds = sorted(set(args.iou))
     try:
-        res = temporal.evaluate(sequences, thresholds, protocol=args.protocol, progress=_show_progress(sequences))
+        res = temporal.evaluate(
+            sequences, thresholds, protocol=args.protocol, progress=_show_progress(sequences), jobs=args.jobs
+        )
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if not res.totals[thresholds[0]].total:

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stamlane_eval._progress import progress_bar
+from stamlane_eval._long_runs import progress_bar
 from stamlane_eval.aggregate import culane_update, prf
 from stamlane_eval.cli_tools import format_wxh
 

@@ -27,13 +27,14 @@ masks per pair.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from stamlane_eval._progress import sequences_with_progress
+from stamlane_eval._long_runs import map_sequences
 from stamlane_eval.io import MAX_COORDINATE
 from stamlane_eval.video import Frame
 
@@ -466,6 +467,7 @@ def evaluate(
     size: tuple[int, int] | None = None,
     protocol: str = "vil100",
     progress: bool = False,
+    jobs: int = 1,
 ) -> TemporalResult:
     """Score sequences and sum their counts (``total_ns``, ... of the script).
 
@@ -473,6 +475,8 @@ def evaluate(
         sequences: name -> frames in time order.
         iou_thresholds, size, protocol: as :func:`evaluate_sequence`.
         progress: show a tqdm progress bar over the frames (when tqdm is installed).
+        jobs: worker processes the sequences are spread over (1: this process; 0: one per core); the numbers
+            do not depend on it.
 
     Returns:
         Dataset counts and ratios per threshold, and the per-sequence results (in the mapping's order).
@@ -481,10 +485,8 @@ def evaluate(
     if not sequences:
         raise ValueError("no sequence to evaluate")
     thresholds = tuple(float(t) for t in iou_thresholds)
-    per = [
-        evaluate_sequence(f, n, thresholds, size, protocol)
-        for n, f in sequences_with_progress(sequences, progress, "temporal")
-    ]
+    score = functools.partial(evaluate_sequence, iou_thresholds=thresholds, size=size, protocol=protocol)
+    per = map_sequences(score, sequences, jobs, progress, "temporal")
     totals = {t: StabilityCounts(0, 0, 0) for t in thresholds}
     for s in per:
         totals = {t: totals[t] + s.counts[t] for t in thresholds}

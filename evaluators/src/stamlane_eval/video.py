@@ -26,13 +26,14 @@ Frames are consecutive in the order given (file-name order in the CLI).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from stamlane_eval import culane
-from stamlane_eval._progress import sequences_with_progress
+from stamlane_eval._long_runs import map_sequences
 
 __all__ = [
     "MMA_NET_DIGITS",
@@ -248,6 +249,7 @@ def evaluate(
     width: int = culane.LANE_WIDTH,
     size: tuple[int, int] = culane.CULANE_SIZE,
     progress: bool = False,
+    jobs: int = 1,
 ) -> VideoResult:
     """Score sequences and combine them (mIoU: mean over sequences; F and stability: summed counts).
 
@@ -255,16 +257,18 @@ def evaluate(
         sequences: name -> frames in time order.
         iou_thresholds, match_iou, width, size: as :func:`evaluate_sequence`.
         progress: show a tqdm progress bar over the frames (when tqdm is installed).
+        jobs: worker processes the sequences are spread over (1: this process; 0: one per core); the numbers
+            do not depend on it.
 
     Returns:
         Dataset numbers and the per-sequence results (in the mapping's order).
     """
     if not sequences:
         raise ValueError("no sequence to evaluate")
-    per = [
-        evaluate_sequence(f, n, iou_thresholds, match_iou, width, size)
-        for n, f in sequences_with_progress(sequences, progress, "video")
-    ]
+    score = functools.partial(
+        evaluate_sequence, iou_thresholds=iou_thresholds, match_iou=match_iou, width=width, size=size
+    )
+    per = map_sequences(score, sequences, jobs, progress, "video")
     thresholds = tuple(float(t) for t in iou_thresholds)
     totals = {t: culane.counts_to_prf(*(sum(s.counts[t][k] for s in per) for k in range(3))) for t in thresholds}
     mious = [s.miou for s in per if s.miou is not None]
