@@ -199,16 +199,16 @@ def breakdown(folder: Path, entries: list[str], size: tuple[int, int], runs: int
     # the drawings are dropped as they are made, as evaluate drops them frame by frame (kept, they fill GBs)
     out["drawing"] = _median(lambda: [temporal._draw(p, size).area for p in splines], runs)[1]
     # OpenCV's share of it: the same polylines calls on canvases of the same sizes (views of one buffer)
-    jobs = []
+    calls = []
     for p in splines:
         d = temporal._draw(p, size)
         if d.area:
-            jobs.append((d.mask.shape, (p - np.array([d.x0, d.y0], p.dtype)).reshape(-1, 1, 2)))
-    buffer = np.zeros((max(s[0] for s, _ in jobs), max(s[1] for s, _ in jobs)), np.uint8)
+            calls.append((d.mask.shape, (p - np.array([d.x0, d.y0], p.dtype)).reshape(-1, 1, 2)))
+    buffer = np.zeros((max(s[0] for s, _ in calls), max(s[1] for s, _ in calls)), np.uint8)
     width = temporal.LANE_WIDTH
 
     def polylines() -> None:
-        for (h, w), q in jobs:
+        for (h, w), q in calls:
             cv2.polylines(buffer[:h, :w], [q], False, 1, thickness=width)
 
     out["opencv_polylines"] = _median(polylines, runs)[1]
