@@ -45,35 +45,40 @@ def map_sequences(
     """
     items = list(sequences.items())
     jobs = min(resolve_jobs(jobs), len(items))
-    bar = progress_bar(progress, sum(len(frames) for _, frames in items), desc, "frame")
-    try:
-        if jobs <= 1:
+    total = sum(len(frames) for _, frames in items)
+    if jobs <= 1:
+        bar = progress_bar(progress, total, desc, "frame")
+        try:
             out = []
             for name, frames in items:
                 out.append(score(frames, name))
                 if bar is not None:
                     bar.update(len(frames))
             return out
-        results: list[Any] = [None] * len(items)
-        errors: dict[int, Exception] = {}
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(score, frames, name): i for i, (name, frames) in enumerate(items)}
-            try:
-                for future in as_completed(futures):
-                    i = futures[future]
-                    try:
-                        results[i] = future.result()
-                    except Exception as e:  # every sequence is scored, the first in order reported
-                        errors[i] = e
-                    if bar is not None:
-                        bar.update(len(items[i][1]))
-            except BaseException:  # interrupted: stop the workers' queue
-                for future in futures:
-                    future.cancel()
-                raise
-        if errors:
-            raise errors[min(errors)]
-        return results
-    finally:
-        if bar is not None:
-            bar.close()
+        finally:
+            if bar is not None:
+                bar.close()
+    results: list[Any] = [None] * len(items)
+    errors: dict[int, Exception] = {}
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = {pool.submit(score, frames, name): i for i, (name, frames) in enumerate(items)}
+        bar = progress_bar(progress, total, desc, "frame")  # after the workers started: none forks a bar's thread
+        try:
+            for future in as_completed(futures):
+                i = futures[future]
+                try:
+                    results[i] = future.result()
+                except Exception as e:  # every sequence is scored, the first in order reported
+                    errors[i] = e
+                if bar is not None:
+                    bar.update(len(items[i][1]))
+        except BaseException:  # interrupted: empty the workers' queue
+            for future in futures:
+                future.cancel()
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+    if errors:
+        raise errors[min(errors)]
+    return results
