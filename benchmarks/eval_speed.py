@@ -59,6 +59,7 @@ CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, 
 TUSIMPLE_GOAL = 40.0  # x lane.py, end to end: the project's goal
 CULANE_GOAL = 5.0  # x the C++ tool: the project's goal
 H_SAMPLES = list(range(160, 720, 10))
+STAMLANE_EVAL = str(Path(sys.executable).parent / "stamlane-eval")  # the command a user runs, beside this python
 
 
 # ------------------------------------------------------------------------------------------ workloads
@@ -238,7 +239,7 @@ def _bench_tusimple(args: argparse.Namespace, folder: Path, refs: dict[str, Path
 
     # end to end, as a user runs them: a fresh process each (interpreter start, imports, reading, scoring)
     command = [
-        str(Path(sys.executable).parent / "stamlane-eval"),
+        STAMLANE_EVAL,
         "tusimple",
         str(pred_f),
         str(gt_f),
@@ -317,7 +318,7 @@ def _culane_end_to_end(
     """``stamlane-eval culane`` end to end on one core, and the official C++ tool with ``--cpp`` (interleaved)."""
     core = args.core
     ours_cmd = [
-        str(Path(sys.executable).parent / "stamlane-eval"),
+        STAMLANE_EVAL,
         "culane",
         str(cu_pred),
         str(cu_gt),
