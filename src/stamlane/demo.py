@@ -86,13 +86,25 @@ def _parser() -> argparse.ArgumentParser:
 def _data(root: Path | None, out: Path, quick: bool) -> Path:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
+    from stamlane.synth.generator import REVEAL, REVEAL_TRAFFIC
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     if quick:
         root = root or out / "quick_data"
         if not (root / "dataset.json").is_file():  # two clips per factor: an interval per factor
             config = SynthConfig(width=256, height=144, num_frames=4)
-            generate_dataset(root, train=4, val=2, test=2, challenging=2 * len(FACTORS), config=config, progress=False)
+            generate_dataset(
+                root,
+                train=4,
+                val=2,
+                test=2,
+                challenging=2 * len(FACTORS),
+                reveal=2 * len(REVEAL),
+                reveal_traffic=2 * len(REVEAL_TRAFFIC),
+                train_motion=2,
+                config=config,
+                progress=False,
+            )
         return root
     if root is not None and root.exists() and not root.is_dir():
         raise ExperimentError(f"--data {root} is not a folder")

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+import cv2
 import numpy as np
 import torch
 from stamlane_eval.io import duplicate_raw_file
@@ -60,12 +61,14 @@ __all__ = [
     "VIL100Clips",
     "frame_order",
     "make_clips",
+    "warped_key",
 ]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
-HISTORY_SOURCES = ("real", "key", "other_clip")
+HISTORY_SOURCES = ("real", "key", "warped_key", "reversed", "other_clip")
 """What fills a clip's history slots (`ClipDataset`'s ``history_source``): its own frames, copies of its key frame,
-or another clip's history frames."""
+the key frame warped out to each history frame's view (and back by the alignment), its own history in reverse
+order, or another clip's history frames."""
 
 
 def frame_order(name: str) -> tuple[str | int, ...]:
@@ -114,8 +117,13 @@ class ClipDataset(Dataset):
             frame; ``"feature"`` leaves them unwarped and adds ``key_from_hist_net`` (see the module docstring).
         history_source: what fills the history slots (`HISTORY_SOURCES`), to measure whether a model reads its
             history: ``"real"`` (default) the clip's own frames; ``"key"`` copies of the key frame (no temporal
-            information; alignment the identity); ``"other_clip"`` the history frames of another clip of the
-            split (`partner`), pre-aligned to that clip's own key frame (wrong history). Evaluation only.
+            information; alignment the identity); ``"warped_key"`` the key frame warped out through the inverse
+            of each history frame's ``key_from_hist`` and then aligned as a real history frame is (the matched
+            null: the same blur, black wedges and misplacement as real history, no new content; with
+            ``align="none"`` the same as ``"key"``); ``"reversed"`` the clip's own history frames in reverse
+            order, each with its own alignment (time reversed, content the same); ``"other_clip"`` the history
+            frames of another clip of the split (`partner`), pre-aligned to that clip's own key frame (wrong
+            history). Evaluation only.
         key_corruption: corrupts the key frame alone of some samples, history intact
             (`stamlane.data.corruption.KeyFrameCorruption`); training only.
     """
@@ -292,6 +300,11 @@ class ClipDataset(Dataset):
         if self.history_source == "key":
             return [frames[-1]] * len(frames), np.repeat(np.eye(3)[None], len(frames), axis=0)
         key_from_hist, _ok = self.aligner(entry.frame_paths, frames)
+        if self.history_source == "warped_key":
+            return warped_key(frames[-1], key_from_hist), key_from_hist
+        if self.history_source == "reversed":
+            order = [*range(len(frames) - 2, -1, -1), len(frames) - 1]
+            return [frames[i] for i in order], key_from_hist[order]
         if history_of is None or len(frames) == 1:
             return frames, key_from_hist
         other = self.read_frames(history_of)
@@ -341,6 +354,27 @@ class ClipDataset(Dataset):
                 net_homographies(key_from_hist, params.net_from_orig).astype(np.float32)
             )
         return sample
+
+
+def warped_key(key: np.ndarray, key_from_hist: np.ndarray) -> list[np.ndarray]:
+    """The matched null of a clip's history: the key frame as each history frame's view would show it.
+
+    Args:
+        key: the key frame, (H, W, 3) uint8.
+        key_from_hist: (T, 3, 3), history frame ``j`` pixels -> key frame pixels (the last the identity).
+
+    Returns:
+        T frames, the key frame last (the same array) and before it the key frame warped by
+        ``inverse(key_from_hist[j])`` (black where the key frame has no content), so that aligning frame ``j`` by
+        ``key_from_hist[j]`` brings the key frame's own pixels back, blurred and with the black wedges real history
+        frames have.
+    """
+    h, w = key.shape[:2]
+    out = [
+        cv2.warpPerspective(key, np.linalg.inv(m), (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        for m in key_from_hist[:-1]
+    ]
+    return [*out, key]
 
 
 def _image_token(line: str) -> str:

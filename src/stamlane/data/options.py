@@ -171,6 +171,13 @@ SYNTH_TRAIN_FACTORS = 120
 what makes the fusion read its history)."""
 SYNTH_VAL_FACTORS = 32
 """Factor clips (4 per factor) beside the 20 clean val clips of the default synthetic set."""
+SYNTH_TRAIN_MOTION = 96
+"""Clips with the reveal splits' ego motion (`stamlane.synth.generator.TRAIN_MOTION`, 5 key frames each) after the
+train split's factor clips: the recipe's key-frame corruption on them is the training the reveal splits test."""
+SYNTH_REVEAL = 90
+"""Clips of the ``reveal`` split (30 per kind), one key frame each."""
+SYNTH_REVEAL_TRAFFIC = 60
+"""Clips of the ``reveal-traffic`` split (30 per kind), one key frame each."""
 
 
 @dataclass(frozen=True)
@@ -185,6 +192,9 @@ class SynthOptions:
         challenging: clips of the challenging split, one challenging factor each (>= 0).
         train_factors: clips with a challenging factor added to the train split after its clean clips (>= 0).
         val_factors: clips with a challenging factor added to the val split after its clean clips (>= 0).
+        reveal: clips of the ``reveal`` split (>= 0; `stamlane.synth.generator.REVEAL`).
+        reveal_traffic: clips of the ``reveal-traffic`` split (>= 0; `stamlane.synth.generator.REVEAL_TRAFFIC`).
+        train_motion: clips with the reveal splits' ego motion added to the train split after its factor clips.
         train_key_step: labelled key frames per train clip (`stamlane.synth.generator.key_frames`: 0 = the last
             frame only, 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         eval_key_step: labelled key frames per clip of the val, test and challenging splits (as ``train_key_step``).
@@ -198,6 +208,9 @@ class SynthOptions:
     challenging: int = 128
     train_factors: int = SYNTH_TRAIN_FACTORS
     val_factors: int = SYNTH_VAL_FACTORS
+    reveal: int = SYNTH_REVEAL
+    reveal_traffic: int = SYNTH_REVEAL_TRAFFIC
+    train_motion: int = SYNTH_TRAIN_MOTION
     train_key_step: int = TRAIN_KEY_STEP
     eval_key_step: int = EVAL_KEY_STEP
     seed: int = 0
@@ -215,9 +228,10 @@ class SynthOptions:
             raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
 
     def splits(self) -> dict[str, int]:
-        """Clips per split as ``dataset.json`` records them (``train``, ``val``, ``test``, ``challenging``,
-        ``train_factors``, ``val_factors``)."""
-        names = ("train", "val", "test", "challenging", "train_factors", "val_factors")
+        """Clips per split as ``dataset.json`` records them (the arguments of
+        `stamlane.synth.generator.generate_dataset`)."""
+        names = ("train", "val", "test", "challenging", "reveal", "reveal_traffic")
+        names += ("train_factors", "val_factors", "train_motion")
         return {name: getattr(self, name) for name in names}
 
     def config(self) -> SynthConfig:

@@ -46,15 +46,29 @@ __all__ = [
     "PROBES",
     "QUICK_OVERRIDES",
     "RECIPES",
+    "REVEAL_PROBES",
+    "REVEAL_SPLITS",
+    "SPANS",
     "Experiment",
     "ExperimentError",
     "Recipe",
     "Row",
+    "oracle_subject",
 ]
 
 CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs"
 PROBES = ("key", "other_clip")
-"""History probes of every multi-frame run (`stamlane.data.clips.HISTORY_SOURCES` other than ``real``)."""
+"""History probes of every multi-frame run on every split (`stamlane.data.clips.HISTORY_SOURCES` other than
+``real``)."""
+REVEAL_SPLITS = ("reveal", "reveal-traffic")
+"""The splits where the history reveals lanes (`stamlane.synth.generator.REVEAL`), scored where the set has them."""
+REVEAL_PROBES = ("key", "warped_key", "reversed", "other_clip", "exact")
+"""The probes of a multi-frame run on `REVEAL_SPLITS`: `PROBES`, the matched null (the key frame warped out and back
+through each history frame's homography), the history in reverse order, and ``exact``: the real history aligned
+by the generator's exact homographies instead of ORB (runs that align on the fly only)."""
+SPANS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
+"""The spans (frames, stride) whose oracle headroom is measured on every split with visibility masks, within the
+reach of its masks (``dataset.json``'s ``visibility_reach``)."""
 QUICK_OVERRIDES = (
     "--data.clip.image_size=[64, 128]",
     "--model.encoder.width=0.125",
@@ -231,6 +245,21 @@ class Experiment:
     def pred_dir(self, name: str, split: str, source: str = "real") -> Path:
         return self.out / "predictions" / name / (split if source == "real" else f"{split}@{source}")
 
+    def scored_splits(self) -> tuple[str, ...]:
+        """``splits``, and the `REVEAL_SPLITS` the set has."""
+        extra = [s for s in REVEAL_SPLITS if s not in self.splits and (self.root / f"{s}.json").is_file()]
+        return (*self.splits, *extra)
+
+    def probes_of(self, split: str, record: dict[str, Any]) -> tuple[str, ...]:
+        """The history probes of a run on ``split``: none for a single frame; `REVEAL_PROBES` on the reveal splits
+        (``exact`` only for a run that aligns on the fly), `PROBES` elsewhere."""
+        if not self.probes or record["frames"] < 2:
+            return ()
+        if split not in REVEAL_SPLITS:
+            return PROBES
+        aligned = _clip_option(Path(record["run"]), "align", "fly") == "fly"
+        return tuple(p for p in REVEAL_PROBES if p != "exact" or aligned)
+
     # ------------------------------------------------------------------ training and prediction
     def _common(self, row: Row) -> list[str]:
         configs = [str(CONFIG_DIR / c) for c in row.configs]
@@ -286,7 +315,8 @@ class Experiment:
                 f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
                 f"--data.root={self.root}",
                 f"--data.predict_labels=[{split}.json]",
-                f"--data.history_source={source}",
+                f"--data.history_source={'real' if source == 'exact' else source}",
+                *(["--data.clip.align=true"] if source == "exact" else []),
                 "--trainer.logger=false",
                 "--trainer.callbacks=[]",
                 "--trainer.enable_progress_bar=false",
@@ -330,11 +360,10 @@ class Experiment:
         labels = record.setdefault("labels", {})
         scores = record.setdefault("scores", {})
         rescore = record.get("scoring") != SCORING
-        sources = ("real", *PROBES) if self.probes and record["frames"] > 1 else ("real",)
         changed = False
-        for split in self.splits:
+        for split in self.scored_splits():
             digest = _sha256(self.root / f"{split}.json")
-            for source in sources:
+            for source in ("real", *self.probes_of(split, record)):
                 key = split if source == "real" else f"{split}@{source}"
                 current = labels.get(split) == digest and key in scores
                 if current and not rescore:
@@ -350,7 +379,9 @@ class Experiment:
         frames = self.temporal_split()
         if frames is not None:  # the key-copied probe too: does the history itself make the lanes steadier?
             digest = _sha256(self.root / f"{frames}.json")
-            for source in sources[:2]:  # another clip's history is one clip's for every frame: not a probe of time
+            for source in (
+                ("real", *PROBES[:1]) if self.probes and record["frames"] > 1 else ("real",)
+            ):  # another clip's history is one clip's for every frame: not a probe of time
                 key = frames if source == "real" else f"{frames}@{source}"
                 if labels.get(frames) == digest and key in scores:
                     continue
@@ -373,23 +404,34 @@ class Experiment:
 
     # ------------------------------------------------------------------ oracles
     def _oracles(self, scores: Scores, frames: list[int], postprocess: dict[str, Any]) -> list[str]:
-        """Score the key-frame oracle and the history oracle of each clip length in ``frames`` on every split with
-        visibility masks; returns the oracle subjects."""
+        """Score the oracles (`stamlane.experiments.history.oracle_predictions`) on every split with visibility
+        masks: the key-frame oracle; the aligned and the unaligned history oracles of each clip length in
+        ``frames``; the aligned history oracle of every span of `SPANS` within the masks' reach. Returns the oracle
+        subjects (`oracle_subject`)."""
         from stamlane_eval.io import read_tusimple
 
         from stamlane.experiments.history import oracle_predictions, read_visibility
         from stamlane.postprocess import PostprocessConfig
+        from stamlane.synth.generator import FIRST_KEY
 
         config = PostprocessConfig(**postprocess)
+        reach = _visibility_reach(self.root)
         subjects: list[str] = []
-        for split in self.splits:
+        for split in self.scored_splits():
             visibility = read_visibility(self.root, split)
             if visibility is None:
                 continue
             gts = read_tusimple(self.root / f"{split}.json")
-            for t in frames:
-                key, history = oracle_predictions(gts, visibility, t, config, image_size(self.root))
-                for subject, records in (("oracle:key", key), (f"oracle:history-{t}f", history)):
+            spans = [(t, 1) for t in frames] + [
+                sp for sp in SPANS if (sp[0] - 1) * sp[1] <= reach.get(split, FIRST_KEY)
+            ]
+            for t, stride in dict.fromkeys(spans):
+                unaligned = self.root if t in frames and stride == 1 else None
+                found = oracle_predictions(gts, visibility, t, config, image_size(self.root), stride, unaligned)
+                for kind, records in found.items():
+                    subject = oracle_subject(kind, t, stride)
+                    if subject in subjects and split in scores.quantities.get(subject, {}):
+                        continue  # the key-frame oracle is the same for every span
                     pred_dir = self.out / "predictions" / subject.replace(":", "-") / split
                     write_atomic(pred_dir / "predictions.json", "".join(json.dumps(r) + "\n" for r in records))
                     score_split(pred_dir, self.root, split, t)
@@ -444,15 +486,19 @@ class Experiment:
         oracles = self._oracles(scores, frames, _postprocess_of(Path(records[self.rows[0].name][0]["run"])))
         differences = scores.differences("models", pairs, all_views)
         for name in multi:
-            differences += scores.differences("history_key", [(name, f"{name}@key")], all_views)
-            differences += scores.differences("history_other", [(name, f"{name}@other_clip")], all_views)
-        for t in frames:
-            if f"oracle:history-{t}f" in oracles:
-                differences += scores.differences("headroom", [(f"oracle:history-{t}f", "oracle:key")], all_views)
+            for probe in REVEAL_PROBES:  # real minus probe; exact alignment minus ORB's: exact - real
+                pair = (f"{name}@exact", name) if probe == "exact" else (name, f"{name}@{probe}")
+                differences += scores.differences(f"history_{probe.replace('other_clip', 'other')}", [pair], all_views)
+        for subject in oracles:
+            if subject.startswith("oracle:history-"):
+                differences += scores.differences("headroom", [(subject, "oracle:key")], all_views)
+            if subject.startswith("oracle:unaligned-"):
+                aligned = subject.replace("unaligned", "history")
+                differences += scores.differences("alignment_oracle", [(aligned, subject)], all_views)
         models = []
         for row in self.rows:
             runs = records[row.name]
-            probes = {s: scores.values(f"{row.name}@{s}", all_views) for s in PROBES if row.name in multi}
+            probes = {s: scores.values(f"{row.name}@{s}", all_views) for s in REVEAL_PROBES if row.name in multi}
             models.append(
                 ModelEntry(
                     row.name,
@@ -470,7 +516,7 @@ class Experiment:
             data=str(self.root),
             splits_sha256={
                 split: _sha256(self.root / f"{split}.json")
-                for split in (*self.splits, *filter(None, [self.temporal_split()]))
+                for split in (*self.scored_splits(), *filter(None, [self.temporal_split()]))
             },
             seeds=list(self.seeds),
             recipe={
@@ -488,6 +534,27 @@ class Experiment:
         )
         summary.write(self.out / "summary.json")
         return summary
+
+
+def oracle_subject(kind: str, frames: int, stride: int = 1) -> str:
+    """The subject name of an oracle (`stamlane.experiments.history.ORACLES`) of a span: ``oracle:key``,
+    ``oracle:history-4f``, ``oracle:unaligned-4f``, ``oracle:history-8f-x2`` (8 frames, every 2nd)."""
+    if kind == "key":
+        return "oracle:key"
+    return f"oracle:{kind}-{frames}f" + (f"-x{stride}" if stride > 1 else "")
+
+
+def _visibility_reach(root: Path) -> dict[str, int]:
+    """History frames the visibility masks of each split look back over (``dataset.json``; 7 for sets of before
+    format 6, `stamlane.synth.generator.FIRST_KEY`)."""
+    info = root / "dataset.json"
+    return json.loads(info.read_text()).get("visibility_reach", {}) if info.is_file() else {}
+
+
+def _clip_option(run: Path, name: str, default: Any) -> Any:
+    """A ``data.clip`` option of a run's config (``default`` where it is not set)."""
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    return ((config.get("data") or {}).get("clip") or {}).get(name, default)
 
 
 def _hardware() -> str:

@@ -13,7 +13,12 @@ Two measurements on the labels of a split with ``visibility/<split>.json`` (gene
   the demo's post-processing fit (`stamlane.postprocess.fit_curve` and `sample_lanes`), to the labelled points
   visible in the key frame, and to those visible in the key frame or its aligned history. Their difference is
   what perfect use of ``num_frames`` aligned frames can add over a perfect detector of the key frame's paint:
-  where it is about 0 (the fitted lines bridge the gaps anyway), no model can show the paper's effect.
+  where it is about 0 (the fitted lines bridge the gaps anyway), no model can show the paper's effect. A third
+  oracle reads the history UNALIGNED: a point only the history shows is placed where the nearest history frame
+  that shows it has it (its pixel in that frame, through the exact homographies): aligned minus unaligned is what
+  pre-alignment can be worth on the split. The oracles are no upper bound of a model: a network's priors (lane
+  width, straightness, where lanes run) can beat a curve fitted to the visible points alone, so their absolute
+  values are reported beside every difference.
 
 Both give per-image quantities (columns) so that intervals over clips come from the same bootstrap as every F1.
 """
@@ -32,12 +37,29 @@ from stamlane.synth.generator import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
 
 __all__ = [
+    "ORACLES",
     "class_counts",
+    "hist_from_key",
     "oracle_predictions",
     "point_hits",
     "read_visibility",
     "recall_of_counts",
 ]
+
+
+ORACLES = ("key", "history", "unaligned")
+"""The oracles of `oracle_predictions`, in order."""
+
+
+def hist_from_key(root: Path, raw_file: str, back: int) -> np.ndarray:
+    """The exact ground homography from a synthetic key frame's pixels to the frame ``back`` frames before it, (3, 3),
+    from ``homographies/<clip>.json`` (the key frame named ``<n>.jpg``, frames numbered from 1)."""
+    clip, name = raw_file.rsplit("/", 1)
+    geometry = json.loads((Path(root) / "homographies" / f"{clip.rsplit('/', 1)[-1]}.json").read_text())
+    key = geometry["frames"].index(name)
+    image_from_ground = np.asarray(geometry["image_from_ground"], dtype=np.float64)
+    h = image_from_ground[key - back] @ np.linalg.inv(image_from_ground[key])
+    return h / h[2, 2]
 
 
 def read_visibility(root: Path, split: str) -> dict[str, list[list[int]]] | None:
@@ -116,6 +138,11 @@ def _fitted(points: list[np.ndarray], config: PostprocessConfig, h_samples: Sequ
     return sample_lanes(curves, config, h_samples, size)
 
 
+def _first_history_frame(mask: int, num_frames: int, stride: int) -> int | None:
+    """How many frames back the nearest history frame of the span that shows the paint lies (None: none does)."""
+    return next((k * stride for k in range(1, num_frames) if mask >> (k * stride) & 1), None)
+
+
 def oracle_predictions(
     gts: Sequence[Mapping],
     visibility: Mapping[str, list[list[int]]],
@@ -123,43 +150,51 @@ def oracle_predictions(
     config: PostprocessConfig,
     size: tuple[int, int],
     stride: int = 1,
-) -> tuple[list[dict], list[dict]]:
-    """TuSimple prediction records of the two oracles of the module docstring.
+    root: Path | None = None,
+) -> dict[str, list[dict]]:
+    """TuSimple prediction records of the oracles of the module docstring.
 
     Args:
         gts: TuSimple label records (``raw_file``, ``lanes``, ``h_samples``) of the key frames.
         visibility: `read_visibility` of the same split.
-        num_frames: T of the multi-frame oracle (history frames ``stride``, ``2 stride``, ... back).
+        num_frames: T of the multi-frame oracles (history frames ``stride``, ``2 stride``, ... back).
         config: the post-processing whose fit the oracles use (the demo model's: ``degree``, ``extend``).
         size: ``(H, W)`` of the frames.
         stride: frames between the clip's frames.
+        root: the synthetic set (its ``homographies/``); None: no unaligned oracle.
 
     Returns:
-        ``(key_frame_oracle, history_oracle)``: per key frame, ``raw_file``, ``lanes`` (x at ``h_samples``,
-        -2 = none), ``h_samples`` and ``run_time`` 0: lanes fitted to the points visible in the key frame, and to
-        the points visible in the key frame or one of its ``num_frames - 1`` aligned history frames.
+        per oracle of `ORACLES` (``"unaligned"`` only with ``root``), per key frame, ``raw_file``, ``lanes`` (x at
+        ``h_samples``, -2 = none), ``h_samples`` and ``run_time`` 0: lanes fitted to the points visible in the
+        key frame (``key``); to those and the points one of its ``num_frames - 1`` aligned history frames shows
+        (``history``); to the same points with each point only the history shows placed where the nearest such
+        history frame has it, as a network without alignment sees it (``unaligned``).
     """
     from stamlane_eval.tusimple import lanes_to_xs
 
-    wanted = {"key": ("visible",), "history": ("visible", "revealed")}
-    found: dict[str, list[dict]] = {name: [] for name in wanted}
+    names = ORACLES if root is not None else ORACLES[:2]
+    found: dict[str, list[dict]] = {name: [] for name in names}
     for gt in gts:
         masks = visibility.get(gt["raw_file"])
         if masks is None:
             raise KeyError(f"no visibility for {gt['raw_file']}")
         h_samples = gt["h_samples"]
-        for name, classes in wanted.items():
-            points = [
-                np.array(
-                    [
-                        (x, y)
-                        for x, y, m in zip(lane, h_samples, lane_masks)
-                        if x >= 0 and visibility_class(m, num_frames, stride) in classes
-                    ],
-                    dtype=np.float64,
-                ).reshape(-1, 2)
-                for lane, lane_masks in zip(gt["lanes"], masks)
-            ]
+        moved: dict[int, np.ndarray] = {}
+        for name in names:
+            points = []
+            for lane, lane_masks in zip(gt["lanes"], masks):
+                kept = []
+                for x, y, m in zip(lane, h_samples, lane_masks):
+                    cls = visibility_class(m, num_frames, stride) if x >= 0 else None
+                    if cls == "visible" or (cls == "revealed" and name != "key"):
+                        if cls == "revealed" and name == "unaligned":
+                            back = _first_history_frame(m, num_frames, stride)
+                            if back not in moved:
+                                moved[back] = hist_from_key(root, gt["raw_file"], back)
+                            p = moved[back] @ np.array([x, y, 1.0])
+                            x, y = p[0] / p[2], p[1] / p[2]
+                        kept.append((x, y))
+                points.append(np.array(kept, dtype=np.float64).reshape(-1, 2))
             lanes = _fitted(points, config, h_samples, size)
             found[name].append(
                 {
@@ -169,4 +204,4 @@ def oracle_predictions(
                     "run_time": 0,
                 }
             )
-    return found["key"], found["history"]
+    return found

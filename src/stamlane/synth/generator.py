@@ -22,10 +22,14 @@ Layout written by ``generate_dataset`` (``<id>`` like ``train-0007``)::
     <root>/{train,val,test,challenging}.json    TuSimple label json-lines of each clip's KEY frames: the last
                                                 frame and every ``key_step``-th frame before it, down to frame
                                                 ``FIRST_KEY + 1`` (so every key frame has >= 7 history frames)
+    <root>/{reveal,reveal-traffic}.json         the key frame (the last of 12) of each clip of the two splits
+                                                where the history reveals lanes (`REVEAL`, `REVEAL_TRAFFIC`)
+    <root>/<split>-<kind>.json                  the key frames of each factor or kind of the challenging,
+                                                reveal and reveal-traffic splits
     <root>/frame_labels/<id>.json               TuSimple-style labels of EVERY frame (+ "occluded" flags)
     <root>/homographies/<id>.json               true geometry: image_from_ground per frame, and
                                                 last_from_frame / next_from_frame (= key_from_hist)
-    <root>/visibility/{val,test,challenging}.json  per key frame of the split's labels, per labelled point: where
+    <root>/visibility/<split>.json              per key frame of the split's labels, per labelled point: where
                                                 its paint is visible (key frame / history only / nowhere;
                                                 ``stamlane.synth.visibility``)
     <root>/dataset.json                         generator settings and statistics (written last)
@@ -47,12 +51,16 @@ from stamlane.camera import Camera, Pose
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
+from stamlane.synth.transient import KEY_OCCLUDERS, KeyOccluder
 from stamlane.synth.vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 from stamlane.synth.visibility import VISIBILITY_CLASSES, paint_visibility, visibility_class
 
 __all__ = [
     "FACTORS",
+    "REVEAL",
+    "REVEAL_TRAFFIC",
     "SPLITS",
+    "TRAIN_MOTION",
     "Factor",
     "SynthClip",
     "SynthConfig",
@@ -62,9 +70,16 @@ __all__ = [
     "write_clip",
 ]
 
-SPLITS = ("train", "val", "test", "challenging")
-FORMAT_VERSION = 5
-"""5: factor clips added to the train and val splits (``train_factors``, ``val_factors``; the clean clips and the
+SPLITS = ("train", "val", "test", "challenging", "reveal", "reveal-traffic")
+"""Every split of a set, in the order of their seeds' codes (clip ``i`` of split ``SPLITS[c]`` draws from
+``(seed, c, i)``: a split added at the end leaves every clip before it as it was)."""
+KIND_SPLITS = ("challenging", "reveal", "reveal-traffic")
+"""Splits whose every clip has a named factor or kind, with a label file per kind (``<split>-<kind>.json``)."""
+FORMAT_VERSION = 6
+"""6: the ``reveal`` and ``reveal-traffic`` splits (`REVEAL`, `REVEAL_TRAFFIC`: 12-frame clips where the history
+shows what the key frame hides) with their visibility over every history frame, and ``train_motion`` clips (the
+reveal splits' ego motion, no occluder) in the train split after its factor clips; every clip of format 5 is as it
+was, byte for byte; 5: factor clips added to the train and val splits (``train_factors``, ``val_factors``; the clean clips and the
 test and challenging splits are format 4's, byte for byte) and the paint visibility of every labelled key-frame
 point of the val, test and challenging splits (``visibility/<split>.json``); 4: the challenging split is made of labelled factors (`FACTORS`, one per clip; train, val and test are format
 3's, byte for byte); 3: several labelled key frames per clip (``key_step``), light traffic in the clean splits; 2: 20 fps, asphalt grain near the camera, along-road
@@ -158,6 +173,65 @@ FACTORS: dict[str, Factor] = {
 """The factors of the challenging split: its clip ``i`` has factor ``i % len(FACTORS)`` (in this order) on top of
 the clean settings, one factor per clip; ``challenging-<factor>.json`` holds each factor's key frames."""
 
+REVEAL_FRAMES = 12
+"""Frames of a clip of the reveal splits (the key frame last): room for spans up to 8 frames, or 4 at stride 3."""
+REVEAL_MOTION: dict[str, object] = {
+    "num_frames": REVEAL_FRAMES,
+    "lane_change_prob": 1.0,
+    "drift_amplitude": 0.8,
+    "yaw_jitter_deg": 1.5,
+    "occluder_prob": 0.0,
+}
+"""The ego motion of the reveal clips and the train split's ``train_motion`` clips: a lane change in every clip,
+strong drift and yaw jitter, so that an UNALIGNED history frame shows the paint tens of pixels from where the key
+frame has it (beyond the metrics' tolerances); no vehicles, so the history frames are clean."""
+_REVEAL_GEOMETRY = (
+    "hidden in the key frame alone: every aligned history frame shows the paint under it; unaligned history "
+    "shows it displaced by the lane change, drift and yaw"
+)
+REVEAL: dict[str, Factor] = {
+    "key_spray": Factor(
+        "an opaque textured band over the near road, full width, in the key frame alone (never in training)",
+        REVEAL_MOTION | {"key_occluder": "spray"},
+        _REVEAL_GEOMETRY,
+    ),
+    "key_blobs": Factor(
+        "3-6 opaque textured ellipses on the lane marks, in the key frame alone (never in training)",
+        REVEAL_MOTION | {"key_occluder": "blobs"},
+        _REVEAL_GEOMETRY,
+    ),
+    "key_flash": Factor(
+        "the key frame alone overexposed under a bright veil, as the training glare corruption (positive control)",
+        REVEAL_MOTION | {"key_occluder": "flash"},
+        _REVEAL_GEOMETRY,
+    ),
+}
+"""The kinds of the ``reveal`` split (clip ``i`` has kind ``i % 3``): 12 frames at 20 fps, the key frame last, a
+transient occluder in the key frame alone (`stamlane.synth.transient`), the history frames clean."""
+REVEAL_TRAFFIC: dict[str, Factor] = {
+    "oncoming_close": Factor(
+        "4-8 vehicles (half of them trucks) 3-20 m ahead driving towards the camera, frames at 5 fps",
+        _TRAFFIC
+        | {"vehicle_speed": (-1.1, -0.9), "vehicle_ahead": (3.0, 20.0), "truck_prob": 0.5}
+        | {"fps": 5.0, "num_frames": REVEAL_FRAMES},
+        "a close oncoming vehicle sweeps over the road: 0.2-0.6 s earlier the road it hides now was open",
+    ),
+    "same_speed": Factor(
+        "4-8 vehicles at the camera's speed, frames at 5 fps",
+        _TRAFFIC | {"vehicle_speed": (0.9, 1.1)} | {"fps": 5.0, "num_frames": REVEAL_FRAMES},
+        "the vehicle moves with the camera: the road it hides now lay in front of it 3-17 m (0.2-0.6 s) earlier",
+    ),
+}
+"""The kinds of the ``reveal-traffic`` split (clip ``i`` has kind ``i % 2``): natural occluders only, at 5 fps so
+that four frames span 0.6 s, where the labels give the history room to help (docs/results.md)."""
+TRAIN_MOTION = Factor(
+    "the reveal clips' ego motion (a lane change, drift, yaw jitter), 12 frames, no occluder",
+    REVEAL_MOTION,
+    "unaligned history misplaces the lanes: training for the reveal splits' motion (the recipe corrupts the key "
+    "frames)",
+)
+"""The ``train_motion`` clips of the train split (after its factor clips, named ``motion`` in ``clip_factors``)."""
+
 
 @dataclass(frozen=True)
 class SynthConfig:
@@ -219,6 +293,11 @@ class SynthConfig:
     """Relative brightness amplitude of the fine asphalt grain near the camera (``render``); 0: none."""
     prefilter: bool = True
     """Average the texture along the road as far as one image row spans (no far-field aliasing)."""
+    key_occluder: str = ""
+    """A transient occluder of the last ``key_occluder_frames`` frames (`stamlane.synth.transient.KEY_OCCLUDERS`);
+    "": none."""
+    key_occluder_frames: int = 1
+    """How many of the last frames carry ``key_occluder`` (1: the key frame alone)."""
 
     @classmethod
     def with_factor(cls, factor: str, **overrides: object) -> SynthConfig:
@@ -234,6 +313,10 @@ class SynthConfig:
             raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
         if not 0.0 <= self.glare_prob <= 1.0:
             raise ValueError(f"glare_prob must be in [0, 1], got {self.glare_prob}")
+        if self.key_occluder and self.key_occluder not in KEY_OCCLUDERS:
+            raise ValueError(f"key_occluder must be one of {KEY_OCCLUDERS} or empty, got {self.key_occluder!r}")
+        if not 1 <= self.key_occluder_frames <= self.num_frames:
+            raise ValueError(f"key_occluder_frames must be in [1, num_frames], got {self.key_occluder_frames}")
 
     @property
     def texture_ppm(self) -> float:
@@ -418,6 +501,14 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast:
     # the factors' effects draw from rng only when used: the clean clips stay what they were
     windscreen = Windscreen.sample(rng, cfg.width, cfg.height) if cfg.windscreen else None
     night_light = NightLight.sample(rng) if cfg.night else None
+    occluder = None
+    if cfg.key_occluder:
+        key_pose = poses[-1]
+        key_labels = _lane_labels(cfg, camera, road, key_pose, camera.image_from_ground(key_pose), h_samples)
+        marks = [np.array([(x, y) for x, y in zip(lane, h_samples) if x >= 0], np.float64) for lane in key_labels]
+        size = (cfg.height, cfg.width)
+        occluder = KeyOccluder.sample(cfg.key_occluder, rng, size, camera.horizon_row(key_pose), marks)
+    first_occluded = cfg.num_frames - cfg.key_occluder_frames
     bare_rng = copy.deepcopy(rng) if paint_contrast else None  # the unpainted frames draw what the painted ones do
 
     def render_frame(i: int, ground: GroundRenderer, frame_rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -448,6 +539,10 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast:
             frame = glare(frame, frame_rng, horizon)
         if windscreen is not None:
             mask |= windscreen.apply(frame, i)
+        if occluder is not None and i >= first_occluded:
+            frame = occluder.apply(frame)
+            if occluder.mask is not None:
+                mask |= occluder.mask
         return cv2.convertScaleAbs(frame, alpha=float(gains[i])), mask
 
     frames, labels, occluded, homs, masks = [], [], [], [], []
@@ -645,6 +740,8 @@ class _ClipJob:
     index: int
     key_step: int
     visibility: bool
+    reach: int = FIRST_KEY
+    """History frames the visibility masks look back over (`key_frame_visibility`)."""
 
 
 def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]:
@@ -659,7 +756,8 @@ def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]
     if job.visibility:
         keys = key_frames(len(clip.frames), job.key_step)
         visibility = [
-            {"raw_file": r["raw_file"], "visibility": key_frame_visibility(clip, k)} for r, k in zip(records, keys)
+            {"raw_file": r["raw_file"], "visibility": key_frame_visibility(clip, k, job.reach)}
+            for r, k in zip(records, keys)
         ]
     return records, clip_statistics(clip), visibility
 
@@ -677,6 +775,22 @@ def _visibility_shares(records: list[dict], num_frames: int = 4) -> dict[str, fl
     return {f"{cls}_fraction": n / total for cls, n in counts.items()}
 
 
+def clip_kinds(split: str, index: int, clean: int) -> tuple[str, Factor] | None:
+    """The named factor or kind of clip ``index`` of ``split`` (None for a clean clip), given the split's ``clean``
+    clips before its factor clips: the challenging split's `FACTORS`; the train and val splits' factor clips after
+    their clean ones, and the train split's `TRAIN_MOTION` clips after its ``len(FACTORS)``-cycled factor clips
+    (``index - clean`` beyond ``factors``: see `generate_dataset`); the reveal splits' kinds, cycled."""
+    cycles = {"challenging": FACTORS, "reveal": REVEAL, "reveal-traffic": REVEAL_TRAFFIC}
+    if split in cycles:
+        kinds = cycles[split]
+        name = list(kinds)[index % len(kinds)]
+        return name, kinds[name]
+    if index < clean:
+        return None
+    name = challenging_factor(index - clean)
+    return name, FACTORS[name]
+
+
 def generate_dataset(
     root: str | Path,
     *,
@@ -686,6 +800,9 @@ def generate_dataset(
     challenging: int = 10,
     train_factors: int = 0,
     val_factors: int = 0,
+    reveal: int = 0,
+    reveal_traffic: int = 0,
+    train_motion: int = 0,
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
@@ -706,61 +823,75 @@ def generate_dataset(
             a reason to read the history; they come from their own seeds (their split and index), never the
             test or challenging clips', and leave the clean clips as they were. With them, ``train-clean.json``
             / ``val-clean.json`` list the clean clips' key frames alone.
+        reveal, reveal_traffic: clips of the ``reveal`` and ``reveal-traffic`` splits (`REVEAL`,
+            `REVEAL_TRAFFIC`, kinds cycled; the key frame alone labelled; visibility over every history frame).
+        train_motion: `TRAIN_MOTION` clips added to the train split after its factor clips (the reveal splits'
+            ego motion, key frames as ``train_key_step``), named ``motion`` in ``clip_factors``.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
-        config: settings of the normal splits (default ``SynthConfig()``).
+        config: settings of the normal splits (default ``SynthConfig()``); every factor and kind overrides it.
         progress: show a tqdm progress bar.
         train_key_step: key frames of the train clips (`key_frames`: 0 = the last frame only, 1 = every frame
             from ``FIRST_KEY`` on).
         eval_key_step: key frames of the val, test and challenging clips (e.g. 3: frames 8, 11, 14, 17, 20 of
             20-frame clips, five fairly different views of each clip).
         workers: processes rendering clips in parallel (the files do not depend on it).
-        visibility: write ``visibility/<split>.json`` for the val, test and challenging splits: for every
-            labelled key-frame point, where its paint is visible (`key_frame_visibility`).
+        visibility: write ``visibility/<split>.json`` for every split but train: for every labelled key-frame
+            point, where its paint is visible (`key_frame_visibility`).
 
     Returns:
         the content of ``dataset.json``: settings, counts, key frames and statistics per split.
     """
     root = Path(root)
     cfg = config or SynthConfig()
-    factor_cfgs = {name: replace(cfg, **factor.overrides) for name, factor in FACTORS.items()}
-    counts = {"train": train, "val": val, "test": test, "challenging": challenging}
-    extra = {"train": train_factors, "val": val_factors}
-    for name, n in (counts | {f"{k}_factors": v for k, v in extra.items()}).items():
+    counts = {
+        "train": train,
+        "val": val,
+        "test": test,
+        "challenging": challenging,
+        "reveal": reveal,
+        "reveal-traffic": reveal_traffic,
+    }
+    extra = {"train": train_factors + train_motion, "val": val_factors}
+    named = {"train_factors": train_factors, "val_factors": val_factors, "train_motion": train_motion}
+    for name, n in (counts | named).items():
         if n < 0:
             raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     steps = {split: train_key_step if split == "train" else eval_key_step for split in SPLITS}
+    steps |= {"reveal": 0, "reveal-traffic": 0}
     keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
+    reach_of = {split: REVEAL_FRAMES - 1 if split in ("reveal", "reveal-traffic") else FIRST_KEY for split in SPLITS}
     root.mkdir(parents=True, exist_ok=True)
     stats: dict[str, dict[str, float]] = {}
     clip_factors: dict[str, str] = {}
-    by_factor: dict[str, list[dict]] = {name: [] for name in FACTORS}
+    by_kind: dict[tuple[str, str], list[dict]] = {}
     total = sum(counts.values()) + sum(extra.values())
     bar = tqdm(total=total, desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
     try:
         for code, split in enumerate(SPLITS):
-            jobs = []
+            jobs, kinds = [], []
             for i in range(counts[split] + extra.get(split, 0)):
-                split_cfg = cfg
-                factor_index = i if split == "challenging" else i - counts[split]
-                if factor_index >= 0:
-                    factor = challenging_factor(factor_index)
-                    clip_factors[f"{split}-{i:04d}"] = factor
-                    split_cfg = factor_cfgs[factor]
+                kind = clip_kinds(split, i, counts[split])
+                if split == "train" and i >= train + train_factors:
+                    kind = ("motion", TRAIN_MOTION)
+                split_cfg = cfg if kind is None else replace(cfg, **kind[1].overrides)
+                if kind is not None:
+                    clip_factors[f"{split}-{i:04d}"] = kind[0]
+                kinds.append(None if kind is None else kind[0])
                 see = visibility and split != "train"
-                jobs.append(_ClipJob(root, split, split_cfg, seed, code, i, steps[split], see))
+                jobs.append(_ClipJob(root, split, split_cfg, seed, code, i, steps[split], see, reach_of[split]))
             records: list[dict] = []
             seen: list[dict] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-            for i, (clip_records, clip_stats, clip_seen) in enumerate(
-                pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
+            for kind, (clip_records, clip_stats, clip_seen) in zip(
+                kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
             ):
                 records += clip_records
                 seen += clip_seen
-                if split == "challenging":
-                    by_factor[challenging_factor(i)] += clip_records
+                if split in KIND_SPLITS and kind is not None:
+                    by_kind.setdefault((split, kind), []).extend(clip_records)
                 for k, v in clip_stats.items():
                     totals[k] += v
                 bar.update(1)
@@ -780,8 +911,10 @@ def generate_dataset(
                 (root / VISIBILITY_DIR).mkdir(exist_ok=True)
                 (root / VISIBILITY_DIR / f"{split}.json").write_text(_json_lines(seen))
                 stats[split]["paint_visibility_4_frames"] = _visibility_shares(seen)
-        for name, records in by_factor.items():
-            (root / f"challenging-{name}.json").write_text(_json_lines(records))
+        for split in KIND_SPLITS:  # every factor of the challenging split has its file, even an empty one
+            for name in {"challenging": FACTORS, "reveal": REVEAL, "reveal-traffic": REVEAL_TRAFFIC}[split]:
+                if split == "challenging" or counts[split]:
+                    (root / f"{split}-{name}.json").write_text(_json_lines(by_kind.get((split, name), [])))
         write_temporal_labels(root, challenging)
     finally:
         if pool:
@@ -793,9 +926,12 @@ def generate_dataset(
         "seed": seed,
         "config": asdict(cfg),
         "factors": {name: asdict(factor) for name, factor in FACTORS.items()},
+        "reveal_kinds": {name: asdict(kind) for name, kind in (REVEAL | REVEAL_TRAFFIC).items()},
         "clip_factors": clip_factors,
-        "splits": counts | {f"{k}_factors": v for k, v in extra.items()},
-        "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS},
+        "visibility_reach": {split: reach_of[split] for split in SPLITS if split != "train" and visibility},
+        "splits": {name.replace("-", "_"): n for name, n in counts.items()} | named,
+        "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS[:4]}
+        | {split: [REVEAL_FRAMES] for split in ("reveal", "reveal-traffic") if counts[split]},
         "statistics": stats,
     }
     (root / "dataset.json").write_text(json.dumps(info, indent=2))
