@@ -56,3 +56,13 @@ def synthetic_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("synthetic")
     generate_dataset(root, train=3, val=1, test=1, challenging=1, seed=3, config=TINY_SYNTH, progress=False)
     return root
+
+
+@pytest.fixture(scope="session")
+def reveal_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny synthetic set (160x96) with the two reveal splits only: 6 ``reveal`` clips (2 of each kind) and 4
+    ``reveal-traffic`` clips (2 of each kind), 12 frames each, with their visibility masks."""
+    root = tmp_path_factory.mktemp("reveal")
+    splits = {"train": 0, "val": 0, "test": 0, "challenging": 0, "reveal": 6, "reveal_traffic": 4}
+    generate_dataset(root, **splits, seed=5, config=TINY_SYNTH, progress=False)
+    return root

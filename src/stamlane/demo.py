@@ -86,8 +86,7 @@ def _parser() -> argparse.ArgumentParser:
 def _data(root: Path | None, out: Path, quick: bool) -> Path:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
-    from stamlane.synth.generator import REVEAL, REVEAL_TRAFFIC
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, REVEAL, REVEAL_TRAFFIC
 
     if quick:
         root = root or out / "quick_data"
@@ -139,7 +138,7 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
 def run(args: argparse.Namespace) -> None:
     import torch
 
-    from stamlane.experiments.report import plot_history_use, plot_val_curves, tables
+    from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
     from stamlane.experiments.store import write_atomic
     from stamlane.hardware import resolve_bf16
 
@@ -175,6 +174,7 @@ def run(args: argparse.Namespace) -> None:
     pictures = {
         "val_f1_plot": args.out / "val_f1.png",
         "history_use": plot_history_use(summary, args.out / "history_use.png"),
+        "history_use_vs_headroom": plot_reveal(summary, args.out / "history_use_vs_headroom.png"),
         "comparison": _comparison(experiment, rows, args.out / "comparison.jpg"),
     }
     summary.pictures = {k: str(v) for k, v in pictures.items() if v}

@@ -85,3 +85,34 @@ def test_key_corruption_reaches_training_samples_only(tusimple_root: Path):
     )
     assert torch.equal(a["frames"][0], b["frames"][0]) and not torch.equal(a["frames"][1], b["frames"][1])
     assert torch.equal(a["binary"], b["binary"])  # the targets are the undamaged frame's
+
+
+def _synthetic_frames(root: Path, source: str, align: str) -> torch.Tensor:
+    ds = TuSimpleClips(root, "reveal.json", num_frames=4, image_size=(48, 80), align=align, history_source=source)
+    return ds[0]["frames"]
+
+
+@pytest.mark.parametrize("source", ["warped_key", "reversed"])
+def test_matched_null_and_reversed_history_leave_the_key_frame_unchanged(reveal_root: Path, source: str):
+    for align in ("true", "none"):
+        real, probed = _synthetic_frames(reveal_root, "real", align), _synthetic_frames(reveal_root, source, align)
+        assert torch.equal(probed[-1], real[-1])  # the key frame's pixels, exactly
+        assert not torch.equal(probed[:-1], real[:-1])
+
+
+def test_reversed_history_is_the_clips_own_frames_in_reverse_order(reveal_root: Path):
+    real, reversed_ = (_synthetic_frames(reveal_root, s, "none") for s in ("real", "reversed"))
+    assert torch.equal(reversed_[:-1], real[:-1].flip(0))
+
+
+def test_matched_null_brings_back_the_key_frames_own_pixels_with_wedges(reveal_root: Path):
+    """Warped out through the exact homography and aligned back, each history slot shows the key frame (blurred by
+    two resamplings) where it has content, and black where the key frame had none: no new content."""
+    null = _synthetic_frames(reveal_root, "warped_key", "true")
+    key = null[-1]
+    for slot in null[:-1]:
+        inside = slot.sum(0) > 0.05  # outside: the black wedge a real warped history frame has too
+        assert inside.float().mean() > 0.5
+        assert (slot - key).abs().sum(0)[inside].median() < 0.1
+    copied = _synthetic_frames(reveal_root, "key", "true")
+    assert not torch.equal(null[:-1], copied[:-1])  # unlike the key copy, it carries the warp's blur and wedges

@@ -25,6 +25,7 @@ __all__ = [
     "STAM_ROW",
     "paper_tables",
     "plot_history_use",
+    "plot_reveal",
     "plot_val_curves",
     "reads_history",
     "replication",
@@ -36,6 +37,16 @@ SINGLE_ROW, STAM_ROW = "f1_keyonly", "f4_mixed_cs_features"
 """The paper rows every other row is compared with: one frame, and pre-aligned STAM (mixed C-S, the paper's
 choice; the history-carrying reading)."""
 SPLITS = ("test", "challenging")
+REVEAL_SPLITS = ("reveal", "reveal-traffic")
+"""The splits where the history reveals lanes (`stamlane.experiments.engine.REVEAL_SPLITS`)."""
+PROBE_COLUMNS = (
+    ("key", "real − key copied"),
+    ("warped_key", "real − key warped out and back"),
+    ("reversed", "real − reversed history"),
+    ("other_clip", "real − another clip's"),
+)
+"""The history probes of the reveal tables, real minus probe; beside them exact alignment minus ORB's."""
+SPAN_COLUMNS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
 NO_HEADROOM = 0.01
 """Below this headroom (1 F1 point, history oracle minus key-frame oracle) a factor is marked as one where history
 cannot show: the fitted lines already bridge what the key frame does not show."""
@@ -124,9 +135,112 @@ def tables(summary: Summary, only: Sequence[str] | None = None) -> str:
                 rows.append([f"{label[a]} − {label[b]}", metric, *cells])
         lines += ["Paired differences between models (points):", "", *_md(["models", "metric", *SPLITS], rows)]
     lines += _factors(summary, models, pairs)
+    lines += _reveal(summary, models, pairs)
+    lines += _spans(summary)
     lines += _recall(summary, models)
     lines += _temporal(summary, models, pairs)
     return "\n".join(lines)
+
+
+def _oracle(kind: str, frames: int, stride: int = 1) -> str:
+    from stamlane.experiments.engine import oracle_subject
+
+    return oracle_subject(kind, frames, stride)
+
+
+def _multiple_note(cells: int) -> str:
+    return (
+        f"{cells} intervals per metric in these per-kind cells: at 95 % each, about {cells / 20:.1f} would exclude 0 "
+        "by chance alone; a lone bold cell is weak evidence."
+    )
+
+
+def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+    """The reveal splits: the oracles' absolute values and differences, each model's value and its history probes."""
+    views = [v for v in summary.views() if v.split(":")[0] in REVEAL_SPLITS]
+    if not views:
+        return []
+    multi = [m for m in models if m.probes]
+    frames = max((m.frames for m in multi), default=4)
+    key, aligned, unaligned = (_oracle(k, frames) for k in ("key", "history", "unaligned"))
+    lines = [
+        f"Where the history reveals lanes (`reveal`: 12 frames, an occluder in the key frame alone, strong ego "
+        f"motion; `reveal-traffic`: close and same-speed traffic at 5 fps, so {frames} frames span "
+        f"{(frames - 1) / 5:.1f} s). Oracles: lanes fitted to the labelled points visible in the key frame (key), "
+        f"or in it and its {frames - 1} history frames aligned (aligned) or unaligned (points only the history "
+        "shows placed where that frame has them); absolute values, then headroom = aligned − key and alignment = "
+        "aligned − unaligned (points):",
+        "",
+    ]
+    for metric in (TUSIMPLE.key, CULANE[0].key):
+        rows = []
+        for view in views:
+            rows.append(
+                [
+                    f"`{view}`",
+                    *(value_text(summary.value(o, metric, view)) for o in (key, aligned, unaligned)),
+                    diff_text(summary.difference(aligned, key, view, metric)),
+                    diff_text(summary.difference(aligned, unaligned, view, metric)),
+                ]
+            )
+        lines += [f"{metric}:", "", *_md(["view", "key", "aligned", "unaligned", "headroom", "alignment"], rows)]
+    for metric in (TUSIMPLE.key, CULANE[0].key):
+        rows = []
+        for m in models:
+            for view in views:
+                row = [m.label, f"`{view}`", value_text(summary.value(m.name, metric, view))]
+                if m.probes:
+                    row += [
+                        diff_text(summary.difference(m.name, f"{m.name}@{p}", view, metric)) for p, _ in PROBE_COLUMNS
+                    ]
+                    row.append(diff_text(summary.difference(f"{m.name}@exact", m.name, view, metric)))
+                else:
+                    row += ["–"] * (len(PROBE_COLUMNS) + 1)
+                rows.append(row)
+        header = ["model", "view", "real history", *(label for _, label in PROBE_COLUMNS), "exact − ORB alignment"]
+        lines += [
+            f"Models on the reveal splits, {metric}: the same weights with their history probed (points); the key "
+            "frame warped out through each history frame's homography and aligned back is the matched null (the "
+            "blur and black wedges of real history, no new content):",
+            "",
+            *_md(header, rows),
+        ]
+    rows = []
+    for a, b in pairs:
+        for metric in (TUSIMPLE.key, CULANE[0].key):
+            rows.append([f"{a} − {b}", metric, *(diff_text(summary.difference(a, b, v, metric)) for v in views)])
+    if rows:
+        lines += ["Paired differences between models on the reveal splits (points):", ""]
+        lines += _md(["models", "metric", *(f"`{v}`" for v in views)], rows)
+    kinds = sum(":" in v for v in views)
+    lines += [_multiple_note(kinds * (len(PROBE_COLUMNS) + 1) * max(len(multi), 1)), ""]
+    return lines
+
+
+def _spans(summary: Summary) -> list[str]:
+    """Headroom (aligned history oracle − key-frame oracle, TuSimple F1) per span on every split with masks."""
+    splits = [v for v in summary.views() if ":" not in v and summary.value("oracle:key", TUSIMPLE.key, v)]
+    if not splits:
+        return []
+    rows = []
+    for split in splits:
+        key = summary.value("oracle:key", TUSIMPLE.key, split)
+        row = [f"`{split}`", value_text(key)]
+        for t, stride in SPAN_COLUMNS:
+            subject = _oracle("history", t, stride)
+            v, d = (
+                summary.value(subject, TUSIMPLE.key, split),
+                summary.difference(subject, "oracle:key", split, TUSIMPLE.key),
+            )
+            row.append(f"{value_text(v)} ({diff_text(d)})" if v else "– (beyond the masks)")
+        rows.append(row)
+    header = ["split", "key oracle", *(f"T={t}" + (f" every {s}" if s > 1 else "") for t, s in SPAN_COLUMNS)]
+    return [
+        "Headroom per span, from the labels (TuSimple F1 %): the aligned history oracle of T frames taken every "
+        "s-th, and in brackets its difference to the key-frame oracle; frames at 20 fps (`reveal-traffic`: 5 fps):",
+        "",
+        *_md(header, rows),
+    ]
 
 
 def _history_use(summary: Summary, models: list) -> list[str]:
@@ -188,7 +302,7 @@ def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> li
 def _recall(summary: Summary, models: list) -> list[str]:
     rows = []
     for m in models:
-        for split in SPLITS:
+        for split in [v for v in summary.views() if ":" not in v or v.split(":")[0] in REVEAL_SPLITS]:
             cells = [value_text(summary.value(m.name, r.key, split)) for r in CLASS_RECALL]
             if any(c != "–" for c in cells):
                 rows.append([m.label, split, *cells])
@@ -200,6 +314,49 @@ def _recall(summary: Summary, models: list) -> list[str]:
         "",
         *_md(["model", "split", "visible", "revealed", "hidden"], rows),
     ]
+
+
+def plot_reveal(summary: Summary, path: Path) -> Path | None:
+    """History use (real − key copied, TuSimple F1 points, clip intervals) of each multi-frame model per kind of
+    the reveal splits and per challenging factor, against the headroom of the labels (aligned history oracle − key
+    oracle): a model that reads what its history shows lies near the diagonal; None without probes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    multi = [m for m in summary.models if m.probes]
+    if not multi:
+        return None
+    frames = max(m.frames for m in multi)
+    views = [v for v in summary.views() if ":" in v and v.split(":")[0] in ("challenging", *REVEAL_SPLITS)]
+    fig, ax = plt.subplots(figsize=(7, 5))
+    top = 5.0
+    for colour, m in enumerate(multi):
+        for view in views:
+            h = _headroom(summary, view, frames)
+            d = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)
+            if h is None or d is None:
+                continue
+            x, y = 100 * h.diff, 100 * d.diff
+            err = [[100 * (d.diff - d.ci95[0])], [100 * (d.ci95[1] - d.diff)]]
+            marker = "o" if view.startswith("challenging") else "s"
+            ax.errorbar(x, y, yerr=err, fmt=marker, color=f"C{colour}", capsize=2, alpha=0.85)
+            ax.annotate(view.split(":")[1], (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            top = max(top, x, y)
+        ax.plot([], [], "s", color=f"C{colour}", label=m.label)
+    ax.plot([0, top], [0, top], color="grey", linestyle="--", linewidth=0.8, label="history use = headroom")
+    ax.axhline(0, color="grey", linewidth=0.6)
+    ax.set_xlabel(f"headroom of the labels, {frames} frames (F1 points)")
+    ax.set_ylabel("history use: real − key copied (F1 points)")
+    ax.set_title("History use against headroom (squares: reveal kinds, dots: challenging factors)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
