@@ -95,3 +95,19 @@ def test_reveal_clips_leave_every_other_split_as_it_was(tmp_path: Path):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     assert more["clip_factors"]["train-0001"] == "motion" and "train-0001" not in plain["clip_factors"]
     assert (tmp_path / "b" / "clips" / "train-0001" / "12.jpg").is_file()
+
+
+def test_synth_writes_the_reveal_splits_by_default_and_refuses_negative_counts(tmp_path: Path, capsys):
+    from stamlane.synth.cli import main
+
+    out = tmp_path / "set"
+    args = ["--out", str(out), "--clips", "3", "--size", "96x64", "--quiet", "--challenging-clips", "0"]
+    assert main([*args, "--reveal-clips", "3", "--reveal-traffic-clips", "2", "--train-motion", "1"]) == 0
+    info = json.loads((out / "dataset.json").read_text())
+    assert (
+        info["splits"]["reveal"] == 3 and info["splits"]["reveal_traffic"] == 2 and info["splits"]["train_motion"] == 1
+    )
+    assert len((out / "reveal.json").read_text().splitlines()) == 3
+    assert (out / "visibility" / "reveal-traffic.json").is_file()
+    assert main(["--out", str(tmp_path / "bad"), "--train-motion", "-1"]) == 2
+    assert capsys.readouterr().err.strip() == "stamlane synth: --train-motion must be >= 0, got -1"

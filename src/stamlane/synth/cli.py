@@ -25,6 +25,20 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--challenging-clips", type=int, default=None, help="clips of the challenging split (default clips/10)"
     )
+    p.add_argument("--reveal-clips", type=int, default=30, help="clips of the reveal split (default 30, 10 per kind)")
+    p.add_argument(
+        "--reveal-traffic-clips", type=int, default=20, help="clips of the reveal-traffic split (default 20)"
+    )
+    p.add_argument("--train-factors", type=int, default=0, help="factor clips added to the train split (default 0)")
+    p.add_argument("--val-factors", type=int, default=0, help="factor clips added to the val split (default 0)")
+    p.add_argument(
+        "--train-motion", type=int, default=0, help="clips with the reveal splits' ego motion added to train"
+    )
+    p.add_argument(
+        "--demo",
+        action="store_true",
+        help="the demo's own set (what `stamlane demo` generates; every count, size and key step its default)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--size", type=parse_wxh, default=(360, 640), help="frame size WxH (default 640x360)")
     p.add_argument("--frames", type=int, default=20, help="frames per clip (default 20)")
@@ -56,9 +70,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stamlane synth: --clips must be >= 1, got {args.clips}", file=sys.stderr)
         return 2
     challenging = args.challenging_clips if args.challenging_clips is not None else args.clips // 10
-    if challenging < 0:
-        print(f"stamlane synth: --challenging-clips must be >= 0, got {challenging}", file=sys.stderr)
-        return 2
+    flags = {
+        "challenging-clips": challenging,
+        "reveal-clips": args.reveal_clips,
+        "reveal-traffic-clips": args.reveal_traffic_clips,
+        "train-factors": args.train_factors,
+        "val-factors": args.val_factors,
+        "train-motion": args.train_motion,
+    }
+    for flag, n in flags.items():
+        if n < 0:
+            print(f"stamlane synth: --{flag} must be >= 0, got {n}", file=sys.stderr)
+            return 2
+    counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
     existing = [
         name for name in ("dataset.json", "train.json", "val.json", "test.json") if (Path(args.out) / name).exists()
     ]
@@ -80,34 +104,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stamlane synth: {err}", file=sys.stderr)
         return 2
     train, val, test = split_counts(args.clips)
+    counts |= {"train": train, "val": val, "test": test}
+    settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
+    if args.demo:  # the demo's set: its data options' defaults (stamlane.data.options.SynthOptions)
+        from stamlane.data.options import SynthOptions
+
+        demo = SynthOptions()
+        counts = demo.splits()
+        settings = {"train_key_step": demo.train_key_step, "eval_key_step": demo.eval_key_step, "seed": demo.seed}
+        cfg = demo.config()
     start = time.perf_counter()
     try:
         info = generate_dataset(
-            args.out,
-            train=train,
-            val=val,
-            test=test,
-            challenging=challenging,
-            seed=args.seed,
-            config=cfg,
-            progress=not args.quiet,
-            train_key_step=args.train_key_step,
-            eval_key_step=args.eval_key_step,
-            workers=args.workers,
+            args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers
         )
     except OSError as err:
         print(f"stamlane synth: cannot write {args.out}: {err}", file=sys.stderr)
         return 2
     seconds = time.perf_counter() - start
-    frames = (train + val + test + challenging) * cfg.num_frames
+    clips = sum(st["clips"] for st in info["statistics"].values())
     print(
-        f"wrote {train}/{val}/{test}/{challenging} train/val/test/challenging clips to {args.out} "
-        f"({frames / max(seconds, 1e-9):.1f} frames/s)"
+        f"wrote {' / '.join(str(st['clips']) for st in info['statistics'].values())} "
+        f"{' / '.join(info['statistics'])} clips to {args.out} ({clips / max(seconds, 1e-9):.1f} clips/s)"
     )
     for split, st in info["statistics"].items():
         if st["clips"]:
             print(
-                f"  {split:12s} lane points hidden by vehicles {100 * st['hidden_fraction']:.1f} %, "
+                f"  {split:12s} lane points hidden by an occluder {100 * st['hidden_fraction']:.1f} %, "
                 f"of those visible in an aligned history frame {100 * st['revealed_fraction_of_hidden']:.1f} %, "
                 f"unaligned lane shift {st['unaligned_shift_px']:.1f} px (T=4, stride 1)"
             )
