@@ -22,7 +22,18 @@ from stamlane.synth.cli import main as synth_main
 from stamlane.synth.cli import split_counts
 from stamlane.synth.generator import SynthConfig, generate_dataset
 
-TINY_SYNTH = SynthOptions(train=2, val=1, test=1, challenging=0, train_factors=1, val_factors=0, size=(64, 96))
+TINY_SYNTH = SynthOptions(
+    train=2,
+    val=1,
+    test=1,
+    challenging=0,
+    train_factors=1,
+    val_factors=0,
+    reveal=0,
+    reveal_traffic=0,
+    train_motion=0,
+    size=(64, 96),
+)
 
 
 def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):

@@ -30,8 +30,11 @@ def test_defaults_are_the_documented_ones() -> None:
         "val": 20,
         "test": 100,
         "challenging": 128,
+        "reveal": 90,
+        "reveal_traffic": 60,
         "train_factors": 120,
         "val_factors": 32,
+        "train_motion": 96,
     }
     assert (synth.train_key_step, synth.eval_key_step, synth.seed, synth.size) == (1, 3, 0, (360, 640))
     assert (synth.config().width, synth.config().height) == (640, 360)

@@ -111,3 +111,13 @@ def test_synth_writes_the_reveal_splits_by_default_and_refuses_negative_counts(t
     assert (out / "visibility" / "reveal-traffic.json").is_file()
     assert main(["--out", str(tmp_path / "bad"), "--train-motion", "-1"]) == 2
     assert capsys.readouterr().err.strip() == "stamlane synth: --train-motion must be >= 0, got -1"
+
+
+def test_synth_demo_writes_the_set_the_data_options_generate():
+    from stamlane.data.options import SynthOptions
+    from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
+
+    options = SynthOptions()
+    assert options.splits() == DEMO_SPLITS
+    assert (options.train_key_step, options.eval_key_step, options.seed) == (TRAIN_KEY_STEP, EVAL_KEY_STEP, 0)
+    assert options.config() == SynthConfig()

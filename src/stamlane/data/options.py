@@ -27,7 +27,7 @@ from typing import Any
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
-from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
+from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
@@ -166,20 +166,6 @@ class AugmentOptions:
         return KeyFrameCorruption(self.key_corruption, self.key_corruption_kinds) if self.key_corruption > 0 else None
 
 
-SYNTH_TRAIN_FACTORS = 120
-"""Factor clips (15 per factor) beside the 120 clean train clips of the default synthetic set (docs/training.md:
-what makes the fusion read its history)."""
-SYNTH_VAL_FACTORS = 32
-"""Factor clips (4 per factor) beside the 20 clean val clips of the default synthetic set."""
-SYNTH_TRAIN_MOTION = 96
-"""Clips with the reveal splits' ego motion (`stamlane.synth.generator.TRAIN_MOTION`, 5 key frames each) after the
-train split's factor clips: the recipe's key-frame corruption on them is the training the reveal splits test."""
-SYNTH_REVEAL = 90
-"""Clips of the ``reveal`` split (30 per kind), one key frame each."""
-SYNTH_REVEAL_TRAFFIC = 60
-"""Clips of the ``reveal-traffic`` split (30 per kind), one key frame each."""
-
-
 @dataclass(frozen=True)
 class SynthOptions:
     """The synthetic set `ClipDataModule` generates (with a progress bar) when ``data.root`` is null and
@@ -202,15 +188,15 @@ class SynthOptions:
         size: frame size ``(H, W)``, pixels.
     """
 
-    train: int = 120
-    val: int = 20
-    test: int = 100
-    challenging: int = 128
-    train_factors: int = SYNTH_TRAIN_FACTORS
-    val_factors: int = SYNTH_VAL_FACTORS
-    reveal: int = SYNTH_REVEAL
-    reveal_traffic: int = SYNTH_REVEAL_TRAFFIC
-    train_motion: int = SYNTH_TRAIN_MOTION
+    train: int = DEMO_SPLITS["train"]
+    val: int = DEMO_SPLITS["val"]
+    test: int = DEMO_SPLITS["test"]
+    challenging: int = DEMO_SPLITS["challenging"]
+    train_factors: int = DEMO_SPLITS["train_factors"]
+    val_factors: int = DEMO_SPLITS["val_factors"]
+    reveal: int = DEMO_SPLITS["reveal"]
+    reveal_traffic: int = DEMO_SPLITS["reveal_traffic"]
+    train_motion: int = DEMO_SPLITS["train_motion"]
     train_key_step: int = TRAIN_KEY_STEP
     eval_key_step: int = EVAL_KEY_STEP
     seed: int = 0

@@ -9,7 +9,14 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
-from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
+from stamlane.synth.generator import (
+    DEMO_SPLITS,
+    EVAL_KEY_STEP,
+    REVEAL_FRAMES,
+    TRAIN_KEY_STEP,
+    SynthConfig,
+    generate_dataset,
+)
 
 __all__ = ["main"]
 
@@ -25,9 +32,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--challenging-clips", type=int, default=None, help="clips of the challenging split (default clips/10)"
     )
-    p.add_argument("--reveal-clips", type=int, default=30, help="clips of the reveal split (default 30, 10 per kind)")
     p.add_argument(
-        "--reveal-traffic-clips", type=int, default=20, help="clips of the reveal-traffic split (default 20)"
+        "--reveal-clips", type=int, default=None, help="clips of the reveal split (default 3 per 10 of --clips, >= 3)"
+    )
+    p.add_argument(
+        "--reveal-traffic-clips",
+        type=int,
+        default=None,
+        help="clips of the reveal-traffic split (default 2 per 10 of --clips, >= 2)",
     )
     p.add_argument("--train-factors", type=int, default=0, help="factor clips added to the train split (default 0)")
     p.add_argument("--val-factors", type=int, default=0, help="factor clips added to the val split (default 0)")
@@ -72,8 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     challenging = args.challenging_clips if args.challenging_clips is not None else args.clips // 10
     flags = {
         "challenging-clips": challenging,
-        "reveal-clips": args.reveal_clips,
-        "reveal-traffic-clips": args.reveal_traffic_clips,
+        "reveal-clips": 3 * max(1, args.clips // 10) if args.reveal_clips is None else args.reveal_clips,
+        "reveal-traffic-clips": 2 * max(1, args.clips // 10)
+        if args.reveal_traffic_clips is None
+        else args.reveal_traffic_clips,
         "train-factors": args.train_factors,
         "val-factors": args.val_factors,
         "train-motion": args.train_motion,
@@ -106,13 +120,10 @@ def main(argv: list[str] | None = None) -> int:
     train, val, test = split_counts(args.clips)
     counts |= {"train": train, "val": val, "test": test}
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
-    if args.demo:  # the demo's set: its data options' defaults (stamlane.data.options.SynthOptions)
-        from stamlane.data.options import SynthOptions
-
-        demo = SynthOptions()
-        counts = demo.splits()
-        settings = {"train_key_step": demo.train_key_step, "eval_key_step": demo.eval_key_step, "seed": demo.seed}
-        cfg = demo.config()
+    if args.demo:  # the demo's set, as ``data.synth``'s defaults make it (stamlane.data.options.SynthOptions)
+        counts = dict(DEMO_SPLITS)
+        settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0}
+        cfg = SynthConfig()
     start = time.perf_counter()
     try:
         info = generate_dataset(
@@ -122,10 +133,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stamlane synth: cannot write {args.out}: {err}", file=sys.stderr)
         return 2
     seconds = time.perf_counter() - start
-    clips = sum(st["clips"] for st in info["statistics"].values())
+    long = counts["reveal"] + counts["reveal_traffic"] + counts["train_motion"]
+    frames = (sum(counts.values()) - long) * cfg.num_frames + long * REVEAL_FRAMES
     print(
         f"wrote {' / '.join(str(st['clips']) for st in info['statistics'].values())} "
-        f"{' / '.join(info['statistics'])} clips to {args.out} ({clips / max(seconds, 1e-9):.1f} clips/s)"
+        f"{' / '.join(info['statistics'])} clips to {args.out} ({frames / max(seconds, 1e-9):.1f} frames/s)"
     )
     for split, st in info["statistics"].items():
         if st["clips"]:

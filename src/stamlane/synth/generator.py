@@ -56,6 +56,7 @@ from stamlane.synth.vehicles import Vehicle, draw_vehicles, sample_vehicles, sha
 from stamlane.synth.visibility import VISIBILITY_CLASSES, paint_visibility, visibility_class
 
 __all__ = [
+    "DEMO_SPLITS",
     "FACTORS",
     "REVEAL",
     "REVEAL_TRAFFIC",
@@ -88,6 +89,21 @@ DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
 """Where ``ClipDataModule(root=None)`` and ``stamlane demo`` read the synthetic set (relative to the working
 directory; generated there when missing). Named by the format version, so a newer generator never reuses (or
 overwrites) an older set."""
+DEMO_SPLITS = {
+    "train": 120,
+    "val": 20,
+    "test": 100,
+    "challenging": 128,
+    "reveal": 90,
+    "reveal_traffic": 60,
+    "train_factors": 120,
+    "val_factors": 32,
+    "train_motion": 96,
+}
+"""Clips per split of the default set (``stamlane demo``, ``root: null``, ``stamlane synth --demo``): 120 clean and
+120 factor clips (15 per factor) and 96 ``train_motion`` clips in train (what makes the fusion read its history,
+docs/training.md); 20 clean and 32 factor val clips; 100 test and 128 challenging clips (16 per factor); 90 reveal
+(30 per kind) and 60 reveal-traffic clips (30 per kind). The arguments of `generate_dataset`."""
 TRAIN_KEY_STEP = 1
 """Default key frames of the train split: every frame from ``FIRST_KEY`` on (13 of a 20-frame clip)."""
 EVAL_KEY_STEP = 3
