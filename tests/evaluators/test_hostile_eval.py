@@ -263,3 +263,92 @@ def test_lanes_too_large_to_draw_are_refused_in_one_line(tmp_path: Path, capsys:
     gt = _tree(tmp_path / "gt", {"d/0.lines.txt": lane * 6})
     err = _refused(capsys, "culane", pred, gt, "--size", "16384x16384")
     assert "too large to draw in memory" in err
+
+
+# ----------------------------------------------------------------------- typed readers: numbers are numbers
+def _vil100(root: Path, frames: dict[str, dict]) -> Path:
+    return _tree(root, {f"Json/v/{name}": json.dumps(doc) for name, doc in frames.items()})
+
+
+def _vil_doc(points: object = None, info: object = None, lane_id: object = 1) -> dict:
+    lane = {"lane_id": lane_id, "points": [[10, 350], [20, 300], [30, 250]] if points is None else points}
+    return {"info": {"width": 640, "height": 360} if info is None else info, "annotations": {"lane": [lane]}}
+
+
+@pytest.mark.parametrize(
+    ("doc", "words"),
+    [
+        (_vil_doc(points=[[True, 359], [20, 300]]), "two JSON numbers, got a boolean"),
+        (_vil_doc(points=[["10", 359], [20, 300]]), "two JSON numbers"),
+        (_vil_doc(points=[[10, 359, 1], [20, 300]]), "two JSON numbers"),
+        (_vil_doc(points=[10, 359, 20, 300]), "two JSON numbers"),
+        (_vil_doc(points=[[1e300, 359], [20, 300]]), "no pixel of an image"),
+        (_vil_doc(info={"width": "640", "height": 360}), "info.width must be an integer"),
+        (_vil_doc(info={"width": True, "height": 360}), "info.width must be an integer"),
+        (_vil_doc(info={"width": 640, "height": 360.5}), "info.height must be an integer"),
+        (_vil_doc(lane_id="1"), "lane_id must be an integer"),
+        (_vil_doc(lane_id=True), "lane_id must be an integer"),
+    ],
+)
+def test_vil100_values_that_are_not_numbers_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], doc: dict, words: str
+) -> None:
+    gt = _vil100(tmp_path / "gt", {"00000.jpg.json": doc})
+    pred = _tree(tmp_path / "pred", {"v/00000.lines.txt": LANE})
+    assert words in _refused(capsys, "video", pred, gt)
+    assert words in _refused(capsys, "video", pred, gt, "--temporal")
+
+
+def test_vil100_integral_float_sizes_are_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt = _vil100(tmp_path / "gt", {"00000.jpg.json": _vil_doc(info={"width": 640.0, "height": 360})})
+    pred = _tree(tmp_path / "pred", {"v/00000.lines.txt": "10 350 20 300 30 250\n"})
+    code, out, _ = _run(capsys, "video", pred, gt, "--json")
+    assert code == 0 and json.loads(out)["0.5"]["tp"] == 1
+
+
+def test_a_frame_labelled_or_listed_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = _vil_doc()
+    gt = _vil100(tmp_path / "gt", {"00001.jpg.json": doc, "00001.png.json": doc, "00002.jpg.json": doc})
+    pred = _tree(tmp_path / "pred", {"v/00001.lines.txt": LANE})
+    for extra in ([], ["--temporal"]):
+        assert "labelled twice" in _refused(capsys, "video", pred, gt, *extra)
+    (gt / "Json" / "v" / "00001.png.json").unlink()
+    for entries in ("v/00001.jpg\nv/00002.jpg\nv/00001.jpg\n", "/JPEGImages/v/00001.jpg\nv/00001.png\n"):
+        (tmp_path / "list.txt").write_text(entries)
+        for extra in ([], ["--temporal"]):
+            err = _refused(capsys, "video", pred, gt, "--list", tmp_path / "list.txt", *extra)
+            assert "name the same" in err, err
+    lines_gt = _tree(tmp_path / "lgt", {"v/1.lines.txt": LANE, "v/2.lines.txt": LANE})
+    (tmp_path / "list2.txt").write_text("v/1.jpg\nv/2.jpg\nv/1.jpg\n")
+    assert "name the same" in _refused(
+        capsys, "video", pred, lines_gt, "--list", tmp_path / "list2.txt", "--size", "640x360"
+    )
+
+
+def test_culane_json_predictions_are_typed_and_name_each_image_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    h = [300, 350]
+    gt_rec = {"raw_file": "a.jpg", "lanes": [[10, 20]], "h_samples": h}
+    gt = tmp_path / "gt.json"
+    gt.write_text(json.dumps(gt_rec) + "\n" + json.dumps({**gt_rec, "raw_file": "b.jpg"}) + "\n")
+    pred = tmp_path / "pred.json"
+    ok = {"raw_file": "a.jpg", "lanes": [[10, 20]], "run_time": 1}
+    for recs, words in [
+        ([ok, ok], "two predictions for one image"),
+        ([{**ok, "lanes": [[True, 20]]}], "true/false"),
+        ([{**ok, "lanes": [["10", 20]]}], "JSON numbers"),
+        ([{**ok, "raw_file": ["a.jpg"]}], "not in the ground truth"),
+    ]:
+        pred.write_text("".join(json.dumps(r) + "\n" for r in recs))
+        assert words in _refused(capsys, "culane", pred, gt, "--size", "640x360"), words
+    pred.write_text(json.dumps(ok) + "\n")
+    bad_gt = tmp_path / "bad_gt.json"
+    for g, words in [
+        ([gt_rec, gt_rec], "again"),
+        ([{**gt_rec, "h_samples": ["300", 350]}], "h_samples must be a list of numbers"),
+    ]:
+        bad_gt.write_text("".join(json.dumps(r) + "\n" for r in g))
+        assert words in _refused(capsys, "culane", pred, bad_gt, "--size", "640x360"), words
+    code, out, _ = _run(capsys, "culane", pred, gt, "--size", "640x360", "--json")
+    assert code == 0 and json.loads(out)["0.5"]["tp"] == 1

@@ -23,8 +23,6 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
 import stamlane_eval
 from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.cli_tools import (
@@ -47,7 +45,7 @@ from stamlane_eval.io import (
     read_text,
     read_tusimple,
     read_vil100_json,
-    tusimple_points,
+    tusimple_lanes,
     video_frames,
 )
 
@@ -280,36 +278,13 @@ def _run_tusimple(args: argparse.Namespace) -> int:
     return 0
 
 
-def _xs_to_points(recs: list[dict], rows: dict[str, list], path: Path) -> dict[str, list[np.ndarray]]:
-    """TuSimple records as raw_file -> lanes of (x, y) points (rows with x < 0 dropped), rows from the gt."""
-    out: dict[str, list[np.ndarray]] = {}
-    for i, rec in enumerate(recs, 1):
-        if "raw_file" not in rec or "lanes" not in rec:
-            raise LaneFileError(f"{path}: line {i}: needs keys raw_file and lanes, has {sorted(rec)}")
-        h = rows.get(rec["raw_file"])
-        if h is None:
-            raise LaneFileError(f"{path}: line {i}: raw_file {rec['raw_file']!r} is not in the ground truth")
-        for lane in rec["lanes"]:
-            xs = np.asarray(lane) if isinstance(lane, list) else np.zeros(0, dtype=object)
-            if xs.shape != (len(h),) or xs.dtype.kind not in "iuf" or not np.isfinite(xs).all():
-                raise LaneFileError(f"{path}: line {i}: a lane is not {len(h)} finite numbers (one per h_sample)")
-        out[rec["raw_file"]] = tusimple_points(rec["lanes"], h)
-    return out
-
-
 def _run_culane(args: argparse.Namespace) -> int:
     size = args.size or args.default_size
     if args.pred.suffix == ".json" or args.gt.suffix == ".json":
         if args.size is None:
             raise LaneFileError(f"{args.gt}: TuSimple-format files need --size WxH (TuSimple images are 1280x720)")
-        gt_recs = read_tusimple(args.gt)
-        rows = {}
-        for i, rec in enumerate(gt_recs, 1):
-            if not isinstance(rec.get("h_samples"), list):
-                raise LaneFileError(f"{args.gt}: line {i}: no h_samples list")
-            rows[rec.get("raw_file")] = rec["h_samples"]
-        gt_map = _xs_to_points(gt_recs, rows, args.gt)
-        pred_map = _xs_to_points(read_tusimple(args.pred), rows, args.pred)
+        gt_map, rows = tusimple_lanes(read_tusimple(args.gt), args.gt)
+        pred_map, _ = tusimple_lanes(read_tusimple(args.pred), args.pred, rows)
         entries = list(gt_map)
         preds = [pred_map.get(e, []) for e in entries]
         gts = [gt_map[e] for e in entries]
@@ -380,6 +355,7 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
     be listed together: RVLD's script pairs list neighbours by position.
     """
     seqs: dict[str, list[tuple[str, Path]]] = {}
+    first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
     last = None
     for i, entry in enumerate(culane_entries(gt, list_file), 1):
         rel = entry.strip().lstrip("/")
@@ -388,6 +364,11 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
             raise LaneFileError(f"{list_file}: line {i}: {entry!r} names no sequence (expected <sequence>/<frame>)")
         seq, name = rel.rsplit("/", 1)
         stem = name[: name.rfind(".")] if "." in name else name
+        if first.setdefault((seq, stem), i) != i:  # "/JPEGImages/v/1.jpg" and "v/1.png" name one frame
+            raise LaneFileError(
+                f"{list_file}: lines {first[seq, stem]} and {i} name the same frame {seq}/{stem}: it would be "
+                f"scored twice"
+            )
         if seq in seqs and seq != last:
             raise LaneFileError(
                 f"{list_file}: line {i}: sequence {seq!r} resumes after other sequences; list each sequence's "

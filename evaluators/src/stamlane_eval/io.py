@@ -39,6 +39,7 @@ __all__ = [
     "read_text",
     "read_tusimple",
     "read_vil100_json",
+    "tusimple_lanes",
     "tusimple_points",
     "tusimple_record_error",
     "video_frames",
@@ -531,6 +532,58 @@ def tusimple_points(lanes: list, h_samples: list) -> list[np.ndarray]:
     return points
 
 
+def tusimple_lanes(
+    records: Sequence[object], path: str | os.PathLike, h_samples: dict[str, list] | None = None
+) -> tuple[dict[str, list[np.ndarray]], dict[str, list]]:
+    """THE typed check of TuSimple-format files scored with the CULane metric (``stamlane-eval culane PRED.json
+    GT.json``): the lanes of each ``raw_file`` as ``(x, y)`` points (rows with x < 0 dropped).
+
+    The ground truth (``h_samples`` None) passes `check_tusimple` (types, each ``raw_file`` once, labels finite).
+    A prediction names each ``raw_file`` once, one of the ground truth's, with lanes of JSON numbers (never a
+    string nor ``true``/``false``: numpy would read ``[true, 359]`` as ``[1, 359]``), finite, one per row.
+
+    Args:
+        records: the parsed json-lines.
+        path: the file (for messages).
+        h_samples: the ground truth's rows per ``raw_file`` (reading a prediction), or None (the ground truth).
+
+    Returns:
+        ``{raw_file: lanes}`` in file order, and ``{raw_file: h_samples}``.
+
+    Raises:
+        LaneFileError: naming the file, the line and the problem.
+    """
+    if h_samples is None:
+        try:
+            check_tusimple(records, "gt")
+        except TuSimpleInputError as e:
+            raise LaneFileError(f"{path}: line {e.line}: {e.message}") from None
+        rows = {rec["raw_file"]: rec["h_samples"] for rec in records}  # type: ignore[index]
+    else:
+        rows = h_samples
+    out: dict[str, list[np.ndarray]] = {}
+    for i, rec in enumerate(records, 1):
+        if not isinstance(rec, dict) or "raw_file" not in rec or not isinstance(rec.get("lanes"), list):
+            keys = sorted(rec)[:6] if isinstance(rec, dict) else type(rec).__name__
+            raise LaneFileError(f"{path}: line {i}: needs keys raw_file and lanes (a list), has {keys}")
+        name = rec["raw_file"]
+        h = rows.get(name) if type(name) is str else None
+        if h is None:
+            raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} is not in the ground truth")
+        if name in out:  # the C++ tool reads one file per image: a second prediction has no place to be
+            raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} again: two predictions for one image")
+        for k, lane in enumerate(rec["lanes"]):
+            if not (isinstance(lane, list) and len(lane) == len(h) and all(map(_is_number, lane))):
+                raise LaneFileError(
+                    f"{path}: line {i}: lane {k} is not {len(h)} JSON numbers (one per h_sample; no string, no "
+                    f"true/false)"
+                )
+            if not all(math.isfinite(_to_float(v)) for v in lane):
+                raise LaneFileError(f"{path}: line {i}: lane {k} has a non-finite x")
+        out[name] = tusimple_points(rec["lanes"], h)
+    return out, rows
+
+
 def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:
     """Read one CULane ``.lines.txt`` file.
 
@@ -681,14 +734,20 @@ def _walk_lines(root: Path) -> Iterator[Path]:
 
 
 def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[int], tuple[int, int] | None]:
-    """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``).
+    """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``): THE typed check of the format.
+
+    Types are the format's and nothing else is read as a number: ``points`` a list of ``[x, y]`` pairs of JSON
+    numbers (a string, ``true``/``false`` or ``null`` is refused: Python's ``float(True)`` would read 1), each
+    ``|v| <= MAX_COORDINATE`` and finite (a label); ``lane_id`` an integer; ``info.width`` / ``info.height``
+    integers (``1920`` or ``1920.0``, not ``"1920"`` nor ``true``) in ``1..MAX_IMAGE_SIDE``.
 
     Returns:
         lanes (``(N, 2)`` float ``(x, y)`` arrays), their ``lane_id``s, and the image ``(H, W)`` from ``info``
         (None when absent).
 
     Raises:
-        LaneFileError: unreadable file, invalid JSON, or a missing/odd ``annotations.lane`` entry.
+        LaneFileError: unreadable file, invalid JSON, a missing/odd ``annotations.lane`` entry or a value of the
+            wrong type, naming the lane and the value.
     """
     p = Path(path)
     text = _read(p)
@@ -701,34 +760,65 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
     try:
         entries = data["annotations"]["lane"]
         info = data.get("info", {})
-    except (KeyError, TypeError):
+    except (KeyError, TypeError, AttributeError):
         raise LaneFileError(f"{p}: no annotations.lane list (VIL-100 format expected)") from None
     if not isinstance(entries, list):
         raise LaneFileError(f"{p}: annotations.lane must be a list, got {type(entries).__name__}")
+    if len(entries) > MAX_LANES:
+        raise LaneFileError(f"{p}: {len(entries)} lanes, more than the limit of {MAX_LANES}")
     lanes, ids = [], []
     for k, lane in enumerate(entries):
-        try:
-            pts = np.asarray(lane["points"], dtype=np.float64).reshape(-1, 2)
-            lane_id = int(lane.get("lane_id", k))
-        except (KeyError, TypeError, ValueError):
-            raise LaneFileError(f"{p}: lane {k}: needs points [[x, y], ...] and an integer lane_id") from None
-        if not np.isfinite(pts).all():
-            raise LaneFileError(f"{p}: lane {k}: non-finite coordinate")
-        lanes.append(pts)
+        if not isinstance(lane, dict) or "points" not in lane:
+            raise LaneFileError(f"{p}: lane {k}: needs points [[x, y], ...] and an integer lane_id")
+        lanes.append(_vil100_points(lane["points"], p, k))
+        lane_id = lane.get("lane_id", k)
+        if type(lane_id) is not int:
+            raise LaneFileError(f"{p}: lane {k}: lane_id must be an integer, got {lane_id!r:.40}")
         ids.append(lane_id)
     if len(set(ids)) != len(ids):
         raise LaneFileError(f"{p}: duplicate lane_id in {ids}")
     size = None
     if isinstance(info, dict) and "width" in info and "height" in info:
-        try:
-            size = (int(info["height"]), int(info["width"]))
-        except (TypeError, ValueError):
-            raise LaneFileError(f"{p}: info.width/height must be integers") from None
+        size = (_vil100_side(info["height"], "height", p), _vil100_side(info["width"], "width", p))
         if not (0 < size[0] <= MAX_IMAGE_SIDE and 0 < size[1] <= MAX_IMAGE_SIDE):
             raise LaneFileError(f"{p}: image size {size[1]}x{size[0]} (WxH) outside 1..{MAX_IMAGE_SIDE} px per side")
-    if len(lanes) > MAX_LANES or any(len(lane) > MAX_LANE_POINTS for lane in lanes):
-        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes or {MAX_LANE_POINTS} points in a lane")
     return lanes, ids, size
+
+
+def _is_number(v: object) -> bool:
+    """A JSON number: ``int`` or ``float``, never ``bool`` (a subclass of int) nor a string."""
+    return type(v) is int or type(v) is float
+
+
+def _vil100_points(points: object, path: Path, k: int) -> np.ndarray:
+    """``[[x, y], ...]`` of JSON numbers as an ``(N, 2)`` float64 array, checked one value at a time."""
+    if not isinstance(points, list):
+        raise LaneFileError(f"{path}: lane {k}: points must be a list of [x, y] pairs, got {points!r:.40}")
+    if len(points) > MAX_LANE_POINTS:
+        raise LaneFileError(f"{path}: lane {k}: {len(points)} points, more than the limit of {MAX_LANE_POINTS}")
+    for pt in points:
+        if not (isinstance(pt, list) and len(pt) == 2 and _is_number(pt[0]) and _is_number(pt[1])):
+            what = "a boolean" if isinstance(pt, list) and any(type(v) is bool for v in pt) else repr(pt)[:40]
+            raise LaneFileError(f"{path}: lane {k}: a point must be [x, y], two JSON numbers, got {what}")
+    try:
+        arr = np.array(points, dtype=np.float64).reshape(-1, 2)
+    except OverflowError:  # an integer beyond the float range
+        arr = np.full((1, 2), np.inf)
+    if not (np.abs(arr) <= MAX_COORDINATE).all():
+        raise LaneFileError(
+            f"{path}: lane {k}: a coordinate that is no pixel of an image (a label must be finite, "
+            f"|v| <= {MAX_COORDINATE:g})"
+        )
+    return arr
+
+
+def _vil100_side(v: object, name: str, path: Path) -> int:
+    """``info.width`` / ``info.height``: an integer, or a float with an integer value (``1920.0``)."""
+    if type(v) is int:
+        return v
+    if type(v) is float and v.is_integer():
+        return int(v)
+    raise LaneFileError(f"{path}: info.{name} must be an integer number of pixels, got {v!r:.40}")
 
 
 def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[str, Path]]]]:
@@ -742,12 +832,14 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
         ``PRED/<sequence>/<frame_stem>.lines.txt``.
 
     Raises:
-        LaneFileError: no such folder, or no annotation found.
+        LaneFileError: no such folder, no annotation found, or one frame labelled twice (``00001.jpg.json`` and
+            ``00001.png.json``: both would be scored, against the one prediction of the frame).
     """
     root = Path(gt_dir)
     if not root.is_dir():
         raise LaneFileError(f"{root}: not a directory")
     seqs: dict[str, list[tuple[str, Path]]] = {}
+    seen: dict[tuple[str, str], Path] = {}  # (sequence, frame) -> its label file
     if (root / "Json").is_dir():
         kind, base, suffix = "vil100", root / "Json", ".json"
     else:
@@ -759,7 +851,13 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
             stem = f[: -len(suffix)]
             stem = stem[: stem.rfind(".")] if kind == "vil100" and "." in stem else stem  # 00000.jpg -> 00000
             seq = Path(dirpath).relative_to(base).as_posix()
-            seqs.setdefault(seq, []).append((stem, Path(dirpath) / f))
+            path = Path(dirpath) / f
+            first = seen.setdefault((seq, stem), path)
+            if first != path:
+                raise LaneFileError(
+                    f"{path}: frame {seq}/{stem} is labelled twice (also by {first.name}): two labels for one frame"
+                )
+            seqs.setdefault(seq, []).append((stem, path))
     if not seqs:
         raise LaneFileError(f"{root}: no annotation found (expected Json/<video>/*.json or <video>/*.lines.txt)")
     return kind, seqs
