@@ -352,3 +352,53 @@ def test_culane_json_predictions_are_typed_and_name_each_image_once(
         assert words in _refused(capsys, "culane", pred, bad_gt, "--size", "640x360"), words
     code, out, _ = _run(capsys, "culane", pred, gt, "--size", "640x360", "--json")
     assert code == 0 and json.loads(out)["0.5"]["tp"] == 1
+
+
+# ------------------------------------------------------------- parity kept: what the official tools score
+@pytest.mark.parametrize(
+    ("line", "want"),
+    [
+        (b"10 500 20 400", [10, 500, 20, 400]),
+        (b"10 500 nan 400 30 300", [10, 500]),  # >> fails on "nan": the lane ends there, silently
+        (b"10 500 -nan 400", [10, 500]),
+        (b"10 500 inf 400", [10, 500]),
+        (b"10 500 1e400 400", [10, 500]),  # overflow: failbit
+        (b"10 500 20x 400", [10, 500, 20]),  # 20 read, then "x" fails (the caller drops the lone x)
+        (b"1-2 3 4", [1, -2, 3, 4]),  # a sign starts the next number
+        (b"1e 5", []),  # "1e" accumulated, refused whole
+        (b"1.e2 .5 +3 -0", [100, 0.5, 3, 0]),
+        (b"\t10\r 20\v", [10, 20]),  # C isspace
+        (b"1_000 2", [1]),
+        (b"abc 1 2", []),
+    ],
+)
+def test_culane_predictions_are_read_as_the_cpp_stream_reads_them(line: bytes, want: list[float]) -> None:
+    from stamlane_eval.io import cpp_stream_doubles
+
+    assert cpp_stream_doubles(line) == want
+
+
+def test_culane_predictions_with_nan_or_words_are_scored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt_lane = "100 500 110 400 120 300\n"
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": "100 500 110 400 120 300 nan 200\n", "d/1.lines.txt": "nan\n"})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": gt_lane, "d/1.lines.txt": gt_lane})
+    code, out, err = _run(capsys, "culane", pred, gt, "--json")
+    assert code == 0 and err == "", err
+    res = json.loads(out)
+    # image 0: the lane up to the nan matches; image 1: a lane of 0 points (one FP, one FN), as the C++ tool
+    assert [res["0.5"][k] for k in ("tp", "fp", "fn")] == [1, 1, 1]
+
+
+def test_a_culane_prediction_lane_of_10001_points_is_scored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from stamlane_eval.io import MAX_IMAGE_POINTS
+
+    pts = [(100 + 0.5 * (i % 7), 580 - i * 0.05) for i in range(10_001)]
+    lane = " ".join(f"{x:g} {y:g}" for x, y in pts) + "\n"
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": lane})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": "100 580 101 330 102 80\n"})
+    code, out, err = _run(capsys, "culane", pred, gt, "--json")
+    assert code == 0, err
+    assert json.loads(out)["0.3"]["tp"] == 1
+    big = " ".join("10 20" for _ in range(MAX_IMAGE_POINTS + 1)) + "\n"
+    (pred / "d" / "0.lines.txt").write_text(big)
+    assert "memory budget" in _refused(capsys, "culane", pred, gt)

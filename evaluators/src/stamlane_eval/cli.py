@@ -295,7 +295,7 @@ def _run_culane(args: argparse.Namespace) -> int:
         gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
         in_gt, in_pred = Inside(gt_root), Inside(pred_root)
         gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
-        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e))) for e in entries]
+        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e)), prediction=True) for e in entries]
     thresholds = sorted(set(args.iou))
     try:
         res = culane.evaluate(
@@ -421,7 +421,9 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
             if size is None and need_size:
                 raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
             pred_path = args.pred / seq / f"{stem}.lines.txt"
-            preds = read_culane_lines(inside(pred_path, args.pred) if pred_path.exists() else pred_path)
+            preds = read_culane_lines(
+                inside(pred_path, args.pred) if pred_path.exists() else pred_path, prediction=True
+            )
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
     return sequences

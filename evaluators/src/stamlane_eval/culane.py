@@ -21,7 +21,7 @@ Lanes are ``(N, 2)`` float arrays of ``(x, y)`` points in original-image pixels.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,6 +55,7 @@ LANEDET_SAMPLES = 5  # lanedet: interp(lane, n=5), i.e. (len(u) - 1) * 5 + 1 sam
 MAX_DRAWN_PIXELS = 1 << 30  # the lanes of one image drawn on at most 1 Gpx of cropped canvases (1 GiB)
 SPLINE_POINTS = 1 << 20  # resampled points per spline batch (~100 MB of float64 temporaries)
 BATCH_IMAGES = 128  # images whose lanes are resampled together (bounds the memory of the batch: ~17 MB)
+BATCH_POINTS = 1 << 16  # ... and at most this many input points in a batch but its first image (~80 MB resampled)
 KM_TOLERANCE = 1e-2  # C++ hungarianGraph: an edge is "tight" when |lw + rw - w| < 1e-2
 
 
@@ -495,6 +496,20 @@ def counts_to_prf(tp: int, fp: int, fn: int) -> CULaneCounts:
     return CULaneCounts(int(tp), int(fp), int(fn), *prf(tp, fp, fn))
 
 
+def _batches(preds: Sequence[Sequence[np.ndarray]], targets: Sequence[Sequence[np.ndarray]]) -> Iterator[slice]:
+    """Consecutive images resampled together: at most ``BATCH_IMAGES``, and at most ``BATCH_POINTS`` points
+    unless one image alone holds more (memory; a batch changes no number)."""
+    start = points = 0
+    for i, (p, g) in enumerate(zip(preds, targets, strict=True)):
+        n = sum(map(len, p)) + sum(map(len, g))
+        if i > start and (i - start >= BATCH_IMAGES or points + n > BATCH_POINTS):
+            yield slice(start, i)
+            start, points = i, 0
+        points += n
+    if start < len(preds):
+        yield slice(start, len(preds))
+
+
 def evaluate(
     preds: Sequence[Sequence[np.ndarray]],
     targets: Sequence[Sequence[np.ndarray]],
@@ -522,8 +537,7 @@ def evaluate(
     names = list(names) if names is not None else [f"image {i}" for i in range(len(preds))]
     bar = progress_bar(progress, len(preds), "culane", "img")
     per_image = []
-    for s in range(0, len(preds), BATCH_IMAGES):
-        chunk = slice(s, s + BATCH_IMAGES)
+    for chunk in _batches(preds, targets):
         per_image += _evaluate_images(preds[chunk], targets[chunk], iou_thresholds, width, size, variant, names[chunk])
         if bar is not None:
             bar.update(len(per_image) - bar.n)

@@ -10,6 +10,7 @@ import gc
 import json
 import math
 import os
+import re
 import stat
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -21,6 +22,7 @@ import numpy as np
 __all__ = [
     "MAX_COORDINATE",
     "MAX_FILE_BYTES",
+    "MAX_IMAGE_POINTS",
     "MAX_IMAGE_SIDE",
     "MAX_LANES",
     "MAX_LANE_POINTS",
@@ -30,6 +32,7 @@ __all__ = [
     "TuSimpleFile",
     "TuSimpleInputError",
     "check_tusimple",
+    "cpp_stream_doubles",
     "culane_entries",
     "culane_lines_path",
     "duplicate_raw_file",
@@ -52,7 +55,12 @@ the image's size, so a declared 200000x200000 frame would ask for tens of GiB.""
 MAX_LANES = 64
 """Most lanes in one image: the CULane matching grows with the cube of the lane count (1,500 lanes: a minute)."""
 MAX_LANE_POINTS = 10000
-"""Most points in one lane (a CULane lane of 1M points took 3.4 GB to rasterise)."""
+"""Most points (rows) in one TuSimple or VIL-100 lane. CULane text has no limit per lane: ``MAX_IMAGE_POINTS``."""
+MAX_IMAGE_POINTS = 100_000
+"""Most points in the lanes of one CULane/ApolloScape ``.lines.txt`` (the memory budget of one image, not a limit
+per lane): the C++ metric resamples a lane at 50 points per segment, about 3 KB per input point while it is
+resampled (measured: one lane of 100,000 points, ``stamlane-eval culane``, peaks at 0.33 GB in 3.6 s); the C++
+tool's own inputs hold a few hundred points per image."""
 MAX_LANE_WIDTH = 1024
 """Widest lane line (px) the CULane metric may draw."""
 MAX_COORDINATE = 100_000.0
@@ -584,21 +592,30 @@ def tusimple_lanes(
     return out, rows
 
 
-def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:
+def read_culane_lines(
+    path: str | os.PathLike, missing_ok: bool = True, *, prediction: bool = False
+) -> list[np.ndarray]:
     """Read one CULane ``.lines.txt`` file.
 
     As the official C++ tool, every line is a lane, a blank line included (a lane with 0 points); a missing
     file is an image without lanes when ``missing_ok``.
 
+    A prediction (``prediction=True``) is read as the C++ tool reads it (`cpp_stream_doubles`): a line's numbers
+    up to the first token ``>>`` cannot read (``nan``, ``inf``, a word, ``1e400``), pairs only. A label is
+    checked: only numbers, finite, an even count. Either way ``MAX_LANES`` lanes and ``MAX_IMAGE_POINTS``
+    points per file (memory; no limit per lane).
+
     Args:
         path: the file.
         missing_ok: return ``[]`` for a missing file instead of raising.
+        prediction: read as the C++ tool reads a prediction, instead of checking a label.
 
     Returns:
         Per lane, an ``(N, 2)`` float64 array of ``(x, y)`` points in file order.
 
     Raises:
-        LaneFileError: unreadable file, a non-number, NaN/inf, or an odd number of coordinates on a line.
+        LaneFileError: unreadable file, too many lanes or points; a label with a non-number, NaN/inf, or an odd
+            number of coordinates on a line.
     """
     p = Path(path)
     try:
@@ -608,28 +625,83 @@ def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[
             return []
         raise LaneFileError(f"{p}: no such file") from None
     lanes = []
+    points = 0
     lines = text.split("\n")  # as the C++ getline: only "\n" ends a line; "\r" is whitespace inside one
     if lines[-1] == "":
         lines.pop()
+    if len(lines) > MAX_LANES:
+        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image ({len(lines)} lines)")
     for i, line in enumerate(lines, 1):
         raw = line.encode()
-        try:
-            if b"_" in raw:  # Python's float() reads 1_000, the C++ does not
-                raise ValueError
-            vals = list(map(float, raw.split()))  # C isspace: the ASCII blanks only, as the C++ ">>" skips them
-        except ValueError:
-            raise LaneFileError(f"{p}: line {i}: not a number in {line.strip()[:60]!r}") from None
+        vals = _plain_numbers(raw)
+        if vals is None and prediction:
+            vals = cpp_stream_doubles(raw)
+        elif vals is None:
+            raise LaneFileError(
+                f"{p}: line {i}: not a finite number in {line.strip()[:60]!r} (a label holds numbers only; the C++ "
+                f"tool would silently stop reading the line there)"
+            )
         if len(vals) % 2:
-            raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
-        if len(vals) // 2 > MAX_LANE_POINTS:
-            raise LaneFileError(f"{p}: line {i}: {len(vals) // 2} points, more than the limit of {MAX_LANE_POINTS}")
-        lane = np.array(vals, dtype=np.float64).reshape(-1, 2)
-        if not np.isfinite(lane).all():
-            raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
-        lanes.append(lane)
-        if len(lanes) > MAX_LANES:
-            raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image")
+            if not prediction:
+                raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
+            vals = vals[:-1]  # while (ss >> x >> y): an x without its y is never pushed
+        points += len(vals) // 2
+        if points > MAX_IMAGE_POINTS:
+            raise LaneFileError(
+                f"{p}: more than {MAX_IMAGE_POINTS} points in the lanes of one image (the memory budget of one image)"
+            )
+        lanes.append(np.array(vals, dtype=np.float64).reshape(-1, 2))
     return lanes
+
+
+_PLAIN_TEXT = re.compile(rb"[0-9eE+\-. \t\v\f\r]*")
+# What libstdc++'s num_get accumulates for one ``>> double`` after skipping C-locale white space: a sign, digits
+# with at most one decimal point, then an exponent only after a digit ("1e" is accumulated, then refused whole).
+_CPP_DOUBLE = re.compile(rb"[ \t\n\v\f\r]*([+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]*)?|\.)?)")
+
+
+def _plain_numbers(raw: bytes) -> list[float] | None:
+    """The numbers of a line made only of finite decimal numbers and blanks (what well-formed files hold), or
+    None: there every token is a whole C++ ``>>`` read, so both readings agree. Python's ``float`` also reads
+    ``1_000``, ``nan`` and ``inf``, which the character set keeps out, and 1e400 as inf, refused here."""
+    if not _PLAIN_TEXT.fullmatch(raw):
+        return None
+    try:
+        vals = list(map(float, raw.split()))  # C isspace: the ASCII blanks only, as the C++ ">>" skips them
+    except ValueError:
+        return None
+    return vals if all(map(math.isfinite, vals)) else None
+
+
+def cpp_stream_doubles(raw: bytes) -> list[float]:
+    """The numbers ``while (ss >> x >> y)`` reads from one line in the official C++ tool (``read_lane_file`` of
+    evaluate.cpp; libstdc++, C locale): every number up to the first read that fails.
+
+    Quirks kept (each is what libstdc++'s ``num_get`` does, read from its source; the C++ tool was not run on them
+    here): a read fails on a token that does not start like a number, so ``nan``, ``inf``, ``-nan`` and any word
+    end the lane there, silently, the points before it kept; a read stops at the first character that cannot
+    continue a number and the next read starts there (``20x`` is 20 then a failure, ``1-2`` is 1 then -2); a
+    value beyond the double range (``1e400``) fails (strtod's overflow sets failbit), one below it reads as 0 or a
+    denormal, as ``float`` does. The caller drops a last x without its y.
+
+    Args:
+        raw: one line, without its ``"\n"``.
+
+    Returns:
+        The values read, in order (finite).
+    """
+    vals: list[float] = []
+    pos = 0
+    while True:
+        m = _CPP_DOUBLE.match(raw, pos)
+        try:
+            v = float(m.group(1))  # the accumulated characters must be one whole number, as strtod's check
+        except ValueError:
+            return vals  # nothing, or "1e", "-", ".": failbit
+        if math.isinf(v):
+            return vals  # overflow: libstdc++ stores +-DBL_MAX and sets failbit; the loop ends
+        vals.append(v)
+        pos = m.end()
 
 
 def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
