@@ -402,3 +402,24 @@ def test_a_culane_prediction_lane_of_10001_points_is_scored(tmp_path: Path, caps
     big = " ".join("10 20" for _ in range(MAX_IMAGE_POINTS + 1)) + "\n"
     (pred / "d" / "0.lines.txt").write_text(big)
     assert "memory budget" in _refused(capsys, "culane", pred, gt)
+
+
+@pytest.mark.parametrize(
+    ("pred_text", "gt_text", "want"),
+    [
+        ("", LANE, "tp: 0 fp: 0 fn: 1\nprecision: -1\nrecall: 0\nFmeasure: 0\n"),
+        (LANE, "", "tp: 0 fp: 1 fn: 0\nprecision: 0\nrecall: -1\nFmeasure: 0\n"),
+        ("", "", "tp: 0 fp: 0 fn: 0\nprecision: -1\nrecall: -1\nFmeasure: -1\n"),
+        ("900 500 910 400 920 300\n", LANE, "tp: 0 fp: 1 fn: 1\nprecision: 0\nrecall: 0\nFmeasure: -nan\n"),
+    ],
+)
+def test_format_official_writes_the_cpp_tools_zero_denominators(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], pred_text: str, gt_text: str, want: str
+) -> None:
+    """evaluate.cpp: precision/recall -1 where their denominator is 0, F = 2PR/(P+R) from those (0.0/0.0: -nan)."""
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": pred_text})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": gt_text})
+    code, out, err = _run(capsys, "culane", pred, gt, "--format", "official", "--iou", "0.5")
+    assert code == 0 and out == want, (out, err)
+    if "-1" in want:  # as a table or json, 0/0 is no rate: refused
+        assert "0/0" in _refused(capsys, "culane", pred, gt)

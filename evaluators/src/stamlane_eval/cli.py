@@ -118,11 +118,22 @@ def _lane_py_line(res: tusimple.TuSimpleResult) -> str:
 
 def _cpp_tool_text(counts: culane.CULaneCounts) -> str:
     """What the official C++ tool writes per threshold (its -o file without the ``file:`` line; iostream's default
-    6 significant digits)."""
-    return (
-        f"tp: {counts.tp} fp: {counts.fp} fn: {counts.fn}\n"
-        f"precision: {counts.precision:.6g}\nrecall: {counts.recall:.6g}\nFmeasure: {counts.f1:.6g}\n"
-    )
+    6 significant digits), 0/0 cases included.
+
+    ``Counter::get_precision`` / ``get_recall`` return -1 where tp + fp (tp + fn) is 0, and evaluate.cpp computes
+    ``F = 2 * precision * recall / (precision + recall)`` from those: -1 when both are -1, 0 when one is -1 and
+    the other 0 (-0.0 / -1.0), and 0.0 / 0.0 when tp = 0 with fp and fn > 0: x86's default NaN, sign bit set,
+    which glibc prints "-nan" (the fixtures' README: "F is then -1 or NaN"; this -nan is glibc's spelling, the
+    C++ tool was not run on such a case here).
+    """
+    tp, fp, fn = counts.tp, counts.fp, counts.fn
+    precision = -1.0 if tp + fp == 0 else tp / (tp + fp)  # tp/double(tp + fp)
+    recall = -1.0 if tp + fn == 0 else tp / (tp + fn)
+    if precision + recall == 0.0:
+        fmeasure = "-nan"  # 0.0 / 0.0 on x86-64 (SSE): the "default NaN", negative
+    else:
+        fmeasure = f"{2 * precision * recall / (precision + recall):.6g}"
+    return f"tp: {tp} fp: {fp} fn: {fn}\nprecision: {precision:.6g}\nrecall: {recall:.6g}\nFmeasure: {fmeasure}\n"
 
 
 class _Version(argparse.Action):
@@ -310,7 +321,8 @@ def _run_culane(args: argparse.Namespace) -> int:
         )
     except ValueError as e:
         raise LaneFileError(f"{args.pred}: {e}") from None
-    _refuse_zero_denominators(res, args)
+    if args.format != "official":  # the C++ tool's own text writes its -1 and -nan (see _cpp_tool_text)
+        _refuse_zero_denominators(res, args)
     if args.per_image:
         recs = []
         for e, r in zip(entries, res.per_image, strict=True):
@@ -334,7 +346,8 @@ def _run_culane(args: argparse.Namespace) -> int:
 
 def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace) -> None:
     """Precision or recall 0/0 (no predicted lane, or no annotated lane, in any image): the C++ tool prints -1
-    there, which is no rate; refused (docs/evaluators.md, "What is scored and what is refused")."""
+    there, which is no rate; refused as a table or json (docs/evaluators.md, "What is scored and what is
+    refused"), written as the C++ tool writes it with ``--format official``."""
     c = next(iter(res.totals.values()))  # tp + fp and tp + fn are the same at every threshold
     if c.tp + c.fp == 0:
         raise LaneFileError(
