@@ -423,3 +423,39 @@ def test_format_official_writes_the_cpp_tools_zero_denominators(
     assert code == 0 and out == want, (out, err)
     if "-1" in want:  # as a table or json, 0/0 is no rate: refused
         assert "0/0" in _refused(capsys, "culane", pred, gt)
+
+
+def test_lanes_too_large_to_draw_are_refused_by_every_metric_that_draws(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One budget of canvases (io.CanvasBudget), counted before each allocation: video and video --temporal refuse
+    what culane refuses (16384 x 16384 frames crossed by lanes), with the same words."""
+    lane = "".join(f"{100 + 0.9 * y:.1f} {y} " for y in range(0, 16000, 400)) + "\n"
+    pred = _tree(tmp_path / "pred", {"v/0.lines.txt": lane * 6, "v/1.lines.txt": lane * 6})
+    gt = _tree(tmp_path / "gt", {"v/0.lines.txt": lane * 6, "v/1.lines.txt": lane * 6})
+    for extra in ([], ["--temporal"]):
+        err = _refused(capsys, "video", pred, gt, "--size", "16384x16384", *extra)
+        assert "too large to draw in memory" in err, err
+
+
+def test_predictions_far_outside_the_image_are_scored_under_temporal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """RVLD's script scores predicted x of +-150,000 (drawn clipped: nothing on the image); so do we, with the
+    counts of any other prediction that draws nothing."""
+    gt_lane = "100 350 150 250 200 150\n"
+    gt = _tree(tmp_path / "gt", {f"v/{i}.lines.txt": gt_lane for i in range(3)})
+    counts = []
+    for far in (
+        "150000 350 150010 250 150020 150",
+        "-150000 350 -150010 250 -150020 150",
+        "-900 350 -910 250 -920 150",
+    ):
+        pred = _tree(
+            tmp_path / f"pred{len(counts)}",
+            {"v/0.lines.txt": gt_lane, "v/1.lines.txt": far + "\n", "v/2.lines.txt": gt_lane},
+        )
+        code, out, err = _run(capsys, "video", pred, gt, "--temporal", "--size", "640x360", "--json")
+        assert code == 0, err
+        counts.append({t: json.loads(out)[t] for t in ("0.5", "0.8")})
+    assert counts[0] == counts[1] == counts[2] and counts[0]["0.5"]["Nj"] == 2
