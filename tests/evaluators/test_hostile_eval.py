@@ -113,7 +113,7 @@ def test_inputs_are_never_overwritten(tmp_path: Path, capsys: pytest.CaptureFixt
     (tmp_path / "out" / "per.jsonl").symlink_to(gt)  # an output name that is a link to the input
     for target in (gt, tmp_path / "out" / "per.jsonl", tmp_path):
         err = _refused(capsys, "tusimple", TS_PRED, gt, "--per-image", target)
-        assert "would overwrite or write into the input" in err or "cannot write" in err
+        assert "would overwrite or write into the input" in err or "is a folder" in err
     assert gt.read_bytes() == TS_GT.read_bytes()
 
 
@@ -459,3 +459,66 @@ def test_predictions_far_outside_the_image_are_scored_under_temporal(
         assert code == 0, err
         counts.append({t: json.loads(out)[t] for t in ("0.5", "0.8")})
     assert counts[0] == counts[1] == counts[2] and counts[0]["0.5"]["Nj"] == 2
+
+
+# --------------------------------------------------------------------------- outputs never touch an input
+def _video_tree(tmp_path: Path) -> tuple[Path, Path]:
+    pred = _tree(tmp_path / "pred", {"v/0.lines.txt": LANE, "v/1.lines.txt": LANE})
+    gt = _tree(tmp_path / "gt", {"v/0.lines.txt": LANE, "v/1.lines.txt": LANE})
+    return pred, gt
+
+
+def test_per_sequence_never_overwrites_the_sizes_file_nor_any_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pred, gt = _video_tree(tmp_path)
+    sizes = tmp_path / "sizes.json"
+    sizes.write_text('{"v": "640x360"}')
+    listing = tmp_path / "list.txt"
+    listing.write_text("v/0.jpg\nv/1.jpg\n")
+    (tmp_path / "link.jsonl").symlink_to(sizes)
+    os.link(listing, tmp_path / "hard.txt")
+    before = {p: p.read_bytes() for p in (sizes, listing, pred / "v/0.lines.txt")}
+    for extra in ([], ["--temporal"]):
+        for out in (sizes, tmp_path / "link.jsonl", listing, tmp_path / "hard.txt", pred / "v/0.lines.txt", gt / "x"):
+            argv = ["video", pred, gt, "--sizes", sizes, "--list", listing, "--per-sequence", out, *extra]
+            assert "would overwrite or write into the input" in _refused(capsys, *argv)
+    assert {p: p.read_bytes() for p in before} == before
+
+
+def test_per_image_temporary_names_never_remove_an_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The temporary file is made with a unique name (mkstemp); a prediction named like the old fixed temporary
+    name (".out.jsonl.tmp") is left alone."""
+    pred = tmp_path / ".out.jsonl.tmp"
+    pred.write_bytes(TS_PRED.read_bytes())
+    code, _, err = _run(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "out.jsonl")
+    assert code == 0, err
+    assert pred.read_bytes() == TS_PRED.read_bytes() and (tmp_path / "out.jsonl").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.jsonl.tmp", "out.jsonl"]  # no temporary left
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro").chmod(0o500)
+    try:
+        if not os.access(tmp_path / "ro", os.W_OK):  # root writes anywhere
+            assert "cannot write" in _refused(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "ro" / "o")
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+    assert "is a folder" in _refused(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "ro")
+
+
+def _die(*_: object, **__: object) -> None:
+    os._exit(1)
+
+
+def test_a_killed_jobs_worker_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from stamlane_eval import temporal, video
+
+    pred, gt = _video_tree(tmp_path)
+    _tree(pred, {"w/0.lines.txt": LANE})
+    _tree(gt, {"w/0.lines.txt": LANE})
+    monkeypatch.setattr(video, "evaluate_sequence", _die)
+    monkeypatch.setattr(temporal, "evaluate_sequence", _die)
+    for extra in ([], ["--temporal"]):
+        err = _refused(capsys, "video", pred, gt, "--size", "640x360", "--jobs", "2", *extra)
+        assert "worker process of --jobs 2 died" in err

@@ -19,8 +19,10 @@ import gc
 import json
 import os
 import sys
+import tempfile
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import BrokenExecutor
 from pathlib import Path
 
 import stamlane_eval
@@ -28,7 +30,7 @@ from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.cli_tools import (
     OneLineParser,
     OutputError,
-    check_output,
+    check_outputs,
     format_wxh,
     parse_or_status,
     parse_wxh,
@@ -231,17 +233,37 @@ def _table(rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines)
 
 
-def _write_jsonl(path: Path, records: Sequence[dict]) -> None:
-    """Write json-lines atomically: a temporary file beside ``path``, then renamed over it."""
-    tmp = path.with_name(f".{path.name}.tmp")
+def _inputs(args: argparse.Namespace) -> list[Path | None]:
+    """Every path a command reads: predictions, ground truth, the list and sizes files."""
+    return [args.pred, args.gt, getattr(args, "list", None), getattr(args, "sizes", None)]
+
+
+def _outputs(args: argparse.Namespace) -> list[Path | None]:
+    """Every path a command writes (besides stdout)."""
+    return [getattr(args, "per_image", None), getattr(args, "per_sequence", None)]
+
+
+def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | None]) -> None:
+    """Write json-lines atomically: a temporary file of a unique name beside ``path`` (created, never an
+    existing file; checked against the inputs as the output was), then renamed over it."""
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        raise LaneFileError(f"{path}: cannot write: {e.strerror}") from None
+    tmp = Path(name)
+    try:
+        check_outputs([tmp], inputs, files=True)
+        with open(fd, "w", encoding="utf-8") as f:
             for rec in records:
                 f.write(json.dumps(rec) + "\n")
         os.replace(tmp, path)
     except OSError as e:
-        tmp.unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)  # the file this call created, nothing else
         raise LaneFileError(f"{path}: cannot write: {e}") from None
+    except OutputError:
+        os.close(fd)
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _run_tusimple(args: argparse.Namespace) -> int:
@@ -273,6 +295,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
                 }
                 for p, r in zip(preds, res.per_image, strict=True)
             ],
+            _inputs(args),
         )
     if args.format == "json":
         print(json.dumps(res.as_dict()))
@@ -330,7 +353,7 @@ def _run_culane(args: argparse.Namespace) -> int:
             rec.update({str(t): list(r.counts[t]) for t in thresholds})
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)
-        _write_jsonl(args.per_image, recs)
+        _write_jsonl(args.per_image, recs, _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     elif args.format == "official":
@@ -461,7 +484,7 @@ def _run_video(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -499,7 +522,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
             f"Rs, Rj, Rm are 0/0 (RVLD's script fails here with ZeroDivisionError)"
         )
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -529,9 +552,7 @@ def _main(argv: list[str] | None) -> int:
     if isinstance(args, int):  # --help, --version, or a usage error already printed in one line
         return args
     try:
-        for option in ("per_image", "per_sequence"):
-            if getattr(args, option, None) is not None:
-                check_output(getattr(args, option), [args.pred, args.gt, getattr(args, "list", None)])
+        check_outputs(_outputs(args), _inputs(args), files=True)  # every output against every input, before any read
         if args.command == "tusimple":
             return _run_tusimple(args)
         if args.command in ("culane", "apollo"):
@@ -539,6 +560,11 @@ def _main(argv: list[str] | None) -> int:
         return _run_video(args)
     except (OutputError, LaneFileError) as e:
         print(f"stamlane-eval: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenExecutor as e:  # a --jobs worker killed (out of memory, a signal): no result to give
+        print(
+            f"stamlane-eval: error: a worker process of --jobs {getattr(args, 'jobs', '')} died ({e})", file=sys.stderr
+        )
         return EXIT_BAD_INPUT
 
 
