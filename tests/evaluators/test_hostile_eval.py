@@ -522,3 +522,9 @@ def test_a_killed_jobs_worker_is_one_line(
     for extra in ([], ["--temporal"]):
         err = _refused(capsys, "video", pred, gt, "--size", "640x360", "--jobs", "2", *extra)
         assert "worker process of --jobs 2 died" in err
+
+
+def test_a_sizes_file_nested_too_deeply_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pred, gt = _video_tree(tmp_path)
+    (tmp_path / "sizes.json").write_text("[" * 100000 + "]" * 100000)
+    assert "nested too deeply" in _refused(capsys, "video", pred, gt, "--sizes", tmp_path / "sizes.json")

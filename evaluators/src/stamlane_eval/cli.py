@@ -54,6 +54,7 @@ from stamlane_eval.io import (
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
+MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
 
 
@@ -93,8 +94,10 @@ def _jobs(text: str) -> int:
         v = int(text)
     except ValueError:
         v = -1
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a number of processes >= 0 (0: one per core), got {text!r}")
+    if not 0 <= v <= MAX_JOBS:
+        raise argparse.ArgumentTypeError(
+            f"expected a number of processes in 0..{MAX_JOBS} (0: one per core), got {text!r}"
+        )
     return v
 
 
@@ -425,6 +428,8 @@ def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
         data = json.loads(text)
     except ValueError as e:
         raise LaneFileError(f"{path}: cannot read a JSON object: {e}") from None
+    except RecursionError:
+        raise LaneFileError(f"{path}: JSON nested too deeply") from None
     if not isinstance(data, dict):
         raise LaneFileError(f'{path}: expected a JSON object {{sequence: "WxH"}}, got {type(data).__name__}')
     out = {}
