@@ -41,6 +41,7 @@ from stamlane_eval.video import Frame
 __all__ = [
     "ANNO_MATCH_IOU",
     "CHANNELS",
+    "INT32_LIMIT",
     "IOU_EPS",
     "LANE_WIDTH",
     "OPENLANE_V_EVAL_SIZE",
