@@ -158,7 +158,7 @@ _TS_GT = {g["raw_file"]: g for g in map(json.loads, (GOLDEN / "tusimple_gt.json"
 
 
 @FUZZ
-@given(st.data(), st.sampled_from(["value", "duplicate", "special", "output", "temporary"]))
+@given(st.data(), st.sampled_from(["value", "duplicate", "huge", "special", "output", "temporary"]))
 def test_fuzz_tusimple(
     tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str], data: st.DataObject, how: str
 ) -> None:
@@ -177,6 +177,12 @@ def test_fuzz_tusimple(
     elif how == "duplicate":
         recs = preds if side == "pred" else gts
         recs.append(recs[data.draw(st.integers(0, len(recs) - 1))])
+    elif how == "huge":  # past the documented limits: 64 lanes, 10,000 rows
+        if data.draw(st.booleans()):
+            preds[0]["lanes"] = [preds[0]["lanes"][0]] * 65
+        else:
+            gts[0]["h_samples"] = list(range(10_001))
+            gts[0]["lanes"] = [[-2] * 10_001]
     pred.write_text("".join(_dumps(r) + "\n" for r in preds))
     gt.write_text("".join(_dumps(r) + "\n" for r in gts))
     argv: list[object] = ["tusimple", pred, gt, "--json"]
@@ -197,7 +203,7 @@ def test_fuzz_tusimple(
             "outside",
             "per.jsonl",
         ]
-    if how in ("special", "output") or (how == "duplicate" and side == "gt"):
+    if how in ("special", "output", "huge") or (how == "duplicate" and side == "gt"):
         assert code == 2
     if code == 0:
         _rates(json.loads(out), ("accuracy",))
