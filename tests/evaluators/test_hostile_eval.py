@@ -528,3 +528,12 @@ def test_a_sizes_file_nested_too_deeply_is_one_line(tmp_path: Path, capsys: pyte
     pred, gt = _video_tree(tmp_path)
     (tmp_path / "sizes.json").write_text("[" * 100000 + "]" * 100000)
     assert "nested too deeply" in _refused(capsys, "video", pred, gt, "--sizes", tmp_path / "sizes.json")
+
+
+def test_too_many_thresholds_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Counts are kept per threshold for every image: a sweep of 100 is allowed, not an argv of 5,000."""
+    pred, gt = _video_tree(tmp_path)
+    many = [f"{i / 5000:.4f}" for i in range(5000)]
+    assert "more than the limit of 100" in _refused(capsys, "culane", pred, gt, "--iou", *many)
+    code, _, err = _run(capsys, "culane", pred, gt, "--iou", *[f"{i / 100:.2f}" for i in range(100)], "--json")
+    assert code == 0, err

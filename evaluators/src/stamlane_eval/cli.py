@@ -55,6 +55,7 @@ __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
 MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
+MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
 
 
@@ -558,6 +559,8 @@ def _main(argv: list[str] | None) -> int:
         return args
     try:
         check_outputs(_outputs(args), _inputs(args), files=True)  # every output against every input, before any read
+        if len(set(getattr(args, "iou", ()))) > MAX_THRESHOLDS:
+            raise LaneFileError(f"--iou: {len(set(args.iou))} thresholds, more than the limit of {MAX_THRESHOLDS}")
         if args.command == "tusimple":
             return _run_tusimple(args)
         if args.command in ("culane", "apollo"):
