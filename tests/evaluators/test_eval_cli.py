@@ -158,11 +158,12 @@ def _culane_tree(tmp_path: Path, pred_text: str, gt_text: str = "10 500 20 400 3
 
 
 @pytest.mark.parametrize(
-    ("pred_text", "words"),
-    [("10 500 20\n", "odd number"), ("10 500 abc 400\n", "not a number"), ("10 500 nan 400\n", "non-finite")],
+    ("gt_text", "words"),
+    [("10 500 20\n", "odd number"), ("10 500 abc 400\n", "not a finite number"), ("10 500 nan 400\n", "not a finite")],
 )
-def test_culane_bad_files(capsys: pytest.CaptureFixture[str], tmp_path: Path, pred_text: str, words: str) -> None:
-    pred, gt = _culane_tree(tmp_path, pred_text)
+def test_culane_bad_labels(capsys: pytest.CaptureFixture[str], tmp_path: Path, gt_text: str, words: str) -> None:
+    """A label is checked (a prediction with the same text is read as the C++ tool reads it: test_hostile_eval)."""
+    pred, gt = _culane_tree(tmp_path, "10 500 20 400\n", gt_text)
     code, out, err = _run(capsys, "culane", pred, gt)
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     assert "0.lines.txt" in err and words in err and "line 1" in err
@@ -243,14 +244,14 @@ def test_console_script_runs() -> None:
 
 
 def test_documented_limits_are_one_line_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    from stamlane_eval.io import MAX_IMAGE_SIDE, MAX_LANE_POINTS, MAX_LANE_WIDTH, MAX_LANES
+    from stamlane_eval.io import MAX_IMAGE_POINTS, MAX_IMAGE_SIDE, MAX_LANE_WIDTH, MAX_LANES
 
-    long_lane = " ".join(f"{i % 1000} {i % 500}" for i in range(MAX_LANE_POINTS + 1)) + "\n"
+    long_lane = " ".join(f"{i % 1000} {i % 500}" for i in range(MAX_IMAGE_POINTS + 1)) + "\n"
     many_lanes = "10 500 20 400\n" * (MAX_LANES + 1)
     nested = tmp_path / "nested.json"
     nested.write_text("[" * 100000 + "]" * 100000 + "\n")
     cases = [
-        (lambda: _culane_tree(tmp_path / "a", long_lane), [], "more than the limit"),
+        (lambda: _culane_tree(tmp_path / "a", long_lane), [], f"more than {MAX_IMAGE_POINTS} points"),
         (lambda: _culane_tree(tmp_path / "b", many_lanes), [], f"more than {MAX_LANES} lanes"),
         (lambda: _culane_tree(tmp_path / "c", "10 500 20 400\n"), ["--width", str(MAX_LANE_WIDTH + 1)], "lane width"),
         (lambda: _culane_tree(tmp_path / "d", "10 500 20 400\n"), ["--size", f"{MAX_IMAGE_SIDE + 1}x10"], "sides in"),

@@ -113,7 +113,7 @@ def test_inputs_are_never_overwritten(tmp_path: Path, capsys: pytest.CaptureFixt
     (tmp_path / "out" / "per.jsonl").symlink_to(gt)  # an output name that is a link to the input
     for target in (gt, tmp_path / "out" / "per.jsonl", tmp_path):
         err = _refused(capsys, "tusimple", TS_PRED, gt, "--per-image", target)
-        assert "would overwrite or write into the input" in err or "cannot write" in err
+        assert "would overwrite or write into the input" in err or "is a folder" in err
     assert gt.read_bytes() == TS_GT.read_bytes()
 
 
@@ -263,3 +263,277 @@ def test_lanes_too_large_to_draw_are_refused_in_one_line(tmp_path: Path, capsys:
     gt = _tree(tmp_path / "gt", {"d/0.lines.txt": lane * 6})
     err = _refused(capsys, "culane", pred, gt, "--size", "16384x16384")
     assert "too large to draw in memory" in err
+
+
+# ----------------------------------------------------------------------- typed readers: numbers are numbers
+def _vil100(root: Path, frames: dict[str, dict]) -> Path:
+    return _tree(root, {f"Json/v/{name}": json.dumps(doc) for name, doc in frames.items()})
+
+
+def _vil_doc(points: object = None, info: object = None, lane_id: object = 1) -> dict:
+    lane = {"lane_id": lane_id, "points": [[10, 350], [20, 300], [30, 250]] if points is None else points}
+    return {"info": {"width": 640, "height": 360} if info is None else info, "annotations": {"lane": [lane]}}
+
+
+@pytest.mark.parametrize(
+    ("doc", "words"),
+    [
+        (_vil_doc(points=[[True, 359], [20, 300]]), "two JSON numbers, got a boolean"),
+        (_vil_doc(points=[["10", 359], [20, 300]]), "two JSON numbers"),
+        (_vil_doc(points=[[10, 359, 1], [20, 300]]), "two JSON numbers"),
+        (_vil_doc(points=[10, 359, 20, 300]), "two JSON numbers"),
+        (_vil_doc(points=[[1e300, 359], [20, 300]]), "no pixel of an image"),
+        (_vil_doc(info={"width": "640", "height": 360}), "info.width must be an integer"),
+        (_vil_doc(info={"width": True, "height": 360}), "info.width must be an integer"),
+        (_vil_doc(info={"width": 640, "height": 360.5}), "info.height must be an integer"),
+        (_vil_doc(lane_id="1"), "lane_id must be an integer"),
+        (_vil_doc(lane_id=True), "lane_id must be an integer"),
+    ],
+)
+def test_vil100_values_that_are_not_numbers_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], doc: dict, words: str
+) -> None:
+    gt = _vil100(tmp_path / "gt", {"00000.jpg.json": doc})
+    pred = _tree(tmp_path / "pred", {"v/00000.lines.txt": LANE})
+    assert words in _refused(capsys, "video", pred, gt)
+    assert words in _refused(capsys, "video", pred, gt, "--temporal")
+
+
+def test_vil100_integral_float_sizes_are_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt = _vil100(tmp_path / "gt", {"00000.jpg.json": _vil_doc(info={"width": 640.0, "height": 360})})
+    pred = _tree(tmp_path / "pred", {"v/00000.lines.txt": "10 350 20 300 30 250\n"})
+    code, out, _ = _run(capsys, "video", pred, gt, "--json")
+    assert code == 0 and json.loads(out)["0.5"]["tp"] == 1
+
+
+def test_a_frame_labelled_or_listed_twice_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = _vil_doc()
+    gt = _vil100(tmp_path / "gt", {"00001.jpg.json": doc, "00001.png.json": doc, "00002.jpg.json": doc})
+    pred = _tree(tmp_path / "pred", {"v/00001.lines.txt": LANE})
+    for extra in ([], ["--temporal"]):
+        assert "labelled twice" in _refused(capsys, "video", pred, gt, *extra)
+    (gt / "Json" / "v" / "00001.png.json").unlink()
+    for entries in ("v/00001.jpg\nv/00002.jpg\nv/00001.jpg\n", "/JPEGImages/v/00001.jpg\nv/00001.png\n"):
+        (tmp_path / "list.txt").write_text(entries)
+        for extra in ([], ["--temporal"]):
+            err = _refused(capsys, "video", pred, gt, "--list", tmp_path / "list.txt", *extra)
+            assert "name the same" in err, err
+    lines_gt = _tree(tmp_path / "lgt", {"v/1.lines.txt": LANE, "v/2.lines.txt": LANE})
+    (tmp_path / "list2.txt").write_text("v/1.jpg\nv/2.jpg\nv/1.jpg\n")
+    assert "name the same" in _refused(
+        capsys, "video", pred, lines_gt, "--list", tmp_path / "list2.txt", "--size", "640x360"
+    )
+
+
+def test_culane_json_predictions_are_typed_and_name_each_image_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    h = [300, 350]
+    gt_rec = {"raw_file": "a.jpg", "lanes": [[10, 20]], "h_samples": h}
+    gt = tmp_path / "gt.json"
+    gt.write_text(json.dumps(gt_rec) + "\n" + json.dumps({**gt_rec, "raw_file": "b.jpg"}) + "\n")
+    pred = tmp_path / "pred.json"
+    ok = {"raw_file": "a.jpg", "lanes": [[10, 20]], "run_time": 1}
+    for recs, words in [
+        ([ok, ok], "two predictions for one image"),
+        ([{**ok, "lanes": [[True, 20]]}], "true/false"),
+        ([{**ok, "lanes": [["10", 20]]}], "JSON numbers"),
+        ([{**ok, "raw_file": ["a.jpg"]}], "not in the ground truth"),
+    ]:
+        pred.write_text("".join(json.dumps(r) + "\n" for r in recs))
+        assert words in _refused(capsys, "culane", pred, gt, "--size", "640x360"), words
+    pred.write_text(json.dumps(ok) + "\n")
+    bad_gt = tmp_path / "bad_gt.json"
+    for g, words in [
+        ([gt_rec, gt_rec], "again"),
+        ([{**gt_rec, "h_samples": ["300", 350]}], "h_samples must be a list of numbers"),
+    ]:
+        bad_gt.write_text("".join(json.dumps(r) + "\n" for r in g))
+        assert words in _refused(capsys, "culane", pred, bad_gt, "--size", "640x360"), words
+    code, out, _ = _run(capsys, "culane", pred, gt, "--size", "640x360", "--json")
+    assert code == 0 and json.loads(out)["0.5"]["tp"] == 1
+
+
+# ------------------------------------------------------------- parity kept: what the official tools score
+@pytest.mark.parametrize(
+    ("line", "want"),
+    [
+        (b"10 500 20 400", [10, 500, 20, 400]),
+        (b"10 500 nan 400 30 300", [10, 500]),  # >> fails on "nan": the lane ends there, silently
+        (b"10 500 -nan 400", [10, 500]),
+        (b"10 500 inf 400", [10, 500]),
+        (b"10 500 1e400 400", [10, 500]),  # overflow: failbit
+        (b"10 500 20x 400", [10, 500, 20]),  # 20 read, then "x" fails (the caller drops the lone x)
+        (b"1-2 3 4", [1, -2, 3, 4]),  # a sign starts the next number
+        (b"1e 5", []),  # "1e" accumulated, refused whole
+        (b"1.e2 .5 +3 -0", [100, 0.5, 3, 0]),
+        (b"\t10\r 20\v", [10, 20]),  # C isspace
+        (b"1_000 2", [1]),
+        (b"abc 1 2", []),
+    ],
+)
+def test_culane_predictions_are_read_as_the_cpp_stream_reads_them(line: bytes, want: list[float]) -> None:
+    from stamlane_eval.io import cpp_stream_doubles
+
+    assert cpp_stream_doubles(line) == want
+
+
+def test_culane_predictions_with_nan_or_words_are_scored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt_lane = "100 500 110 400 120 300\n"
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": "100 500 110 400 120 300 nan 200\n", "d/1.lines.txt": "nan\n"})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": gt_lane, "d/1.lines.txt": gt_lane})
+    code, out, err = _run(capsys, "culane", pred, gt, "--json")
+    assert code == 0 and err == "", err
+    res = json.loads(out)
+    # image 0: the lane up to the nan matches; image 1: a lane of 0 points (one FP, one FN), as the C++ tool
+    assert [res["0.5"][k] for k in ("tp", "fp", "fn")] == [1, 1, 1]
+
+
+def test_a_culane_prediction_lane_of_10001_points_is_scored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from stamlane_eval.io import MAX_IMAGE_POINTS
+
+    pts = [(100 + 0.5 * (i % 7), 580 - i * 0.05) for i in range(10_001)]
+    lane = " ".join(f"{x:g} {y:g}" for x, y in pts) + "\n"
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": lane})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": "100 580 101 330 102 80\n"})
+    code, out, err = _run(capsys, "culane", pred, gt, "--json")
+    assert code == 0, err
+    assert json.loads(out)["0.3"]["tp"] == 1
+    big = " ".join("10 20" for _ in range(MAX_IMAGE_POINTS + 1)) + "\n"
+    (pred / "d" / "0.lines.txt").write_text(big)
+    assert "memory budget" in _refused(capsys, "culane", pred, gt)
+
+
+@pytest.mark.parametrize(
+    ("pred_text", "gt_text", "want"),
+    [
+        ("", LANE, "tp: 0 fp: 0 fn: 1\nprecision: -1\nrecall: 0\nFmeasure: 0\n"),
+        (LANE, "", "tp: 0 fp: 1 fn: 0\nprecision: 0\nrecall: -1\nFmeasure: 0\n"),
+        ("", "", "tp: 0 fp: 0 fn: 0\nprecision: -1\nrecall: -1\nFmeasure: -1\n"),
+        ("900 500 910 400 920 300\n", LANE, "tp: 0 fp: 1 fn: 1\nprecision: 0\nrecall: 0\nFmeasure: -nan\n"),
+    ],
+)
+def test_format_official_writes_the_cpp_tools_zero_denominators(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], pred_text: str, gt_text: str, want: str
+) -> None:
+    """evaluate.cpp: precision/recall -1 where their denominator is 0, F = 2PR/(P+R) from those (0.0/0.0: -nan)."""
+    pred = _tree(tmp_path / "pred", {"d/0.lines.txt": pred_text})
+    gt = _tree(tmp_path / "gt", {"d/0.lines.txt": gt_text})
+    code, out, err = _run(capsys, "culane", pred, gt, "--format", "official", "--iou", "0.5")
+    assert code == 0 and out == want, (out, err)
+    if "-1" in want:  # as a table or json, 0/0 is no rate: refused
+        assert "0/0" in _refused(capsys, "culane", pred, gt)
+
+
+def test_lanes_too_large_to_draw_are_refused_by_every_metric_that_draws(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One budget of canvases (io.CanvasBudget), counted before each allocation: video and video --temporal refuse
+    what culane refuses (16384 x 16384 frames crossed by lanes), with the same words."""
+    lane = "".join(f"{100 + 0.9 * y:.1f} {y} " for y in range(0, 16000, 400)) + "\n"
+    pred = _tree(tmp_path / "pred", {"v/0.lines.txt": lane * 6, "v/1.lines.txt": lane * 6})
+    gt = _tree(tmp_path / "gt", {"v/0.lines.txt": lane * 6, "v/1.lines.txt": lane * 6})
+    for extra in ([], ["--temporal"]):
+        err = _refused(capsys, "video", pred, gt, "--size", "16384x16384", *extra)
+        assert "too large to draw in memory" in err, err
+
+
+def test_predictions_far_outside_the_image_are_scored_under_temporal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """RVLD's script scores predicted x of +-150,000 (drawn clipped: nothing on the image); so do we, with the
+    counts of any other prediction that draws nothing."""
+    gt_lane = "100 350 150 250 200 150\n"
+    gt = _tree(tmp_path / "gt", {f"v/{i}.lines.txt": gt_lane for i in range(3)})
+    counts = []
+    for far in (
+        "150000 350 150010 250 150020 150",
+        "-150000 350 -150010 250 -150020 150",
+        "-900 350 -910 250 -920 150",
+    ):
+        pred = _tree(
+            tmp_path / f"pred{len(counts)}",
+            {"v/0.lines.txt": gt_lane, "v/1.lines.txt": far + "\n", "v/2.lines.txt": gt_lane},
+        )
+        code, out, err = _run(capsys, "video", pred, gt, "--temporal", "--size", "640x360", "--json")
+        assert code == 0, err
+        counts.append({t: json.loads(out)[t] for t in ("0.5", "0.8")})
+    assert counts[0] == counts[1] == counts[2] and counts[0]["0.5"]["Nj"] == 2
+
+
+# --------------------------------------------------------------------------- outputs never touch an input
+def _video_tree(tmp_path: Path) -> tuple[Path, Path]:
+    pred = _tree(tmp_path / "pred", {"v/0.lines.txt": LANE, "v/1.lines.txt": LANE})
+    gt = _tree(tmp_path / "gt", {"v/0.lines.txt": LANE, "v/1.lines.txt": LANE})
+    return pred, gt
+
+
+def test_per_sequence_never_overwrites_the_sizes_file_nor_any_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pred, gt = _video_tree(tmp_path)
+    sizes = tmp_path / "sizes.json"
+    sizes.write_text('{"v": "640x360"}')
+    listing = tmp_path / "list.txt"
+    listing.write_text("v/0.jpg\nv/1.jpg\n")
+    (tmp_path / "link.jsonl").symlink_to(sizes)
+    os.link(listing, tmp_path / "hard.txt")
+    before = {p: p.read_bytes() for p in (sizes, listing, pred / "v/0.lines.txt")}
+    for extra in ([], ["--temporal"]):
+        for out in (sizes, tmp_path / "link.jsonl", listing, tmp_path / "hard.txt", pred / "v/0.lines.txt", gt / "x"):
+            argv = ["video", pred, gt, "--sizes", sizes, "--list", listing, "--per-sequence", out, *extra]
+            assert "would overwrite or write into the input" in _refused(capsys, *argv)
+    assert {p: p.read_bytes() for p in before} == before
+
+
+def test_per_image_temporary_names_never_remove_an_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The temporary file is made with a unique name (mkstemp); a prediction named like the old fixed temporary
+    name (".out.jsonl.tmp") is left alone."""
+    pred = tmp_path / ".out.jsonl.tmp"
+    pred.write_bytes(TS_PRED.read_bytes())
+    code, _, err = _run(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "out.jsonl")
+    assert code == 0, err
+    assert pred.read_bytes() == TS_PRED.read_bytes() and (tmp_path / "out.jsonl").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.jsonl.tmp", "out.jsonl"]  # no temporary left
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro").chmod(0o500)
+    try:
+        if not os.access(tmp_path / "ro", os.W_OK):  # root writes anywhere
+            assert "cannot write" in _refused(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "ro" / "o")
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+    assert "is a folder" in _refused(capsys, "tusimple", pred, TS_GT, "--per-image", tmp_path / "ro")
+
+
+def _die(*_: object, **__: object) -> None:
+    os._exit(1)
+
+
+def test_a_killed_jobs_worker_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from stamlane_eval import temporal, video
+
+    pred, gt = _video_tree(tmp_path)
+    _tree(pred, {"w/0.lines.txt": LANE})
+    _tree(gt, {"w/0.lines.txt": LANE})
+    monkeypatch.setattr(video, "evaluate_sequence", _die)
+    monkeypatch.setattr(temporal, "evaluate_sequence", _die)
+    for extra in ([], ["--temporal"]):
+        err = _refused(capsys, "video", pred, gt, "--size", "640x360", "--jobs", "2", *extra)
+        assert "worker process of --jobs 2 died" in err
+
+
+def test_a_sizes_file_nested_too_deeply_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pred, gt = _video_tree(tmp_path)
+    (tmp_path / "sizes.json").write_text("[" * 100000 + "]" * 100000)
+    assert "nested too deeply" in _refused(capsys, "video", pred, gt, "--sizes", tmp_path / "sizes.json")
+
+
+def test_too_many_thresholds_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Counts are kept per threshold for every image: a sweep of 100 is allowed, not an argv of 5,000."""
+    pred, gt = _video_tree(tmp_path)
+    many = [f"{i / 5000:.4f}" for i in range(5000)]
+    assert "more than the limit of 100" in _refused(capsys, "culane", pred, gt, "--iou", *many)
+    code, _, err = _run(capsys, "culane", pred, gt, "--iou", *[f"{i / 100:.2f}" for i in range(100)], "--json")
+    assert code == 0, err

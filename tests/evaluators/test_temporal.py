@@ -112,6 +112,29 @@ def test_large_vil100_sized_lanes_match_full_image_drawing() -> None:
             assert temporal._iou_matrix([drawn[i]], [drawn[j]])[0, 0] == want
 
 
+def test_predictions_far_outside_the_image_are_drawn_clipped_as_the_script_draws_them() -> None:
+    """x = +-150,000 (RVLD's script scores them): drawn on a canvas no larger than the image, pixel for pixel
+    draw_lane's full image (nothing, or the part that crosses it)."""
+    size = (360, 640)
+    for pts in (
+        np.array([[150000, 10], [150010, 300]], np.int32),
+        np.array([[-150000, 10], [-150000, 300]], np.int32),
+        np.array([[-150000, 0], [150000, 359]], np.int32),  # crosses the image
+        np.array([[-150000, 300], [320, 200], [150000, 100]], np.int32),
+    ):
+        want = np.zeros((*size, 3), np.uint8)
+        for p1, p2 in itertools.pairwise(pts):
+            cv2.line(want, tuple(int(v) for v in p1), tuple(int(v) for v in p2), (255, 255, 255), thickness=30)
+        d = _draw(pts, size)
+        assert d.mask.size <= size[0] * size[1]
+        got = np.zeros(size, bool)
+        got[d.y0 : d.y0 + d.mask.shape[0], d.x0 : d.x0 + d.mask.shape[1]] = d.mask > 0
+        assert (got == (want[..., 0] > 0)).all()
+    far = [np.array([[150000.0, 350], [150003, 200], [150010, 10]])]
+    frame = temporal.evaluate_frame([*far, A], [A], size)
+    assert frame.anno_iou.tolist() == temporal.evaluate_frame([A], [A], size).anno_iou.tolist()
+
+
 def test_intersections_of_crops_equal_full_images() -> None:
     lanes = [
         np.array([[100, 300], [160, 200], [240, 180], [300, 220], [320, 300]], np.int32),  # turns back
@@ -224,7 +247,9 @@ def test_bad_input() -> None:
     with pytest.raises(ValueError, match="non-finite"):
         temporal.evaluate_frame([A], [np.array([[1.0, np.nan], [2.0, 3.0]])], SIZE)
     with pytest.raises(ValueError, match="not a pixel"):
-        temporal.evaluate_frame([A * 1e6], [A], SIZE)
+        temporal.evaluate_frame([A], [A * 1e6], SIZE)  # a label
+    with pytest.raises(ValueError, match="int32"):
+        temporal.evaluate_frame([A * 1e8], [A], SIZE)  # a prediction beyond what the script's drawing can hold
     with pytest.raises(ValueError, match="no sequence"):
         temporal.evaluate({})
 
@@ -253,10 +278,10 @@ def test_cli_temporal(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> Non
     out = capsys.readouterr().out
     assert "3 pairs of frames" in out and "0.5   2   2   1  40.00  40.00  20.00" in out
     assert main([*args, "--jobs", "2"]) == 0 and capsys.readouterr().out == out
-    for bad in ("-1", "two"):
+    for bad in ("-1", "two", "100000"):
         assert main([*args, "--jobs", bad]) == 2
         err = capsys.readouterr().err
-        assert "expected a number of processes >= 0" in err and len(err.strip().splitlines()) == 1
+        assert "expected a number of processes in 0..256" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("metric", [temporal, video])

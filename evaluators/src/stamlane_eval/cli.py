@@ -19,18 +19,18 @@ import gc
 import json
 import os
 import sys
+import tempfile
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import BrokenExecutor
 from pathlib import Path
-
-import numpy as np
 
 import stamlane_eval
 from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.cli_tools import (
     OneLineParser,
     OutputError,
-    check_output,
+    check_outputs,
     format_wxh,
     parse_or_status,
     parse_wxh,
@@ -47,13 +47,15 @@ from stamlane_eval.io import (
     read_text,
     read_tusimple,
     read_vil100_json,
-    tusimple_points,
+    tusimple_lanes,
     video_frames,
 )
 
 __all__ = ["main"]
 
 EXIT_BAD_INPUT = 2
+MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
+MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
 
 
@@ -93,8 +95,10 @@ def _jobs(text: str) -> int:
         v = int(text)
     except ValueError:
         v = -1
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a number of processes >= 0 (0: one per core), got {text!r}")
+    if not 0 <= v <= MAX_JOBS:
+        raise argparse.ArgumentTypeError(
+            f"expected a number of processes in 0..{MAX_JOBS} (0: one per core), got {text!r}"
+        )
     return v
 
 
@@ -120,11 +124,22 @@ def _lane_py_line(res: tusimple.TuSimpleResult) -> str:
 
 def _cpp_tool_text(counts: culane.CULaneCounts) -> str:
     """What the official C++ tool writes per threshold (its -o file without the ``file:`` line; iostream's default
-    6 significant digits)."""
-    return (
-        f"tp: {counts.tp} fp: {counts.fp} fn: {counts.fn}\n"
-        f"precision: {counts.precision:.6g}\nrecall: {counts.recall:.6g}\nFmeasure: {counts.f1:.6g}\n"
-    )
+    6 significant digits), 0/0 cases included.
+
+    ``Counter::get_precision`` / ``get_recall`` return -1 where tp + fp (tp + fn) is 0, and evaluate.cpp computes
+    ``F = 2 * precision * recall / (precision + recall)`` from those: -1 when both are -1, 0 when one is -1 and
+    the other 0 (-0.0 / -1.0), and 0.0 / 0.0 when tp = 0 with fp and fn > 0: x86's default NaN, sign bit set,
+    which glibc prints "-nan" (the fixtures' README: "F is then -1 or NaN"; this -nan is glibc's spelling, the
+    C++ tool was not run on such a case here).
+    """
+    tp, fp, fn = counts.tp, counts.fp, counts.fn
+    precision = -1.0 if tp + fp == 0 else tp / (tp + fp)  # tp/double(tp + fp)
+    recall = -1.0 if tp + fn == 0 else tp / (tp + fn)
+    if precision + recall == 0.0:
+        fmeasure = "-nan"  # 0.0 / 0.0 on x86-64 (SSE): the "default NaN", negative
+    else:
+        fmeasure = f"{2 * precision * recall / (precision + recall):.6g}"
+    return f"tp: {tp} fp: {fp} fn: {fn}\nprecision: {precision:.6g}\nrecall: {recall:.6g}\nFmeasure: {fmeasure}\n"
 
 
 class _Version(argparse.Action):
@@ -222,17 +237,37 @@ def _table(rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(lines)
 
 
-def _write_jsonl(path: Path, records: Sequence[dict]) -> None:
-    """Write json-lines atomically: a temporary file beside ``path``, then renamed over it."""
-    tmp = path.with_name(f".{path.name}.tmp")
+def _inputs(args: argparse.Namespace) -> list[Path | None]:
+    """Every path a command reads: predictions, ground truth, the list and sizes files."""
+    return [args.pred, args.gt, getattr(args, "list", None), getattr(args, "sizes", None)]
+
+
+def _outputs(args: argparse.Namespace) -> list[Path | None]:
+    """Every path a command writes (besides stdout)."""
+    return [getattr(args, "per_image", None), getattr(args, "per_sequence", None)]
+
+
+def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | None]) -> None:
+    """Write json-lines atomically: a temporary file of a unique name beside ``path`` (created, never an
+    existing file; checked against the inputs as the output was), then renamed over it."""
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        raise LaneFileError(f"{path}: cannot write: {e.strerror}") from None
+    tmp = Path(name)
+    try:
+        check_outputs([tmp], inputs, files=True)
+        with open(fd, "w", encoding="utf-8") as f:
             for rec in records:
                 f.write(json.dumps(rec) + "\n")
         os.replace(tmp, path)
     except OSError as e:
-        tmp.unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)  # the file this call created, nothing else
         raise LaneFileError(f"{path}: cannot write: {e}") from None
+    except OutputError:
+        os.close(fd)
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _run_tusimple(args: argparse.Namespace) -> int:
@@ -264,6 +299,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
                 }
                 for p, r in zip(preds, res.per_image, strict=True)
             ],
+            _inputs(args),
         )
     if args.format == "json":
         print(json.dumps(res.as_dict()))
@@ -280,36 +316,13 @@ def _run_tusimple(args: argparse.Namespace) -> int:
     return 0
 
 
-def _xs_to_points(recs: list[dict], rows: dict[str, list], path: Path) -> dict[str, list[np.ndarray]]:
-    """TuSimple records as raw_file -> lanes of (x, y) points (rows with x < 0 dropped), rows from the gt."""
-    out: dict[str, list[np.ndarray]] = {}
-    for i, rec in enumerate(recs, 1):
-        if "raw_file" not in rec or "lanes" not in rec:
-            raise LaneFileError(f"{path}: line {i}: needs keys raw_file and lanes, has {sorted(rec)}")
-        h = rows.get(rec["raw_file"])
-        if h is None:
-            raise LaneFileError(f"{path}: line {i}: raw_file {rec['raw_file']!r} is not in the ground truth")
-        for lane in rec["lanes"]:
-            xs = np.asarray(lane) if isinstance(lane, list) else np.zeros(0, dtype=object)
-            if xs.shape != (len(h),) or xs.dtype.kind not in "iuf" or not np.isfinite(xs).all():
-                raise LaneFileError(f"{path}: line {i}: a lane is not {len(h)} finite numbers (one per h_sample)")
-        out[rec["raw_file"]] = tusimple_points(rec["lanes"], h)
-    return out
-
-
 def _run_culane(args: argparse.Namespace) -> int:
     size = args.size or args.default_size
     if args.pred.suffix == ".json" or args.gt.suffix == ".json":
         if args.size is None:
             raise LaneFileError(f"{args.gt}: TuSimple-format files need --size WxH (TuSimple images are 1280x720)")
-        gt_recs = read_tusimple(args.gt)
-        rows = {}
-        for i, rec in enumerate(gt_recs, 1):
-            if not isinstance(rec.get("h_samples"), list):
-                raise LaneFileError(f"{args.gt}: line {i}: no h_samples list")
-            rows[rec.get("raw_file")] = rec["h_samples"]
-        gt_map = _xs_to_points(gt_recs, rows, args.gt)
-        pred_map = _xs_to_points(read_tusimple(args.pred), rows, args.pred)
+        gt_map, rows = tusimple_lanes(read_tusimple(args.gt), args.gt)
+        pred_map, _ = tusimple_lanes(read_tusimple(args.pred), args.pred, rows)
         entries = list(gt_map)
         preds = [pred_map.get(e, []) for e in entries]
         gts = [gt_map[e] for e in entries]
@@ -320,7 +333,7 @@ def _run_culane(args: argparse.Namespace) -> int:
         gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
         in_gt, in_pred = Inside(gt_root), Inside(pred_root)
         gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
-        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e))) for e in entries]
+        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e)), prediction=True) for e in entries]
     thresholds = sorted(set(args.iou))
     try:
         res = culane.evaluate(
@@ -335,7 +348,8 @@ def _run_culane(args: argparse.Namespace) -> int:
         )
     except ValueError as e:
         raise LaneFileError(f"{args.pred}: {e}") from None
-    _refuse_zero_denominators(res, args)
+    if args.format != "official":  # the C++ tool's own text writes its -1 and -nan (see _cpp_tool_text)
+        _refuse_zero_denominators(res, args)
     if args.per_image:
         recs = []
         for e, r in zip(entries, res.per_image, strict=True):
@@ -343,7 +357,7 @@ def _run_culane(args: argparse.Namespace) -> int:
             rec.update({str(t): list(r.counts[t]) for t in thresholds})
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)
-        _write_jsonl(args.per_image, recs)
+        _write_jsonl(args.per_image, recs, _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     elif args.format == "official":
@@ -359,7 +373,8 @@ def _run_culane(args: argparse.Namespace) -> int:
 
 def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace) -> None:
     """Precision or recall 0/0 (no predicted lane, or no annotated lane, in any image): the C++ tool prints -1
-    there, which is no rate; refused (docs/evaluators.md, "What is scored and what is refused")."""
+    there, which is no rate; refused as a table or json (docs/evaluators.md, "What is scored and what is
+    refused"), written as the C++ tool writes it with ``--format official``."""
     c = next(iter(res.totals.values()))  # tp + fp and tp + fn are the same at every threshold
     if c.tp + c.fp == 0:
         raise LaneFileError(
@@ -380,6 +395,7 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
     be listed together: RVLD's script pairs list neighbours by position.
     """
     seqs: dict[str, list[tuple[str, Path]]] = {}
+    first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
     last = None
     for i, entry in enumerate(culane_entries(gt, list_file), 1):
         rel = entry.strip().lstrip("/")
@@ -388,6 +404,11 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
             raise LaneFileError(f"{list_file}: line {i}: {entry!r} names no sequence (expected <sequence>/<frame>)")
         seq, name = rel.rsplit("/", 1)
         stem = name[: name.rfind(".")] if "." in name else name
+        if first.setdefault((seq, stem), i) != i:  # "/JPEGImages/v/1.jpg" and "v/1.png" name one frame
+            raise LaneFileError(
+                f"{list_file}: lines {first[seq, stem]} and {i} name the same frame {seq}/{stem}: it would be "
+                f"scored twice"
+            )
         if seq in seqs and seq != last:
             raise LaneFileError(
                 f"{list_file}: line {i}: sequence {seq!r} resumes after other sequences; list each sequence's "
@@ -408,6 +429,8 @@ def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
         data = json.loads(text)
     except ValueError as e:
         raise LaneFileError(f"{path}: cannot read a JSON object: {e}") from None
+    except RecursionError:
+        raise LaneFileError(f"{path}: JSON nested too deeply") from None
     if not isinstance(data, dict):
         raise LaneFileError(f'{path}: expected a JSON object {{sequence: "WxH"}}, got {type(data).__name__}')
     out = {}
@@ -440,7 +463,9 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
             if size is None and need_size:
                 raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
             pred_path = args.pred / seq / f"{stem}.lines.txt"
-            preds = read_culane_lines(inside(pred_path, args.pred) if pred_path.exists() else pred_path)
+            preds = read_culane_lines(
+                inside(pred_path, args.pred) if pred_path.exists() else pred_path, prediction=True
+            )
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
     return sequences
@@ -465,7 +490,7 @@ def _run_video(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -503,7 +528,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
             f"Rs, Rj, Rm are 0/0 (RVLD's script fails here with ZeroDivisionError)"
         )
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence])
+        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -533,9 +558,9 @@ def _main(argv: list[str] | None) -> int:
     if isinstance(args, int):  # --help, --version, or a usage error already printed in one line
         return args
     try:
-        for option in ("per_image", "per_sequence"):
-            if getattr(args, option, None) is not None:
-                check_output(getattr(args, option), [args.pred, args.gt, getattr(args, "list", None)])
+        check_outputs(_outputs(args), _inputs(args), files=True)  # every output against every input, before any read
+        if len(set(getattr(args, "iou", ()))) > MAX_THRESHOLDS:
+            raise LaneFileError(f"--iou: {len(set(args.iou))} thresholds, more than the limit of {MAX_THRESHOLDS}")
         if args.command == "tusimple":
             return _run_tusimple(args)
         if args.command in ("culane", "apollo"):
@@ -543,6 +568,11 @@ def _main(argv: list[str] | None) -> int:
         return _run_video(args)
     except (OutputError, LaneFileError) as e:
         print(f"stamlane-eval: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenExecutor as e:  # a --jobs worker killed (out of memory, a signal): no result to give
+        print(
+            f"stamlane-eval: error: a worker process of --jobs {getattr(args, 'jobs', '')} died ({e})", file=sys.stderr
+        )
         return EXIT_BAD_INPUT
 
 

@@ -20,6 +20,7 @@ __all__ = [
     "OutputError",
     "check_input_file",
     "check_output",
+    "check_outputs",
     "format_wxh",
     "parse_or_status",
     "parse_wxh",
@@ -68,18 +69,48 @@ class OutputError(ValueError):
 
 
 def check_output(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
-    """Refuse an output that IS one of the inputs or lies inside an input folder (symlinks resolved).
+    """`check_outputs` for one output."""
+    check_outputs([path], inputs)
+
+
+def check_outputs(
+    outputs: Iterable[str | Path | None], inputs: Iterable[str | Path | None], *, files: bool = False
+) -> None:
+    """THE output guard, run before anything is written: refuse an output that IS one of the inputs (the same
+    path, symlinks resolved, or the same file under another name), lies inside an input folder, or is another
+    output too. Temporary names are checked the same way by whoever makes them (unique names, made in the
+    output's folder: never an existing file).
+
+    Args:
+        outputs: every path the command will write (None: not written).
+        inputs: every path it reads: files and folders (None: not given).
+        files: the outputs are files: an existing folder is refused too.
 
     Raises:
         OutputError: naming the output and the input it would clobber.
     """
-    target = Path(path).resolve()
-    for source in inputs:
-        if source is None:
+    sources = [(source, Path(source).resolve()) for source in inputs if source is not None]
+    seen: dict[Path, str | Path] = {}
+    for path in outputs:
+        if path is None:
             continue
-        src = Path(source).resolve()
-        if target == src or (src.is_dir() and target.is_relative_to(src)):
-            raise OutputError(f"{path}: the output would overwrite or write into the input {source}")
+        target = Path(path).resolve()
+        for source, src in sources:
+            if target == src or (src.is_dir() and target.is_relative_to(src)) or _same_file(target, src):
+                raise OutputError(f"{path}: the output would overwrite or write into the input {source}")
+        if files and target.is_dir():
+            raise OutputError(f"{path}: is a folder; the output is a file")
+        if target in seen:
+            raise OutputError(f"{path}: the same path as the output {seen[target]}")
+        seen[target] = path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two existing paths are one file (a hard link, a bind mount); False when either is missing."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 class InputError(ValueError):

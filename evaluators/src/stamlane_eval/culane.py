@@ -21,14 +21,14 @@ Lanes are ``(N, 2)`` float arrays of ``(x, y)`` points in original-image pixels.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from stamlane_eval._long_runs import progress_bar
 from stamlane_eval.aggregate import culane_update, prf
-from stamlane_eval.cli_tools import format_wxh
+from stamlane_eval.io import CanvasBudget, check_image_size
 
 __all__ = [
     "APOLLO_SIZE",
@@ -52,9 +52,9 @@ IOU_THRESHOLDS = (0.3, 0.5)
 VARIANTS = ("official", "lanedet")
 SPLINE_SAMPLES = 50  # C++: splineInterpTimes(lane, 50) samples per segment, plus the last point
 LANEDET_SAMPLES = 5  # lanedet: interp(lane, n=5), i.e. (len(u) - 1) * 5 + 1 samples
-MAX_DRAWN_PIXELS = 1 << 30  # the lanes of one image drawn on at most 1 Gpx of cropped canvases (1 GiB)
 SPLINE_POINTS = 1 << 20  # resampled points per spline batch (~100 MB of float64 temporaries)
 BATCH_IMAGES = 128  # images whose lanes are resampled together (bounds the memory of the batch: ~17 MB)
+BATCH_POINTS = 1 << 16  # ... and at most this many input points in a batch but its first image (~80 MB resampled)
 KM_TOLERANCE = 1e-2  # C++ hungarianGraph: an edge is "tight" when |lw + rw - w| < 1e-2
 
 
@@ -218,8 +218,13 @@ class _Mask:
     area: int
 
 
-def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Mask | None:
-    """Draw a polyline as ``cv::line`` calls of thickness ``width`` on a ``size`` = (H, W) image, cropped."""
+def _rasterise(
+    pts: np.ndarray | None, size: tuple[int, int], width: int, budget: CanvasBudget | None = None
+) -> _Mask | None:
+    """Draw a polyline as ``cv::line`` calls of thickness ``width`` on a ``size`` = (H, W) image, cropped; each
+    canvas counted in ``budget`` before it is allocated."""
+    if budget is None:
+        budget = CanvasBudget(size)
     if pts is None:
         return None
     import cv2  # here, not at the top: `stamlane-eval tusimple` imports this module but never draws (15 ms saved)
@@ -234,6 +239,7 @@ def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Ma
     if len(kept):
         (xmin, ymin), (xmax, ymax) = kept.min(0).tolist(), kept.max(0).tolist()
     if len(kept) == 0 or max(-xmin, -ymin, xmax, ymax) > 2**28:  # NaN points (cvRound -> INT_MIN), absurd values
+        budget.take(h_img, w_img)
         canvas = np.zeros((h_img, w_img), np.uint8)
         pts32 = np.clip(pts, -(2**31), 2**31 - 1).astype(np.int32)
         cv2.polylines(canvas, [pts32.reshape(-1, 1, 2)], False, 1, thickness=width)
@@ -244,6 +250,7 @@ def _rasterise(pts: np.ndarray | None, size: tuple[int, int], width: int) -> _Ma
     x1, y1 = min(int(xmax) + margin + 1, w_img), min(int(ymax) + margin + 1, h_img)
     if x0 >= x1 or y0 >= y1:
         return _Mask(0, 0, np.zeros((0, 0), bool), 0)
+    budget.take(y1 - y0, x1 - x0)
     canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
     # cv2.polylines(open) draws exactly the union of cv::line(p[i], p[i+1]) calls (same caps at the joints).
     local = (pts - np.array([x0, y0])).astype(np.int32).reshape(-1, 1, 2)
@@ -393,8 +400,7 @@ def _evaluate_images(
     (`_points_official_many`). ``names`` (one per image) prefix the error messages."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
-    if len(size) != 2 or min(size) <= 0:
-        raise ValueError(f"size must be (H, W) with positive values, got {size!r}")
+    size = check_image_size(size)
     if width <= 0:
         raise ValueError(f"width must be a positive number of pixels, got {width!r}")
     thresholds = tuple(float(t) for t in iou_thresholds)
@@ -446,15 +452,8 @@ def _score_image(
             n_gt,
             np.full(n_pred, -1, dtype=np.int64),
         )
-    masks, drawn = [], 0
-    for pts in points:
-        masks.append(_rasterise(pts, size, width))
-        drawn += masks[-1].mask.size if masks[-1] is not None else 0
-        if drawn > MAX_DRAWN_PIXELS:
-            raise ValueError(
-                f"the lanes of this image cover more than {MAX_DRAWN_PIXELS >> 20} Mpx of {format_wxh(size)} "
-                f"canvases: too large to draw in memory (fewer or shorter lanes, or a smaller --size)"
-            )
+    budget = CanvasBudget(size)  # io.MAX_DRAWN_PIXELS, each canvas counted before it is allocated
+    masks = [_rasterise(pts, size, width, budget) for pts in points]
     pm, gm = masks[:n_pred], masks[n_pred:]
     ious = np.array([[_iou(a, b) for b in gm] for a in pm], dtype=np.float64)  # (n_pred, n_gt)
     if variant == "official":
@@ -495,6 +494,20 @@ def counts_to_prf(tp: int, fp: int, fn: int) -> CULaneCounts:
     return CULaneCounts(int(tp), int(fp), int(fn), *prf(tp, fp, fn))
 
 
+def _batches(preds: Sequence[Sequence[np.ndarray]], targets: Sequence[Sequence[np.ndarray]]) -> Iterator[slice]:
+    """Consecutive images resampled together: at most ``BATCH_IMAGES``, and at most ``BATCH_POINTS`` points
+    unless one image alone holds more (memory; a batch changes no number)."""
+    start = points = 0
+    for i, (p, g) in enumerate(zip(preds, targets, strict=True)):
+        n = sum(map(len, p)) + sum(map(len, g))
+        if i > start and (i - start >= BATCH_IMAGES or points + n > BATCH_POINTS):
+            yield slice(start, i)
+            start, points = i, 0
+        points += n
+    if start < len(preds):
+        yield slice(start, len(preds))
+
+
 def evaluate(
     preds: Sequence[Sequence[np.ndarray]],
     targets: Sequence[Sequence[np.ndarray]],
@@ -522,8 +535,7 @@ def evaluate(
     names = list(names) if names is not None else [f"image {i}" for i in range(len(preds))]
     bar = progress_bar(progress, len(preds), "culane", "img")
     per_image = []
-    for s in range(0, len(preds), BATCH_IMAGES):
-        chunk = slice(s, s + BATCH_IMAGES)
+    for chunk in _batches(preds, targets):
         per_image += _evaluate_images(preds[chunk], targets[chunk], iou_thresholds, width, size, variant, names[chunk])
         if bar is not None:
             bar.update(len(per_image) - bar.n)

@@ -10,6 +10,7 @@ import gc
 import json
 import math
 import os
+import re
 import stat
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -20,16 +21,21 @@ import numpy as np
 
 __all__ = [
     "MAX_COORDINATE",
+    "MAX_DRAWN_PIXELS",
     "MAX_FILE_BYTES",
+    "MAX_IMAGE_POINTS",
     "MAX_IMAGE_SIDE",
     "MAX_LANES",
     "MAX_LANE_POINTS",
     "MAX_LANE_WIDTH",
+    "CanvasBudget",
     "Inside",
     "LaneFileError",
     "TuSimpleFile",
     "TuSimpleInputError",
+    "check_image_size",
     "check_tusimple",
+    "cpp_stream_doubles",
     "culane_entries",
     "culane_lines_path",
     "duplicate_raw_file",
@@ -39,6 +45,7 @@ __all__ = [
     "read_text",
     "read_tusimple",
     "read_vil100_json",
+    "tusimple_lanes",
     "tusimple_points",
     "tusimple_record_error",
     "video_frames",
@@ -48,10 +55,19 @@ __all__ = [
 MAX_IMAGE_SIDE = 16384
 """Largest image side (px) accepted from a label file or ``--size``: the CULane metric draws every lane into a mask of
 the image's size, so a declared 200000x200000 frame would ask for tens of GiB."""
+MAX_DRAWN_PIXELS = 1 << 30
+"""Most pixels of canvases the lanes of one image (CULane, video) or one frame (temporal) are drawn on (1 GiB of
+uint8): each lane is drawn into a canvas cropped to it, never larger than the image; `CanvasBudget` counts them
+before each canvas is allocated."""
 MAX_LANES = 64
 """Most lanes in one image: the CULane matching grows with the cube of the lane count (1,500 lanes: a minute)."""
 MAX_LANE_POINTS = 10000
-"""Most points in one lane (a CULane lane of 1M points took 3.4 GB to rasterise)."""
+"""Most points (rows) in one TuSimple or VIL-100 lane. CULane text has no limit per lane: ``MAX_IMAGE_POINTS``."""
+MAX_IMAGE_POINTS = 100_000
+"""Most points in the lanes of one CULane/ApolloScape ``.lines.txt`` (the memory budget of one image, not a limit
+per lane): the C++ metric resamples a lane at 50 points per segment, about 3 KB per input point while it is
+resampled (measured: one lane of 100,000 points, ``stamlane-eval culane``, peaks at 0.33 GB in 3.6 s); the C++
+tool's own inputs hold a few hundred points per image."""
 MAX_LANE_WIDTH = 1024
 """Widest lane line (px) the CULane metric may draw."""
 MAX_COORDINATE = 100_000.0
@@ -60,6 +76,48 @@ limit on predictions: lane.py scores a prediction's 1e9 as a miss, and so do we 
 MAX_FILE_BYTES = 512 << 20
 """Largest input text file (512 MiB): TuSimple's 2,782 test predictions take 4 MiB, and parsed json-lines cost about
 9x their size in memory."""
+
+
+def check_image_size(size: object) -> tuple[int, int]:
+    """THE check of an image size that canvases are sized by (``--size``, ``--sizes``, a label's ``info``, the
+    Python API): ``(H, W)``, two integers in ``1..MAX_IMAGE_SIDE``.
+
+    Raises:
+        ValueError: naming the size.
+    """
+    try:
+        h, w = (int(v) for v in size)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise ValueError(f"size must be the image (H, W), two integers, got {size!r:.60}") from None
+    if not (0 < h <= MAX_IMAGE_SIDE and 0 < w <= MAX_IMAGE_SIDE):
+        raise ValueError(f"size must be the image (H, W) with sides in 1..{MAX_IMAGE_SIDE}, got {size!r:.60}")
+    return h, w
+
+
+class CanvasBudget:
+    """The pixels the lanes of one image may still be drawn on (``MAX_DRAWN_PIXELS``), taken before each canvas is
+    allocated: the CULane, video and temporal metrics refuse the same input at the same point.
+
+    Args:
+        size: the image ``(H, W)`` (for the message).
+    """
+
+    def __init__(self, size: tuple[int, int]) -> None:
+        self.size = size
+        self.left = MAX_DRAWN_PIXELS
+
+    def take(self, h: int, w: int) -> None:
+        """Count an ``(h, w)`` canvas about to be allocated.
+
+        Raises:
+            ValueError: past the budget, before anything is allocated.
+        """
+        self.left -= h * w
+        if self.left < 0:
+            raise ValueError(
+                f"the lanes of this image cover more than {MAX_DRAWN_PIXELS >> 20} Mpx of {self.size[1]}x{self.size[0]} "
+                f"canvases: too large to draw in memory (fewer or shorter lanes, or a smaller --size)"
+            )
 
 
 class LaneFileError(ValueError):
@@ -531,21 +589,82 @@ def tusimple_points(lanes: list, h_samples: list) -> list[np.ndarray]:
     return points
 
 
-def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[np.ndarray]:
+def tusimple_lanes(
+    records: Sequence[object], path: str | os.PathLike, h_samples: dict[str, list] | None = None
+) -> tuple[dict[str, list[np.ndarray]], dict[str, list]]:
+    """THE typed check of TuSimple-format files scored with the CULane metric (``stamlane-eval culane PRED.json
+    GT.json``): the lanes of each ``raw_file`` as ``(x, y)`` points (rows with x < 0 dropped).
+
+    The ground truth (``h_samples`` None) passes `check_tusimple` (types, each ``raw_file`` once, labels finite).
+    A prediction names each ``raw_file`` once, one of the ground truth's, with lanes of JSON numbers (never a
+    string nor ``true``/``false``: numpy would read ``[true, 359]`` as ``[1, 359]``), finite, one per row.
+
+    Args:
+        records: the parsed json-lines.
+        path: the file (for messages).
+        h_samples: the ground truth's rows per ``raw_file`` (reading a prediction), or None (the ground truth).
+
+    Returns:
+        ``{raw_file: lanes}`` in file order, and ``{raw_file: h_samples}``.
+
+    Raises:
+        LaneFileError: naming the file, the line and the problem.
+    """
+    if h_samples is None:
+        try:
+            check_tusimple(records, "gt")
+        except TuSimpleInputError as e:
+            raise LaneFileError(f"{path}: line {e.line}: {e.message}") from None
+        rows = {rec["raw_file"]: rec["h_samples"] for rec in records}  # type: ignore[index]
+    else:
+        rows = h_samples
+    out: dict[str, list[np.ndarray]] = {}
+    for i, rec in enumerate(records, 1):
+        if not isinstance(rec, dict) or "raw_file" not in rec or not isinstance(rec.get("lanes"), list):
+            keys = sorted(rec)[:6] if isinstance(rec, dict) else type(rec).__name__
+            raise LaneFileError(f"{path}: line {i}: needs keys raw_file and lanes (a list), has {keys}")
+        name = rec["raw_file"]
+        h = rows.get(name) if type(name) is str else None
+        if h is None:
+            raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} is not in the ground truth")
+        if name in out:  # the C++ tool reads one file per image: a second prediction has no place to be
+            raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} again: two predictions for one image")
+        for k, lane in enumerate(rec["lanes"]):
+            if not (isinstance(lane, list) and len(lane) == len(h) and all(map(_is_number, lane))):
+                raise LaneFileError(
+                    f"{path}: line {i}: lane {k} is not {len(h)} JSON numbers (one per h_sample; no string, no "
+                    f"true/false)"
+                )
+            if not all(math.isfinite(_to_float(v)) for v in lane):
+                raise LaneFileError(f"{path}: line {i}: lane {k} has a non-finite x")
+        out[name] = tusimple_points(rec["lanes"], h)
+    return out, rows
+
+
+def read_culane_lines(
+    path: str | os.PathLike, missing_ok: bool = True, *, prediction: bool = False
+) -> list[np.ndarray]:
     """Read one CULane ``.lines.txt`` file.
 
     As the official C++ tool, every line is a lane, a blank line included (a lane with 0 points); a missing
     file is an image without lanes when ``missing_ok``.
 
+    A prediction (``prediction=True``) is read as the C++ tool reads it (`cpp_stream_doubles`): a line's numbers
+    up to the first token ``>>`` cannot read (``nan``, ``inf``, a word, ``1e400``), pairs only. A label is
+    checked: only numbers, finite, an even count. Either way ``MAX_LANES`` lanes and ``MAX_IMAGE_POINTS``
+    points per file (memory; no limit per lane).
+
     Args:
         path: the file.
         missing_ok: return ``[]`` for a missing file instead of raising.
+        prediction: read as the C++ tool reads a prediction, instead of checking a label.
 
     Returns:
         Per lane, an ``(N, 2)`` float64 array of ``(x, y)`` points in file order.
 
     Raises:
-        LaneFileError: unreadable file, a non-number, NaN/inf, or an odd number of coordinates on a line.
+        LaneFileError: unreadable file, too many lanes or points; a label with a non-number, NaN/inf, or an odd
+            number of coordinates on a line.
     """
     p = Path(path)
     try:
@@ -555,28 +674,83 @@ def read_culane_lines(path: str | os.PathLike, missing_ok: bool = True) -> list[
             return []
         raise LaneFileError(f"{p}: no such file") from None
     lanes = []
+    points = 0
     lines = text.split("\n")  # as the C++ getline: only "\n" ends a line; "\r" is whitespace inside one
     if lines[-1] == "":
         lines.pop()
+    if len(lines) > MAX_LANES:
+        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image ({len(lines)} lines)")
     for i, line in enumerate(lines, 1):
         raw = line.encode()
-        try:
-            if b"_" in raw:  # Python's float() reads 1_000, the C++ does not
-                raise ValueError
-            vals = list(map(float, raw.split()))  # C isspace: the ASCII blanks only, as the C++ ">>" skips them
-        except ValueError:
-            raise LaneFileError(f"{p}: line {i}: not a number in {line.strip()[:60]!r}") from None
+        vals = _plain_numbers(raw)
+        if vals is None and prediction:
+            vals = cpp_stream_doubles(raw)
+        elif vals is None:
+            raise LaneFileError(
+                f"{p}: line {i}: not a finite number in {line.strip()[:60]!r} (a label holds numbers only; the C++ "
+                f"tool would silently stop reading the line there)"
+            )
         if len(vals) % 2:
-            raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
-        if len(vals) // 2 > MAX_LANE_POINTS:
-            raise LaneFileError(f"{p}: line {i}: {len(vals) // 2} points, more than the limit of {MAX_LANE_POINTS}")
-        lane = np.array(vals, dtype=np.float64).reshape(-1, 2)
-        if not np.isfinite(lane).all():
-            raise LaneFileError(f"{p}: line {i}: non-finite coordinate (nan/inf)")
-        lanes.append(lane)
-        if len(lanes) > MAX_LANES:
-            raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image")
+            if not prediction:
+                raise LaneFileError(f"{p}: line {i}: odd number of coordinates ({len(vals)}); expected x1 y1 x2 y2 ...")
+            vals = vals[:-1]  # while (ss >> x >> y): an x without its y is never pushed
+        points += len(vals) // 2
+        if points > MAX_IMAGE_POINTS:
+            raise LaneFileError(
+                f"{p}: more than {MAX_IMAGE_POINTS} points in the lanes of one image (the memory budget of one image)"
+            )
+        lanes.append(np.array(vals, dtype=np.float64).reshape(-1, 2))
     return lanes
+
+
+_PLAIN_TEXT = re.compile(rb"[0-9eE+\-. \t\v\f\r]*")
+# What libstdc++'s num_get accumulates for one ``>> double`` after skipping C-locale white space: a sign, digits
+# with at most one decimal point, then an exponent only after a digit ("1e" is accumulated, then refused whole).
+_CPP_DOUBLE = re.compile(rb"[ \t\n\v\f\r]*([+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]*)?|\.)?)")
+
+
+def _plain_numbers(raw: bytes) -> list[float] | None:
+    """The numbers of a line made only of finite decimal numbers and blanks (what well-formed files hold), or
+    None: there every token is a whole C++ ``>>`` read, so both readings agree. Python's ``float`` also reads
+    ``1_000``, ``nan`` and ``inf``, which the character set keeps out, and 1e400 as inf, refused here."""
+    if not _PLAIN_TEXT.fullmatch(raw):
+        return None
+    try:
+        vals = list(map(float, raw.split()))  # C isspace: the ASCII blanks only, as the C++ ">>" skips them
+    except ValueError:
+        return None
+    return vals if all(map(math.isfinite, vals)) else None
+
+
+def cpp_stream_doubles(raw: bytes) -> list[float]:
+    """The numbers ``while (ss >> x >> y)`` reads from one line in the official C++ tool (``read_lane_file`` of
+    evaluate.cpp; libstdc++, C locale): every number up to the first read that fails.
+
+    Quirks kept (each is what libstdc++'s ``num_get`` does, read from its source; the C++ tool was not run on them
+    here): a read fails on a token that does not start like a number, so ``nan``, ``inf``, ``-nan`` and any word
+    end the lane there, silently, the points before it kept; a read stops at the first character that cannot
+    continue a number and the next read starts there (``20x`` is 20 then a failure, ``1-2`` is 1 then -2); a
+    value beyond the double range (``1e400``) fails (strtod's overflow sets failbit), one below it reads as 0 or a
+    denormal, as ``float`` does. The caller drops a last x without its y.
+
+    Args:
+        raw: one line, without its ``"\n"``.
+
+    Returns:
+        The values read, in order (finite).
+    """
+    vals: list[float] = []
+    pos = 0
+    while True:
+        m = _CPP_DOUBLE.match(raw, pos)
+        try:
+            v = float(m.group(1))  # the accumulated characters must be one whole number, as strtod's check
+        except ValueError:
+            return vals  # nothing, or "1e", "-", ".": failbit
+        if math.isinf(v):
+            return vals  # overflow: libstdc++ stores +-DBL_MAX and sets failbit; the loop ends
+        vals.append(v)
+        pos = m.end()
 
 
 def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
@@ -681,14 +855,20 @@ def _walk_lines(root: Path) -> Iterator[Path]:
 
 
 def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[int], tuple[int, int] | None]:
-    """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``).
+    """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``): THE typed check of the format.
+
+    Types are the format's and nothing else is read as a number: ``points`` a list of ``[x, y]`` pairs of JSON
+    numbers (a string, ``true``/``false`` or ``null`` is refused: Python's ``float(True)`` would read 1), each
+    ``|v| <= MAX_COORDINATE`` and finite (a label); ``lane_id`` an integer; ``info.width`` / ``info.height``
+    integers (``1920`` or ``1920.0``, not ``"1920"`` nor ``true``) in ``1..MAX_IMAGE_SIDE``.
 
     Returns:
         lanes (``(N, 2)`` float ``(x, y)`` arrays), their ``lane_id``s, and the image ``(H, W)`` from ``info``
         (None when absent).
 
     Raises:
-        LaneFileError: unreadable file, invalid JSON, or a missing/odd ``annotations.lane`` entry.
+        LaneFileError: unreadable file, invalid JSON, a missing/odd ``annotations.lane`` entry or a value of the
+            wrong type, naming the lane and the value.
     """
     p = Path(path)
     text = _read(p)
@@ -701,34 +881,65 @@ def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[in
     try:
         entries = data["annotations"]["lane"]
         info = data.get("info", {})
-    except (KeyError, TypeError):
+    except (KeyError, TypeError, AttributeError):
         raise LaneFileError(f"{p}: no annotations.lane list (VIL-100 format expected)") from None
     if not isinstance(entries, list):
         raise LaneFileError(f"{p}: annotations.lane must be a list, got {type(entries).__name__}")
+    if len(entries) > MAX_LANES:
+        raise LaneFileError(f"{p}: {len(entries)} lanes, more than the limit of {MAX_LANES}")
     lanes, ids = [], []
     for k, lane in enumerate(entries):
-        try:
-            pts = np.asarray(lane["points"], dtype=np.float64).reshape(-1, 2)
-            lane_id = int(lane.get("lane_id", k))
-        except (KeyError, TypeError, ValueError):
-            raise LaneFileError(f"{p}: lane {k}: needs points [[x, y], ...] and an integer lane_id") from None
-        if not np.isfinite(pts).all():
-            raise LaneFileError(f"{p}: lane {k}: non-finite coordinate")
-        lanes.append(pts)
+        if not isinstance(lane, dict) or "points" not in lane:
+            raise LaneFileError(f"{p}: lane {k}: needs points [[x, y], ...] and an integer lane_id")
+        lanes.append(_vil100_points(lane["points"], p, k))
+        lane_id = lane.get("lane_id", k)
+        if type(lane_id) is not int:
+            raise LaneFileError(f"{p}: lane {k}: lane_id must be an integer, got {lane_id!r:.40}")
         ids.append(lane_id)
     if len(set(ids)) != len(ids):
         raise LaneFileError(f"{p}: duplicate lane_id in {ids}")
     size = None
     if isinstance(info, dict) and "width" in info and "height" in info:
-        try:
-            size = (int(info["height"]), int(info["width"]))
-        except (TypeError, ValueError):
-            raise LaneFileError(f"{p}: info.width/height must be integers") from None
+        size = (_vil100_side(info["height"], "height", p), _vil100_side(info["width"], "width", p))
         if not (0 < size[0] <= MAX_IMAGE_SIDE and 0 < size[1] <= MAX_IMAGE_SIDE):
             raise LaneFileError(f"{p}: image size {size[1]}x{size[0]} (WxH) outside 1..{MAX_IMAGE_SIDE} px per side")
-    if len(lanes) > MAX_LANES or any(len(lane) > MAX_LANE_POINTS for lane in lanes):
-        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes or {MAX_LANE_POINTS} points in a lane")
     return lanes, ids, size
+
+
+def _is_number(v: object) -> bool:
+    """A JSON number: ``int`` or ``float``, never ``bool`` (a subclass of int) nor a string."""
+    return type(v) is int or type(v) is float
+
+
+def _vil100_points(points: object, path: Path, k: int) -> np.ndarray:
+    """``[[x, y], ...]`` of JSON numbers as an ``(N, 2)`` float64 array, checked one value at a time."""
+    if not isinstance(points, list):
+        raise LaneFileError(f"{path}: lane {k}: points must be a list of [x, y] pairs, got {points!r:.40}")
+    if len(points) > MAX_LANE_POINTS:
+        raise LaneFileError(f"{path}: lane {k}: {len(points)} points, more than the limit of {MAX_LANE_POINTS}")
+    for pt in points:
+        if not (isinstance(pt, list) and len(pt) == 2 and _is_number(pt[0]) and _is_number(pt[1])):
+            what = "a boolean" if isinstance(pt, list) and any(type(v) is bool for v in pt) else repr(pt)[:40]
+            raise LaneFileError(f"{path}: lane {k}: a point must be [x, y], two JSON numbers, got {what}")
+    try:
+        arr = np.array(points, dtype=np.float64).reshape(-1, 2)
+    except OverflowError:  # an integer beyond the float range
+        arr = np.full((1, 2), np.inf)
+    if not (np.abs(arr) <= MAX_COORDINATE).all():
+        raise LaneFileError(
+            f"{path}: lane {k}: a coordinate that is no pixel of an image (a label must be finite, "
+            f"|v| <= {MAX_COORDINATE:g})"
+        )
+    return arr
+
+
+def _vil100_side(v: object, name: str, path: Path) -> int:
+    """``info.width`` / ``info.height``: an integer, or a float with an integer value (``1920.0``)."""
+    if type(v) is int:
+        return v
+    if type(v) is float and v.is_integer():
+        return int(v)
+    raise LaneFileError(f"{path}: info.{name} must be an integer number of pixels, got {v!r:.40}")
 
 
 def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[str, Path]]]]:
@@ -742,12 +953,14 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
         ``PRED/<sequence>/<frame_stem>.lines.txt``.
 
     Raises:
-        LaneFileError: no such folder, or no annotation found.
+        LaneFileError: no such folder, no annotation found, or one frame labelled twice (``00001.jpg.json`` and
+            ``00001.png.json``: both would be scored, against the one prediction of the frame).
     """
     root = Path(gt_dir)
     if not root.is_dir():
         raise LaneFileError(f"{root}: not a directory")
     seqs: dict[str, list[tuple[str, Path]]] = {}
+    seen: dict[tuple[str, str], Path] = {}  # (sequence, frame) -> its label file
     if (root / "Json").is_dir():
         kind, base, suffix = "vil100", root / "Json", ".json"
     else:
@@ -759,7 +972,13 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
             stem = f[: -len(suffix)]
             stem = stem[: stem.rfind(".")] if kind == "vil100" and "." in stem else stem  # 00000.jpg -> 00000
             seq = Path(dirpath).relative_to(base).as_posix()
-            seqs.setdefault(seq, []).append((stem, Path(dirpath) / f))
+            path = Path(dirpath) / f
+            first = seen.setdefault((seq, stem), path)
+            if first != path:
+                raise LaneFileError(
+                    f"{path}: frame {seq}/{stem} is labelled twice (also by {first.name}): two labels for one frame"
+                )
+            seqs.setdefault(seq, []).append((stem, path))
     if not seqs:
         raise LaneFileError(f"{root}: no annotation found (expected Json/<video>/*.json or <video>/*.lines.txt)")
     return kind, seqs

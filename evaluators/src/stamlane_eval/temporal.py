@@ -35,12 +35,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stamlane_eval._long_runs import map_sequences
-from stamlane_eval.io import MAX_COORDINATE
+from stamlane_eval.io import MAX_COORDINATE, CanvasBudget, check_image_size
 from stamlane_eval.video import Frame
 
 __all__ = [
     "ANNO_MATCH_IOU",
     "CHANNELS",
+    "INT32_LIMIT",
     "IOU_EPS",
     "LANE_WIDTH",
     "OPENLANE_V_EVAL_SIZE",
@@ -68,6 +69,7 @@ IOU_EPS = 1e-10  # discrete_cross_iou: (x & y).sum() / ((x | y).sum() + eps)
 CHANNELS = 3  # the lanes are drawn on (H, W, 3) images: every pixel is counted three times in the IoU
 OPENLANE_V_SIZE = (1280, 1920)  # (H, W) of OpenLane-V frames: the pixels its labels and predictions are in
 OPENLANE_V_EVAL_SIZE = (1280 // 2, 1920 // 2)  # config.py: eval_h, eval_w = org_height // 2, org_width // 2
+INT32_LIMIT = 2.0**31  # draw_lane: lane.astype(np.int32); a spline sample must fit
 
 
 # ------------------------------------------------------------------------------------------------ results
@@ -165,9 +167,9 @@ def _unique_points(lane: np.ndarray, protocol: str, i: int, what: str) -> list[t
         raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
-    if arr.size and np.abs(arr).max() > MAX_COORDINATE:
-        # refused, as the readers refuse it: beyond int32 the script's truncation depends on whether the frame's
-        # lanes have equal lengths (an object array of floats then raises OverflowError, a float array wraps)
+    if what == "annotated" and arr.size and np.abs(arr).max() > MAX_COORDINATE:
+        # a label, refused as the readers refuse it; a prediction far outside the image is scored as the script
+        # scores it (drawn clipped: nothing of it on the image), up to the int32 range of its drawing (_spline)
         raise ValueError(f"{what} lane {i}: a coordinate beyond +-{MAX_COORDINATE:g} px is not a pixel of an image")
     if protocol == "openlane-v":
         # load_culane_img_data / load_gt_data: 1920x1280 pixels to the 960x640 canvas, in this operation order
@@ -204,6 +206,13 @@ def _spline(pts: list[tuple[float, float]]) -> np.ndarray | None:
     tck, u = splprep([x, y], s=0, t=SPLINE_SAMPLES, k=min(3, len(pts) - 1))
     # (len(u) - 1) * n + 1 samples evenly spread over the parameter [0, 1], not per point interval
     samples = np.array(splev(np.linspace(0.0, 1.0, num=(len(u) - 1) * SPLINE_SAMPLES + 1), tck)).T
+    if not (np.abs(samples) < INT32_LIMIT).all():
+        # beyond int32 the script's truncation depends on whether the frame's lanes have equal lengths (an object
+        # array of floats then raises OverflowError, a float array wraps): no single number to reproduce
+        raise ValueError(
+            f"a lane's spline reaches beyond +-{INT32_LIMIT:g} px (int32, which RVLD's script draws with); its "
+            f"result there depends on the other lanes of the frame"
+        )
     # draw_lane: lane.astype(np.int32), truncation toward zero (the script's object arrays convert the same way)
     return samples.astype(np.int32)
 
@@ -241,14 +250,19 @@ _EMPTY = _Drawn(0, 0, np.zeros((0, 0), np.uint8), 0)
 _FAR = 2**28  # px: beyond this a crop is not worth it (OpenCV's own clipping then decides, as in the script)
 
 
-def _draw(pts: np.ndarray, size: tuple[int, int]) -> _Drawn:
+def _draw(pts: np.ndarray, size: tuple[int, int], budget: CanvasBudget | None = None) -> _Drawn:
     """``draw_lane``: ``cv2.line`` of thickness 30 between consecutive points, here into a cropped canvas.
 
     ``pts``: the ``(N >= 2, 2)`` int32 polyline. The drawing is translation invariant, so the crop holds the
     pixels of the script's full image. Repeated points are drawn as they come: a zero-length segment draws
     only the round cap its neighbour draws anyway, the same pixels (test_temporal checks against draw_lane).
+    The canvas is never larger than the image, whatever the coordinates (a lane at x = 150,000 is drawn
+    nowhere, as the script's clipped drawing), and is counted in ``budget`` before it is allocated.
     """
     import cv2  # here, not at the top: `stamlane-eval tusimple` imports the command line, which imports this
+
+    if budget is None:
+        budget = CanvasBudget(size)
 
     h_img, w_img = size
     xmin, ymin, w, h = cv2.boundingRect(pts)  # one C call: min/max of both columns
@@ -262,6 +276,7 @@ def _draw(pts: np.ndarray, size: tuple[int, int]) -> _Drawn:
         x1, y1 = min(xmin + w + margin, w_img), min(ymin + h + margin, h_img)
     if x0 >= x1 or y0 >= y1:
         return _EMPTY  # entirely outside the image
+    budget.take(y1 - y0, x1 - x0)
     canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
     local = pts - np.array([x0, y0], dtype=pts.dtype) if x0 or y0 else pts
     # cv2.polylines(open) draws exactly the union of the cv2.line calls of draw_lane (same caps at the joints)
@@ -331,9 +346,9 @@ def _canvas_size(size: tuple[int, int] | None, protocol: str) -> tuple[int, int]
                 f"pixels and draws them at {OPENLANE_V_EVAL_SIZE[1]}x{OPENLANE_V_EVAL_SIZE[0]}; got size {size!r}"
             )
         return OPENLANE_V_EVAL_SIZE
-    if size is None or len(size) != 2 or min(size) <= 0:
-        raise ValueError(f"size must be the image (H, W) with positive values, got {size!r}")
-    return int(size[0]), int(size[1])
+    if size is None:
+        raise ValueError("size must be the image (H, W), got None")
+    return check_image_size(size)  # the one check of the sizes canvases are made for
 
 
 def evaluate_frame(
@@ -362,15 +377,16 @@ def evaluate_frame(
     pred_unique = _frame_lanes(preds, protocol, "predicted")
     anno_unique = _frame_lanes(target, protocol, "annotated")
     anno_iou = np.zeros(len(anno_unique))
+    budget = CanvasBudget(canvas)  # the frame's canvases, as the CULane metric counts an image's
     if not pred_unique or not anno_unique:
         # culane_metric2 returns [], [], [] before interpolating anything: every annotation's IoU is 0, and a
         # one-point lane fails only when a pair of frames interpolates the annotations (evaluate_pair)
         anno_pts = [_spline(p) for p in anno_unique]
-        anno_drawn = [None if p is None else _draw(p, canvas) for p in anno_pts]
+        anno_drawn = [None if p is None else _draw(p, canvas, budget) for p in anno_pts]
         return TemporalFrame(canvas, anno_pts, anno_drawn, anno_iou)
-    pred_drawn = [_draw(p, canvas) for p in _splines(pred_unique, "predicted")]
+    pred_drawn = [_draw(p, canvas, budget) for p in _splines(pred_unique, "predicted")]
     anno_pts = _splines(anno_unique, "annotated")
-    anno_drawn = [_draw(p, canvas) for p in anno_pts]
+    anno_drawn = [_draw(p, canvas, budget) for p in anno_pts]
     ious = _iou_matrix(anno_drawn, pred_drawn)  # rows: annotations, columns: predictions, as the script
     rows, cols = _assign(ious)
     anno_iou[rows] = ious[rows, cols]
@@ -410,7 +426,11 @@ def evaluate_pair(
     if not cur.anno_drawn or not prev.anno_drawn:
         return out
     # The annotations of t-1 are drawn on frame t's shape (self.shape = img_shape[idx] of the current frame).
-    prev_drawn = prev.anno_drawn if prev.size == cur.size else [_draw(p, cur.size) for p in prev.anno_points]
+    if prev.size == cur.size:
+        prev_drawn = prev.anno_drawn
+    else:
+        budget = CanvasBudget(cur.size)
+        prev_drawn = [_draw(p, cur.size, budget) for p in prev.anno_points]
     ious = _iou_matrix(cur.anno_drawn, prev_drawn)  # rows: annotations at t (ref), columns: at t-1 (tgt)
     rows, cols = _assign(ious)
     kept = ious[rows, cols] > ANNO_MATCH_IOU
