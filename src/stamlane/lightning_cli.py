@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import sys
+import typing
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import yaml
-from jsonargparse import get_loader, set_loader
+from jsonargparse import Namespace, get_loader, set_loader
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
@@ -97,7 +99,22 @@ class StamLaneCLI(LightningCLI):
         given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
         check_flags(given)  # --data.num_frames: one line naming --data.clip.num_frames
         super().parse_arguments(parser, args)
+        self._check_option_groups()
         self._logs_follow_root(given)
+
+    def _check_option_groups(self) -> None:
+        """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
+        mapping (``data.loader: [1, 2]``) passes jsonargparse's parsing and fails when it is built, as a
+        TypeError without the key: said here, in one line naming it (ValueError)."""
+        config = self.config.get(str(self.config.get("subcommand"))) or self.config
+        for section, cls in (("model", StamLaneModule), ("data", ClipDataModule)):
+            for name, hint in typing.get_type_hints(cls.__init__).items():
+                arms = typing.get_args(hint) or (hint,)
+                if not any(dataclasses.is_dataclass(arm) for arm in arms):
+                    continue
+                value = config.get(f"{section}.{name}")
+                if value is not None and not isinstance(value, Namespace):
+                    raise ValueError(f"{section}.{name} must be a mapping of options, got {value!r:.80}")
 
     def _logs_follow_root(self, given: list[str]) -> None:
         """``--trainer.default_root_dir DIR`` on the command line, without a ``--trainer.logger`` option, moves

@@ -134,26 +134,33 @@ then each row for 300 steps from those weights with the key frame corrupted in h
 budget). Steps can be changed per call."""
 
 
-def _cli(args: list[str]) -> Any:
+def _cli(args: list[str], **kwargs: Any) -> Any:
     from stamlane.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
     try:
-        return StamLaneCLI(args=args, report=False)
+        return StamLaneCLI(args=args, report=False, **kwargs)
     finally:
         sys.argv = argv
 
 
-def _check_run_config(run: Path) -> None:
-    """A run folder's ``config.yaml`` is data, not the user's code: it may name only allow-listed classes
-    (`stamlane.checkpoints.check_config`); a tampered one is refused in one line."""
-    from stamlane.checkpoints import CheckpointError, check_config
-
+def _run_config(run: Path) -> str:
+    """The text of a run folder's ``config.yaml`` (one line naming it when it cannot be read)."""
     path = run / "config.yaml"
     try:
-        check_config(path.read_text(), path)
+        return path.read_text()
     except (OSError, UnicodeDecodeError) as err:
         raise ExperimentError(f"{path}: cannot read the run's config ({err}); delete the run folder") from None
+
+
+def _check_run_config(run: Path) -> None:
+    """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
+    (`stamlane.registry.check_run_config`); a tampered one is refused in one line."""
+    from stamlane.checkpoints import CheckpointError
+    from stamlane.registry import check_run_config
+
+    try:
+        check_run_config(_run_config(run), run / "config.yaml")
     except CheckpointError as err:
         raise ExperimentError(str(err)) from None
 
@@ -276,25 +283,34 @@ class Experiment:
     def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
         """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks; returns the
         predictions folder."""
+        from jsonargparse import ArgumentError
+
+        from stamlane.cli import one_line
+        from stamlane.registry import safe_config_file
+
         pred_dir = self.pred_dir(name, split, source)
-        _check_run_config(run)
-        _cli(
-            [
-                "predict",
-                "--config",
-                str(run / "config.yaml"),
-                f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
-                f"--data.root={self.root}",
-                f"--data.predict_labels=[{split}.json]",
-                f"--data.history_source={source}",
-                "--trainer.logger=false",
-                "--trainer.callbacks=[]",
-                "--trainer.enable_progress_bar=false",
-                "--predictions.verbose=false",
-                f"--predictions.output_dir={pred_dir}",
-                f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
-            ]
-        )
+        try:  # the run's config is data: a checked copy is what LightningCLI reads
+            with safe_config_file(_run_config(run), run / "config.yaml") as config:
+                _cli(
+                    [
+                        "predict",
+                        "--config",
+                        str(config),
+                        f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
+                        f"--data.root={self.root}",
+                        f"--data.predict_labels=[{split}.json]",
+                        f"--data.history_source={source}",
+                        "--trainer.logger=false",
+                        "--trainer.callbacks=[]",
+                        "--trainer.enable_progress_bar=false",
+                        "--predictions.verbose=false",
+                        f"--predictions.output_dir={pred_dir}",
+                        f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
+                    ],
+                    parser_kwargs={"exit_on_error": False},
+                )
+        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
+            raise ExperimentError(f"{run}: {one_line(err)}") from None
         return pred_dir
 
     def _trained(self, row: Row, seed: int, steps: int, init: Path | None, label: str) -> dict[str, Any]:
