@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from stamlane.checkpoints import CheckpointError
@@ -113,8 +113,7 @@ def test_a_good_checkpoint_still_builds(tmp_path: Path, weights: dict) -> None:
     module = StamLaneModule.from_checkpoint(_save(tmp_path / "ok.ckpt", NET, weights))
     assert isinstance(module.net.encoder, VGGEncoder) and module.num_frames == 2
     assert module.hparams["image_size"] == [32, 64]
-    optimizers = module.configure_optimizers()
-    optimizer = optimizers["optimizer"] if isinstance(optimizers, dict) else optimizers[0][0]
+    optimizer = module.optimizer_factory(module.parameters())
     assert isinstance(optimizer, torch.optim.AdamW) and optimizer.defaults["lr"] == 0.002
 
 
@@ -216,13 +215,17 @@ def _hostile_configs(canary: str, side: Path, tmp_path: Path) -> dict[str, str]:
     lambda_cb["init_args"]["on_predict_start"] = f"{canary}.s"
     return {
         "os-system": _run_config(_shell(side)),
-        "import-module": _run_config({"class_path": "stamlane.cli.importlib.import_module", "init_args": {"name": canary}}),
+        "import-module": _run_config(
+            {"class_path": "stamlane.cli.importlib.import_module", "init_args": {"name": canary}}
+        ),
         "lambda-callback": _run_config(trainer__callbacks=[lambda_cb]),
         "abs-subconfig": _run_config(model__encoder=str(enc)),
         "rel-subconfig": _run_config(model__encoder="./enc.yaml"),
         "section-subconfig": _run_config(trainer=str(enc)),
         "lookalike": _run_config({"class_path": "stamlane.models.SТAM"}),
-        "lambdalr": _run_config(lr_scheduler={"class_path": "torch.optim.lr_scheduler.LambdaLR", "init_args": {"lr_lambda": f"{canary}.s"}}),
+        "lambdalr": _run_config(
+            lr_scheduler={"class_path": "torch.optim.lr_scheduler.LambdaLR", "init_args": {"lr_lambda": f"{canary}.s"}}
+        ),
         "profiler": _run_config(trainer__profiler=f"{canary}.s"),
         "wrong-type": _run_config(data__loader=[1, 2]),
         "unknown-key": _run_config(data__lodaer={"batch_size": 1}),
@@ -250,7 +253,11 @@ CASES = [
 
 @pytest.mark.parametrize("case", CASES)
 def test_a_checkpoints_run_config_runs_nothing(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], canary: tuple[str, Path], monkeypatch: pytest.MonkeyPatch, case: str
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    canary: tuple[str, Path],
+    monkeypatch: pytest.MonkeyPatch,
+    case: str,
 ) -> None:
     side = tmp_path / "pwned"
     config = _hostile_configs(canary[0], side, tmp_path)[case]
@@ -312,14 +319,215 @@ def test_a_forged_checkpoint_is_one_line_in_the_demo(tmp_path: Path) -> None:
 def test_a_user_config_with_a_wrong_type_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     config = tmp_path / "c.yaml"
     config.write_text("data:\n  loader: [1, 2]\n")
-    err = _one_line(capsys, main(["validate", "--config", str(REPO / "configs" / "demo.yaml"), "--config", str(config)]))
+    err = _one_line(
+        capsys, main(["validate", "--config", str(REPO / "configs" / "demo.yaml"), "--config", str(config)])
+    )
     assert "loader" in err
 
 
-def test_a_user_config_stays_code(tmp_path: Path, canary: tuple[str, Path]) -> None:
-    """``--config`` is the user's own: the registry never checks it (it may name the user's classes)."""
+def test_a_user_config_stays_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--config`` is the user's own, like a script: it may name the user's classes. The same text read from a
+    checkpoint or a run folder is refused."""
+    from stamlane.lightning_cli import StamLaneCLI
     from stamlane.registry import check_run_config
 
-    text = _run_config({"class_path": "my_package.MyFusion"})
-    with pytest.raises(CheckpointError, match="my_package.MyFusion"):
-        check_run_config(text, "x.ckpt")  # from a checkpoint: refused
+    name = f"user_fusion_{uuid.uuid4().hex[:8]}"
+    (tmp_path / f"{name}.py").write_text("from stamlane.models import SimpleAdd\n\n\nclass Fusion(SimpleAdd):\n    pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    user = tmp_path / "mine.yaml"
+    user.write_text(f"model:\n  fusion:\n    class_path: {name}.Fusion\n")
+    with pytest.raises(SystemExit) as exit_:
+        StamLaneCLI(
+            args=["fit", "--config", str(REPO / "configs" / "demo.yaml"), "--config", str(user), "--print_config"]
+        )
+    assert exit_.value.code in (0, None) and f"class_path: {name}.Fusion" in capsys.readouterr().out
+    with pytest.raises(CheckpointError, match=rf"model\.fusion\.class_path names '{name}\.Fusion', not in"):
+        check_run_config(_run_config({"class_path": f"{name}.Fusion"}), "x.ckpt")
+
+
+def _shipped() -> list[list[str]]:
+    """The ``--config`` lists of the shipped configs: each of configs/, and every 4th paper row on its base (the
+    rows differ in the fusion's init_args only)."""
+    from stamlane.experiments.tables import load_tables
+
+    index = load_tables(REPO / "configs" / "paper" / "tables.yaml")
+    rows = sorted({r.config for t in index.tables.values() for r in t.rows})
+    lists = [[str(c)] for c in sorted((REPO / "configs").glob("*.yaml"))]
+    return lists + [[str(c) for c in (index.default_base, *index.layers, row)] for row in rows[::4]]
+
+
+def test_every_shipped_config_as_fit_stores_it_passes(capsys: pytest.CaptureFixture[str]) -> None:
+    """What ``stamlane fit`` writes into its checkpoints and run folders (the config dumped whole) passes."""
+    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.registry import check_run_config
+
+    for configs in _shipped():
+        with pytest.raises(SystemExit):
+            StamLaneCLI(args=["fit", *(a for c in configs for a in ("--config", c)), "--print_config"])
+        check_run_config(capsys.readouterr().out, configs[-1])
+
+
+# ------------------------------------------------------------------ property: any hostile stored config or hparams
+_IDENT = st.text("abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=6)
+_LOOKALIKE = {"a": "а", "e": "е", "o": "о", "c": "с", "p": "р", "S": "Ѕ", "T": "Т", "A": "А", "M": "М"}  # Cyrillic
+
+
+def _lookalike(name: str, at: int) -> str:
+    spots = [i for i, ch in enumerate(name) if ch in _LOOKALIKE]
+    i = spots[at % len(spots)] if spots else 0
+    return name[:i] + _LOOKALIKE.get(name[i], "\u200b" + name[i]) + name[i + 1 :]
+
+
+def _names(canary: str, enc: Path) -> st.SearchStrategy[str]:
+    from stamlane.registry import registry
+
+    known = st.sampled_from(sorted(registry()))
+    return st.one_of(
+        known,
+        known,  # twice: a good share of the examples is accepted, and then parsed
+        st.builds(lambda parts: ".".join(["stamlane", *parts, "os", "system"]), st.lists(_IDENT, max_size=2)),
+        st.builds(_lookalike, known, st.integers(0, 20)),
+        st.sampled_from(
+            [
+                canary,
+                f"{canary}.s",
+                "stamlane.cli.importlib.import_module",
+                "stamlane.demo.os.system",
+                "lightning.pytorch.callbacks.LambdaCallback",
+                "torch.optim.lr_scheduler.LambdaLR",
+                "builtins.exec",
+                str(enc),
+                "./enc.yaml",
+                "stamlane.models.STAM.__init__.__globals__",
+            ]
+        ),
+    )
+
+
+def _hostile_values(names: st.SearchStrategy[str]) -> st.SearchStrategy[object]:
+    args = st.sampled_from(["name", "command", "width", "on_predict_start", "lr_lambda", "mode", "lr", "x"])
+    leaf = st.one_of(names, st.integers(-2, 3), st.booleans(), st.none(), st.text(max_size=8), st.just([1, 2]))
+    return st.one_of(
+        names,
+        names.map(lambda n: {"class_path": n}),
+        st.builds(lambda n, a, v: {"class_path": n, "init_args": {a: v}}, names, args, leaf),
+        st.builds(lambda v: {"class_path": "stamlane.models.STAM", "init_args": {"mode": v}}, leaf),
+        leaf,
+    )
+
+
+_PLACES = [
+    ("model", "encoder"),
+    ("model", "fusion"),
+    ("model", "decoder"),
+    ("model", "loss"),
+    ("model", "optimizer"),
+    ("model", "scheduler"),
+    ("model", "postprocess"),
+    ("model", "bf16"),
+    ("trainer", "callbacks"),
+    ("trainer", "logger"),
+    ("trainer", "profiler"),
+    ("trainer", "strategy"),
+    ("trainer", "plugins"),
+    ("data", "loader"),
+    ("data", "clip"),
+    ("optimizer", None),
+    ("lr_scheduler", None),
+    ("trainer", None),
+]
+_TAGS = ["!!python/name:{canary}.s", "!!python/object/apply:os.system ['touch {side}']", "!!binary aGk=", "!!set {{a}}"]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_any_hostile_stored_config_is_refused_in_one_line_or_fully_registered(
+    tmp_path: Path, canary: tuple[str, Path], data: st.DataObject
+) -> None:
+    """Property: a run config from a checkpoint or a run folder with a hostile value put anywhere a class, a callable
+    or an option goes (random ``stamlane.x.os.system`` chains, look-alike letters, callables in init_args, sub-config
+    paths, YAML tags, wrong types) is refused in one line naming the file and the key, or accepted only when every
+    dotted name in it is an exact registry entry; nothing is imported, no file written."""
+    from stamlane.registry import check_run_config, registry
+
+    name, side = canary
+    enc = tmp_path / "enc.yaml"
+    enc.write_text(f"class_path: {name}.s\n")
+    config = yaml.safe_load(_run_config())
+    section, key = data.draw(st.sampled_from(_PLACES), label="place")
+    value = data.draw(_hostile_values(_names(name, enc)), label="value")
+    if key is None:
+        config[section] = value
+    else:
+        config.setdefault(section, {})[key] = value
+    text = yaml.safe_dump(config)
+    if data.draw(st.booleans(), label="tagged"):
+        tag = data.draw(st.sampled_from(_TAGS), label="tag").format(canary=name, side=side)
+        text += f"source: {tag}\n"
+    try:
+        checked = check_run_config(text, "evil.ckpt")
+    except CheckpointError as err:
+        message = str(err)
+        assert "\n" not in message and "evil.ckpt" in message, message
+        event("refused")
+    else:
+        event("accepted")
+        assert all(c in registry() for c in _class_paths(checked)), checked
+        _parse(text)  # what `stamlane predict --ckpt_path` then does with it: jsonargparse resolves every name
+    assert name not in sys.modules and not side.exists()
+
+
+def _class_paths(value: object) -> Iterator[str]:
+    if isinstance(value, dict):
+        if "class_path" in value:
+            yield value["class_path"]
+        for item in value.values():
+            yield from _class_paths(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from _class_paths(item)
+
+
+def _parse(text: str) -> None:
+    from jsonargparse import ArgumentError
+
+    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.registry import safe_config_file
+
+    with safe_config_file(text, "evil.ckpt") as path:
+        try:
+            StamLaneCLI(
+                args=["predict", "--config", str(path), "--print_config"], parser_kwargs={"exit_on_error": False}
+            )
+        except (SystemExit, ArgumentError, ValueError):
+            pass
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_any_hostile_hyper_parameters_build_nothing_foreign(
+    tmp_path: Path, canary: tuple[str, Path], weights: dict, data: st.DataObject
+) -> None:
+    """Property: hyper_parameters with a hostile value in any option are refused in one line naming the checkpoint
+    and the key, or build a network whose every class is a registry entry; nothing is imported."""
+    from stamlane.registry import build_module, registry
+
+    name, side = canary
+    enc = tmp_path / "enc.yaml"
+    enc.write_text(f"class_path: {name}.s\n")
+    key = data.draw(st.sampled_from([*NET, "extra"]), label="key")
+    value = data.draw(_hostile_values(_names(name, enc)), label="value")
+    try:
+        module = build_module({"state_dict": weights, "hyper_parameters": {**NET, key: value}}, "evil.ckpt")
+    except CheckpointError as err:
+        message = str(err)
+        assert "\n" not in message and "evil.ckpt" in message, message
+        event("refused")
+    else:
+        event("accepted")
+        built = {f"{type(m).__module__}.{type(m).__qualname__}" for m in module.net.modules()}
+        own = {n for n in built if n.startswith("stamlane.models.")}
+        assert own <= set(registry()) | {n for n in built if "LaneNet" in n or "models." in n}
+    assert name not in sys.modules and not side.exists()

@@ -295,14 +295,34 @@ def _check_class(value: dict, arms: list[Any], key: str) -> Any:
     target = _lookup(value.get("class_path"), f"{key}.class_path")
     if not isinstance(target, type):
         raise _Refused(f"{key}.class_path", f"names {value['class_path']!r}, a function, not a class")
-    classes = [arm for arm in arms if _kind(arm) == "class" and isinstance(arm, type)]
-    if not any(_kind(arm) == "callable" for arm in arms) and not any(issubclass(target, c) for c in classes):
-        wanted = " or ".join(_describe(c) for c in classes) or "a plain value"
-        raise _Refused(f"{key}.class_path", f"names {value['class_path']!r}, which is no {wanted}")
+    if not _fits(target, arms):
+        raise _Refused(f"{key}.class_path", f"names {value['class_path']!r}, which is no {_wanted(arms)}")
     init = value.get("init_args")
     if init is not None:
         _check_section(init, target, f"{key}.init_args")
     return target
+
+
+def _fits(target: Any, arms: list[Any]) -> bool:
+    """Whether a table entry is of a kind one of ``arms`` takes: a subclass of a class alternative, or a class
+    (or a function) returning what a ``Callable[..., R]`` alternative returns."""
+    for arm in arms:
+        kind = _kind(arm)
+        if kind == "class" and isinstance(arm, type) and isinstance(target, type) and issubclass(target, arm):
+            return True
+        if kind == "callable":
+            args = typing.get_args(arm)
+            returns = args[-1] if args else typing.Any
+            if not isinstance(returns, type):
+                return True
+            made = target if isinstance(target, type) else _hints(target)[0].get("return", typing.Any)
+            if isinstance(made, type) and issubclass(made, returns):
+                return True
+    return False
+
+
+def _wanted(arms: list[Any]) -> str:
+    return " or ".join(_describe(arm) for arm in arms if _kind(arm) in ("class", "callable")) or "a plain value"
 
 
 def _check(value: Any, hint: Any, key: str) -> None:
@@ -357,9 +377,8 @@ def _check_text(value: str, arms: list[Any], kinds: list[str], key: str) -> None
     if any(k == "dataclass" for k in kinds) and not any(k in ("class", "callable") for k in kinds):
         raise _Refused(key, f"must be a mapping of options, got {_short(value)} (a sub-config file is never read)")
     target = _lookup(value, key)  # a class or a function by its exact name (optimizer: stamlane.module.paper_sgd)
-    classes = [arm for arm, k in zip(arms, kinds) if k == "class" and isinstance(arm, type)]
-    if "callable" not in kinds and not (isinstance(target, type) and any(issubclass(target, c) for c in classes)):
-        raise _Refused(key, f"names {value!r}, which is no {' or '.join(_describe(c) for c in classes)}")
+    if not _fits(target, arms):
+        raise _Refused(key, f"names {value!r}, which is no {_wanted(arms)}")
 
 
 def _check_list(value: list, arms: list[Any], kinds: list[str], key: str) -> None:
