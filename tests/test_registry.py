@@ -334,7 +334,9 @@ def test_a_user_config_stays_code(
     from stamlane.registry import check_run_config
 
     name = f"user_fusion_{uuid.uuid4().hex[:8]}"
-    (tmp_path / f"{name}.py").write_text("from stamlane.models import SimpleAdd\n\n\nclass Fusion(SimpleAdd):\n    pass\n")
+    (tmp_path / f"{name}.py").write_text(
+        "from stamlane.models import SimpleAdd\n\n\nclass Fusion(SimpleAdd):\n    pass\n"
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     user = tmp_path / "mine.yaml"
     user.write_text(f"model:\n  fusion:\n    class_path: {name}.Fusion\n")
