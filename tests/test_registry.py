@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
 
@@ -188,6 +188,32 @@ def test_missing_weights_are_one_line(tmp_path: Path, weights: dict) -> None:
     state = dict(list(weights.items())[1:])
     with pytest.raises(CheckpointError, match="does not fit"):
         StamLaneModule.from_checkpoint(_save(tmp_path / "cut.ckpt", NET, state))
+
+
+@pytest.mark.parametrize("cut", ["a-weight", "lightning-version"])
+def test_a_checkpoint_with_missing_keys_is_one_line(
+    tiny_synthetic: Callable[..., Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], weights: dict, cut: str
+) -> None:
+    """``predict --ckpt_path`` with a checkpoint missing a weight or Lightning's version record: Lightning's restore
+    raised a RuntimeError / KeyError traceback."""
+    root = tiny_synthetic(128, 72, 2, train=1, val=1, test=1, challenging=0, seed=5)
+    config = _run_config(
+        data={
+            "root": str(root),
+            "clip": {"num_frames": 2, "image_size": [32, 64], "align": "none"},
+            "loader": {"batch_size": 1, "num_workers": 0},
+        }
+    )
+    state = dict(list(weights.items())[1:]) if cut == "a-weight" else weights
+    ckpt = _save(tmp_path / "cut.ckpt", None, state, config=config)
+    if cut == "a-weight":
+        content = torch.load(ckpt, weights_only=True)
+        torch.save({**content, "pytorch-lightning_version": "2.6.6"}, ckpt)
+    out = tmp_path / "predictions"
+    err = _one_line(capsys, main(["predict", "--ckpt_path", str(ckpt), f"--predictions.output_dir={out}"]))
+    assert str(ckpt) in err and (
+        "1 weights missing" in err if cut == "a-weight" else "pytorch-lightning_version" in err
+    )
 
 
 # ------------------------------------------------------------------ run configs (predict, validate, test, demo)

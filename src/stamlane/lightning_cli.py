@@ -206,7 +206,27 @@ class StamLaneCLI(LightningCLI):
         if path == "last":  # Lightning looks only where THIS run would save, and silently starts from step 0
             path = self.config_init[subcommand]["ckpt_path"] = str(self._last_checkpoint())
         if path is not None and path not in ("best", "hpc", "registry"):
-            read_checkpoint(path)  # a missing, truncated or foreign file: one line (CheckpointError), not a traceback
+            # a missing, truncated or foreign file, or weights of another network: one line, not a traceback
+            self._check_fits(path, read_checkpoint(path))
+
+    def _check_fits(self, path: str, content: dict[str, Any]) -> None:
+        """Refuse, before Lightning restores it (a KeyError or a RuntimeError of many lines there), a checkpoint
+        without Lightning's version record or whose weights do not fit the network the config builds.
+
+        Raises:
+            CheckpointError: naming the file, the count of missing / unexpected / reshaped weights and the first.
+        """
+        if "pytorch-lightning_version" not in content:
+            raise CheckpointError(f"checkpoint {path} records no pytorch-lightning_version (not written by Lightning)")
+        own, stored = self.model.state_dict(), content["state_dict"]
+        problems = {
+            "missing": [k for k in own if k not in stored],
+            "unexpected": [k for k in stored if k not in own],
+            "of another shape": [k for k in own if k in stored and getattr(stored[k], "shape", None) != own[k].shape],
+        }
+        said = [f"{len(keys)} weights {what} (first: {keys[0]})" for what, keys in problems.items() if keys]
+        if said:
+            raise CheckpointError(f"checkpoint {path} does not fit the network of the config: {'; '.join(said)}")
 
     def _last_checkpoint(self) -> Path:
         """The newest ``last.ckpt`` under the run's logger folder (``save_dir/name``), else ``default_root_dir``."""
