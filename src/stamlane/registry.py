@@ -43,6 +43,7 @@ from stamlane.checkpoints import INSTANTIATOR, CheckpointError
 __all__ = [
     "CALLBACKS",
     "LOGGERS",
+    "MAX_VALUES",
     "OPTIMIZERS",
     "SCHEDULERS",
     "build_module",
@@ -453,6 +454,34 @@ def _run_sections() -> dict[str, Any]:
     }
 
 
+MAX_VALUES = 100_000
+"""Most values a stored config or hyper_parameters may hold, YAML aliases and pickle references counted each time
+they are used (a run config holds a few hundred): a file of a few bytes that expands to billions is refused."""
+
+
+def _count(value: Any, seen: dict[int, int], depth: int = 0) -> int:
+    """How many values ``value`` holds once every shared reference is expanded (each shared object counted once,
+    then reused: linear in the file's size)."""
+    if id(value) in seen:
+        return seen[id(value)]
+    if depth > 100:
+        return MAX_VALUES + 1
+    items = value.values() if isinstance(value, dict) else value if isinstance(value, (list, tuple)) else ()
+    total = 1
+    for item in items:
+        total += _count(item, seen, depth + 1)
+        if total > MAX_VALUES:
+            break
+    if isinstance(value, (dict, list, tuple)):
+        seen[id(value)] = total
+    return total
+
+
+def _check_size(value: Any, what: str) -> None:
+    if _count(value, {}) > MAX_VALUES:
+        raise CheckpointError(f"{what} holds more than {MAX_VALUES:,} values or is nested over 100 deep")
+
+
 def _refusal(source: str | Path, what: str, err: _Refused) -> CheckpointError:
     return CheckpointError(f"{what} {source}: {err.key} {err.reason}")
 
@@ -478,6 +507,7 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
         raise CheckpointError(f"the config of {source} is nested too deeply") from None
     if not isinstance(config, dict):
         raise CheckpointError(f"the config of {source} is not a mapping of options (got {_short(config)})")
+    _check_size(config, f"the config of {source}")
     sections = _run_sections()
     try:
         for name, item in config.items():
@@ -513,6 +543,7 @@ def check_hparams(hparams: Any, source: str | Path) -> None:
     from stamlane.module import StamLaneModule
 
     extra = {"_instantiator": INSTANTIATOR, "_class_path": "stamlane.module.StamLaneModule"}
+    _check_size(hparams, f"checkpoint {source}: hyper_parameters")
     try:
         _check_section(hparams, StamLaneModule, "hyper_parameters", extra)
     except _Refused as err:
@@ -526,6 +557,7 @@ def check_data_hparams(hparams: Any, source: str | Path) -> None:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.data.flat_options import group_data
 
+    _check_size(hparams, f"checkpoint {source}: datamodule_hyper_parameters")
     try:
         data = group_data(hparams) if isinstance(hparams, dict) else hparams
         _check_section(data, ClipDataModule, "datamodule_hyper_parameters", {"_instantiator": INSTANTIATOR})

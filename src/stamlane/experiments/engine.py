@@ -37,7 +37,7 @@ from stamlane.experiments.scoring import (
     score_temporal,
 )
 from stamlane.experiments.stats import Scores, views
-from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
+from stamlane.experiments.store import DONE, StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.quiet import quiet_libraries
 
@@ -163,6 +163,32 @@ def _check_run_config(run: Path) -> None:
         check_run_config(_run_config(run), run / "config.yaml")
     except CheckpointError as err:
         raise ExperimentError(str(err)) from None
+
+
+_RECORD_TYPES: dict[str, tuple[type, ...]] = {
+    "run": (str,),
+    "last_ckpt": (str,),
+    "frames": (int,),
+    "seed": (int,),
+    "train_minutes": (int, float),
+    "pretrain_minutes": (int, float),
+    "scores": (dict,),
+    "labels": (dict,),
+}
+"""The values of a finished run's record (``done.json``) the engine computes with, and their types."""
+
+
+def _check_record(record: dict[str, Any], path: Path) -> None:
+    """A finished run's record is data: each value the engine uses of the type it computes with (``frames: null``
+    was a TypeError far from the file); one line naming the file and the key."""
+    for key, types in _RECORD_TYPES.items():
+        value = record.get(key)
+        optional = key in ("pretrain_minutes", "scores", "labels")
+        if (value is None and optional) or (isinstance(value, types) and not isinstance(value, bool)):
+            if key != "frames" or value >= 1:
+                continue
+        wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
+        raise ExperimentError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
 
 
 def _frames_of(run: Path) -> int:
@@ -321,6 +347,7 @@ class Experiment:
         except StoreError as err:
             raise ExperimentError(str(err)) from None
         if record is not None:
+            _check_record(record, self.out / name / DONE)
             _check_run_config(Path(record["run"]))
             if record.get("recipe_args", True) != row.recipe_args:
                 raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")
