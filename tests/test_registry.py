@@ -216,6 +216,43 @@ def test_a_checkpoint_with_missing_keys_is_one_line(
     )
 
 
+@pytest.mark.parametrize(
+    "data",
+    [
+        {"clip": {"num_frames": "2"}},
+        {"clip": [1, 2]},
+        {"root": {"class_path": "{canary}.s"}},
+        {"loader": "./loader.yaml"},
+        {"clip": {"num_frames": 2, "image_size": [32, 64], "stride": {"class_path": "os.system"}}},
+    ],
+    ids=["str-int", "list", "class", "subconfig", "nested-class"],
+)
+def test_stream_refuses_bad_data_hyper_parameters(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], canary: tuple[str, Path], weights: dict, data: dict
+) -> None:
+    data = yaml.safe_load(yaml.safe_dump(data).replace("{canary}", canary[0]))
+    ckpt = tmp_path / "c.ckpt"
+    torch.save({"state_dict": weights, "hyper_parameters": NET, "datamodule_hyper_parameters": data}, ckpt)
+    argv = ["stream", str(_frames(tmp_path / "frames")), "--ckpt", str(ckpt), "--out", str(tmp_path / "o")]
+    err = _one_line(capsys, main(argv))
+    assert str(ckpt) in err and "datamodule_hyper_parameters" in err, err
+
+
+def test_aliases_and_shared_references_cannot_expand_without_bound(weights: dict) -> None:
+    """A few hundred bytes of YAML aliases (or pickle references) standing for billions of values: refused at once."""
+    from stamlane.registry import MAX_VALUES, build_module, check_run_config
+
+    lines = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"{b}: &{b} [{', '.join([f'*{a}'] * 10)}]" for a, b in zip("abcdefgh", "bcdefghi")]
+    with pytest.raises(CheckpointError, match=f"more than {MAX_VALUES:,} values"):
+        check_run_config("\n".join(lines) + "\n", "x.ckpt")
+    shared: list = [0] * 10
+    for _ in range(8):
+        shared = [shared] * 10
+    with pytest.raises(CheckpointError, match=f"more than {MAX_VALUES:,} values"):
+        build_module({"state_dict": weights, "hyper_parameters": {**NET, "image_size": shared}}, "x.ckpt")
+
+
 # ------------------------------------------------------------------ run configs (predict, validate, test, demo)
 def _run_config(fusion: object = None, **sections: object) -> str:
     config: dict = {"model": dict(NET_CONFIG), "data": {"root": "/nonexistent/stamlane-data"}}
