@@ -183,7 +183,7 @@ class StamLaneModule(LightningModule):
             try:
                 state = read_checkpoint(self.init_weights)["state_dict"]
             except CheckpointError as err:
-                raise ValueError(f"init_weights: {err}") from None
+                raise CheckpointError(f"init_weights: {err}") from None
             own = self.state_dict()
             for fusion in ("net.fusion.", "net.skip_fusion."):
 

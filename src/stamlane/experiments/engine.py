@@ -287,23 +287,28 @@ class Experiment:
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
         row_args = self.recipe.row_args if row is not self.recipe.pretrain and row.recipe_args else ()
-        cli = _cli(
-            [
-                "fit",
-                *([f"--ckpt_path={last}"] if last.is_file() else []),
-                *self._common(row),
-                *row_args,
-                *([f"--model.init_weights={init}"] if init else []),
-                f"--seed_everything={seed}",
-                f"--trainer.max_steps={steps}",
-                f"--trainer.val_check_interval={val_every}",
-                f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
-                f"--trainer.default_root_dir={self.out / name}",
-                f"--trainer.logger.save_dir={self.out}",
-                f"--trainer.logger.name={name}",
-                "--trainer.logger.version=run",
-            ]
-        )
+        from stamlane.checkpoints import CheckpointError
+
+        try:
+            cli = _cli(
+                [
+                    "fit",
+                    *([f"--ckpt_path={last}"] if last.is_file() else []),
+                    *self._common(row),
+                    *row_args,
+                    *([f"--model.init_weights={init}"] if init else []),
+                    f"--seed_everything={seed}",
+                    f"--trainer.max_steps={steps}",
+                    f"--trainer.val_check_interval={val_every}",
+                    f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
+                    f"--trainer.default_root_dir={self.out / name}",
+                    f"--trainer.logger.save_dir={self.out}",
+                    f"--trainer.logger.name={name}",
+                    "--trainer.logger.version=run",
+                ]
+            )
+        except CheckpointError as err:  # a tampered checkpoint to resume from or to start from: one line
+            raise ExperimentError(f"{self.out / name}: {err}") from None
         return Path(cli.trainer.logger.log_dir)
 
     def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
