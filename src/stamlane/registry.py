@@ -1,10 +1,10 @@
 """The closed registry: what a file the user did not write may build.
 
-A checkpoint's ``hyper_parameters``, the run config it carries, a run folder's ``config.yaml`` are data. Before,
-names in them were checked by prefix (``stamlane.``, ``torch.optim.``) and then imported by jsonargparse:
-``stamlane.demo.os.system`` passed the prefix and reached the shell by attributes. Here every name is looked up
-in `registry` — a table of exact dotted names to classes, written out below — and nothing is imported or resolved
-from the file's text. Every value is checked against the type the receiving parameter declares:
+A checkpoint's ``hyper_parameters``, the run config it carries, a run folder's ``config.yaml`` are data. A check
+by prefix (``stamlane.``) is not enough: jsonargparse resolves a name by importing its module and walking
+attributes, so ``stamlane.demo.os.system`` reaches the shell. Here every name is looked up in `registry` — a table
+of exact dotted names to classes, written out below — and nothing is imported or resolved from the file's text.
+Every value is checked against the type the receiving parameter declares:
 
 - a ``class_path`` (or a bare name where a class or a callable goes) must be a key of the table, of the declared
   kind (``nn.Module`` for ``model.encoder``, a ``Callback`` in ``trainer.callbacks``);
@@ -12,13 +12,15 @@ from the file's text. Every value is checked against the type the receiving para
   lists and mappings of those. A string where a class, a callable or a section goes (a callable by its dotted name,
   a sub-config file such as ``./enc.yaml``) is refused; so are unknown keys, and YAML tags (``!!python/name``,
   ``!!binary``: the text is read with ``yaml.safe_load`` and only plain values pass);
-- a string where Lightning takes either a name or a class (``trainer.strategy: auto``) must be a lowercase name.
+- a string where Lightning takes either a name or a class (``trainer.strategy: auto``) must be a lowercase name;
+- at most `MAX_VALUES` values, YAML aliases and shared references counted each time they are used.
 
 Anything else is a `stamlane.checkpoints.CheckpointError` naming the file and the key, in one line. The checked
 config is written out again (`safe_config_file`) so that jsonargparse reads exactly what was checked; a network
 is built from a checkpoint's hyper_parameters by `build_module`, from the table, without jsonargparse.
 
-A config the user gives with ``--config`` is code, like a script, and is never checked here.
+This is a gate, not the way stamlane is configured: a config the user gives with ``--config`` is code, like a
+script, is never checked here and may name any class (for configs, the CLI stays the registry).
 """
 
 from __future__ import annotations
