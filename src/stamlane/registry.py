@@ -100,7 +100,7 @@ CALLBACKS = (
     "OnExceptionCheckpoint",
 )
 """``lightning.pytorch.callbacks`` classes (not ``LambdaCallback``: it is made of code)."""
-LOGGERS = ("CSVLogger", "TensorBoardLogger")
+LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger", "WandbLogger", "CometLogger")
 """``lightning.pytorch.loggers`` classes."""
 
 _TOKEN = re.compile(r"[a-z0-9][a-z0-9_\-]*")
