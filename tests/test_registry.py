@@ -10,6 +10,7 @@ Nothing here trains: the checkpoints are written by hand, with the weights of a 
 from __future__ import annotations
 
 import sys
+import tempfile
 import uuid
 from collections.abc import Callable, Iterator
 from functools import partial
@@ -607,4 +608,52 @@ def test_any_hostile_hyper_parameters_build_nothing_foreign(
         built = {f"{type(m).__module__}.{type(m).__qualname__}" for m in module.net.modules()}
         own = {n for n in built if n.startswith("stamlane.models.")}
         assert own <= set(registry()) | {n for n in built if "LaneNet" in n or "models." in n}
+    assert name not in sys.modules and not side.exists()
+
+
+@settings(max_examples=8, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+@pytest.mark.parametrize("command", ["predict", "validate", "stream", "export"])
+def test_every_command_answers_a_hostile_checkpoint_in_one_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    canary: tuple[str, Path],
+    weights: dict,
+    command: str,
+    data: st.DataObject,
+) -> None:
+    """Property, per command that reads a checkpoint: whatever hostile value its run config (predict), its run
+    folder's config.yaml (validate) or its hyper_parameters (stream, export) hold, the answer is one line and exit
+    2 (the data root of the configs does not exist, so an accepted config ends there), and nothing is imported."""
+    name, side = canary
+    folder = Path(tempfile.mkdtemp(dir=tmp_path))
+    enc = folder / "enc.yaml"
+    enc.write_text(f"class_path: {name}.s\n")
+    value = data.draw(_hostile_values(_names(name, enc)), label="value")
+    run = folder / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    ckpt = run / "checkpoints" / "last.ckpt"
+    if command in ("predict", "validate"):
+        config = yaml.safe_load(_run_config())
+        section, key = data.draw(st.sampled_from(_PLACES), label="place")
+        if key is None:
+            config[section] = value
+        else:
+            config.setdefault(section, {})[key] = value
+        text = yaml.safe_dump(config)
+        if command == "validate":
+            (run / "config.yaml").write_text(text)
+        _save(ckpt, NET, weights, config=text if command == "predict" else None)
+        argv = [command, "--ckpt_path", str(ckpt)]
+    else:
+        key = data.draw(st.sampled_from(sorted(NET)), label="key")
+        _save(ckpt, {**NET, key: value}, weights)
+        argv = {
+            "stream": ["stream", str(_frames(folder / "frames")), "--ckpt", str(ckpt), "--out", str(folder / "o")],
+            "export": ["export", "--ckpt_path", str(ckpt), "--output", str(folder / "m.onnx"), "--opset", "17"],
+        }[command]
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    ours = [line for line in err.splitlines() if line.startswith("stamlane ")]
+    assert "Traceback" not in err and (code == 0 or (code == 2 and len(ours) == 1)), err
     assert name not in sys.modules and not side.exists()
