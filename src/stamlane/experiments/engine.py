@@ -183,10 +183,10 @@ def _check_record(record: dict[str, Any], path: Path) -> None:
     was a TypeError far from the file); one line naming the file and the key."""
     for key, types in _RECORD_TYPES.items():
         value = record.get(key)
-        optional = key in ("pretrain_minutes", "scores", "labels")
-        if (value is None and optional) or (isinstance(value, types) and not isinstance(value, bool)):
-            if key != "frames" or value >= 1:
-                continue
+        if value is None and key in ("pretrain_minutes", "scores", "labels"):
+            continue  # written later, or only by two-stage recipes
+        if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
+            continue
         wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
         raise ExperimentError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
 
