@@ -247,6 +247,8 @@ def test_aliases_and_shared_references_cannot_expand_without_bound(weights: dict
     lines += [f"{b}: &{b} [{', '.join([f'*{a}'] * 10)}]" for a, b in zip("abcdefgh", "bcdefghi")]
     with pytest.raises(CheckpointError, match=f"more than {MAX_VALUES:,} values"):
         check_run_config("\n".join(lines) + "\n", "x.ckpt")
+    with pytest.raises(CheckpointError, match="at most 16,777,216 characters"):
+        check_run_config("a: " + "x" * (16 << 20), "x.ckpt")
     shared: list = [0] * 10
     for _ in range(8):
         shared = [shared] * 10

@@ -45,6 +45,7 @@ from stamlane.checkpoints import INSTANTIATOR, CheckpointError
 __all__ = [
     "CALLBACKS",
     "LOGGERS",
+    "MAX_CONFIG_CHARS",
     "MAX_VALUES",
     "OPTIMIZERS",
     "SCHEDULERS",
@@ -456,6 +457,8 @@ def _run_sections() -> dict[str, Any]:
     }
 
 
+MAX_CONFIG_CHARS = 16 << 20
+"""Longest run config read from a checkpoint or a run folder (as ``--config`` files; a run config is a few KiB)."""
 MAX_VALUES = 100_000
 """Most values a stored config or hyper_parameters may hold, YAML aliases and pickle references counted each time
 they are used (a run config holds a few hundred): a file of a few bytes that expands to billions is refused."""
@@ -501,6 +504,11 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
 
     from stamlane.data.flat_options import group_config
 
+    if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
+        size = f"{len(text):,} characters" if isinstance(text, str) else type(text).__name__
+        raise CheckpointError(
+            f"the config of {source} is not a text of at most {MAX_CONFIG_CHARS:,} characters ({size})"
+        )
     try:
         config = group_config(yaml.safe_load(text))
     except yaml.YAMLError as err:
