@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -17,6 +18,7 @@ from stamlane.cli import main
 from stamlane.demo import pairs
 from stamlane.experiments.engine import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
+from stamlane.experiments.store import file_sha256
 from stamlane.experiments.summary import Summary
 from stamlane.synth.generator import FACTORS
 
@@ -181,6 +183,8 @@ def test_a_tampered_run_folder_is_refused_in_one_line(tmp_path: Path, capsys: py
         (json.dumps(record | {"run": "/etc"}), "is not a path inside"),
         (json.dumps(record | {"last_ckpt_sha256": "0" * 64}), "changed since the run finished"),
         (json.dumps([1, 2]), "is not a run record"),
+        (json.dumps(record | {"frames": None}), "frames must be int >= 1, got None"),
+        (json.dumps(record | {"scores": [1]}), "scores must be dict"),
     ]
     for text, message in cases:
         done.write_text(text)
@@ -196,7 +200,22 @@ def test_a_tampered_run_folder_is_refused_in_one_line(tmp_path: Path, capsys: py
     assert main(["demo", "--quick", "--out", str(out)]) == 2  # a run folder's config may not import anything
     err = capsys.readouterr().err.strip()
     assert "names 'os.system'" in err and len(err.splitlines()) == 1
+    config.write_text(original.replace("class_path: stamlane.models.", "class_path: stamlane.demo.os.system  #", 1))
+    capsys.readouterr()
+    assert main(["demo", "--quick", "--out", str(out)]) == 2  # a stamlane. prefix reaching the shell: not in the table
+    err = capsys.readouterr().err.strip()
+    assert "names 'stamlane.demo.os.system'" in err and len(err.splitlines()) == 1
     config.write_text(original)
+    ckpt = Path(record["last_ckpt"])  # a checkpoint weights_only refuses, its digest forged, predicted again
+    kept = ckpt.read_bytes()
+    torch.save({"state_dict": {}, "x": partial(print)}, ckpt)
+    done.write_text(json.dumps(record | {"last_ckpt_sha256": file_sha256(ckpt), "scores": {}}))
+    capsys.readouterr()
+    assert main(["demo", "--quick", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not a readable torch checkpoint" in err and len(err.splitlines()) == 1, err
+    ckpt.write_bytes(kept)
+    done.write_text(json.dumps(record))
     (out / "summary.json").write_text("{tampered")
     assert main(["demo", "--quick", "--out", str(out)]) == 0  # the summary is rewritten from the runs
 

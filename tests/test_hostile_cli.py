@@ -22,7 +22,6 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from stamlane.checkpoints import CheckpointError, check_config
 from stamlane.cli import main
 from stamlane.imageio import MAX_IMAGE_PIXELS, declared_size, open_video, read_image
 
@@ -109,7 +108,7 @@ def test_a_checkpoint_runs_no_code(tmp_path: Path, capsys: pytest.CaptureFixture
     imported (``antigravity`` opens a browser when imported, ``this`` prints a poem)."""
     ckpt = _checkpoint(tmp_path / "evil.ckpt", FOREIGN_CONFIGS[case])
     err = _one_line(capsys, main([command, "--ckpt_path", str(ckpt)]))
-    assert "may name only stamlane's classes" in err or "not allowed from a checkpoint" in err
+    assert f"the config of {ckpt}: " in err and ("may name only stamlane's classes" in err or "not an option" in err)
     assert "antigravity" not in sys.modules and "this" not in sys.modules
 
 
@@ -119,7 +118,8 @@ def test_a_run_folders_config_runs_no_code(tmp_path: Path, capsys: pytest.Captur
     (tmp_path / "run" / "config.yaml").write_text(FOREIGN_CONFIGS["callback"])
     ckpt = _checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")
     err = _one_line(capsys, main(["validate", "--ckpt_path", str(ckpt)]))
-    assert "run/config.yaml names 'this.Anything'" in err and "this" not in sys.modules
+    assert "run/config.yaml: trainer.callbacks[0].class_path names 'this.Anything'" in err
+    assert "this" not in sys.modules
     os.unlink(tmp_path / "run" / "config.yaml")
     os.mkfifo(tmp_path / "run" / "config.yaml")  # a FIFO where the config should be: refused, not read
     signal.alarm(60)
@@ -128,13 +128,6 @@ def test_a_run_folders_config_runs_no_code(tmp_path: Path, capsys: pytest.Captur
     finally:
         signal.alarm(0)
     assert "none is beside it" in err  # a FIFO is no config file: never opened
-
-
-def test_the_allow_list_passes_every_shipped_config() -> None:
-    for config in sorted((REPO / "configs").rglob("*.yaml")):
-        check_config(config.read_text(), config)  # what `stamlane fit` stores in its checkpoints
-    with pytest.raises(CheckpointError, match="not YAML"):
-        check_config("a: [", "x.ckpt")
 
 
 def _png_bomb(side: int) -> bytes:

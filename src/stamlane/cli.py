@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import importlib
 import sys
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -127,22 +126,20 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     from stamlane_eval.cli_tools import check_input_file
     from stamlane_eval.io import read_text
 
-    from stamlane.checkpoints import CheckpointError, check_config, read_checkpoint
+    from stamlane.checkpoints import CheckpointError, read_checkpoint
     from stamlane.lightning_cli import CONFIG_KEY
+    from stamlane.registry import safe_config_file
 
     config = read_checkpoint(ckpt).get(CONFIG_KEY)
-    if isinstance(config, str):
-        check_config(config, ckpt)  # data, not the user's code: no class outside the allow-list gets imported
-        with tempfile.TemporaryDirectory(prefix="stamlane-config-") as folder:
-            path = Path(folder) / "config.yaml"
-            path.write_text(config)
+    if isinstance(config, str):  # data, not the user's code: checked against the closed registry, then a copy read
+        with safe_config_file(config, ckpt) as path:
             yield ["--config", str(path)]
         return
     beside = Path(ckpt).resolve().parent.parent / "config.yaml"
     if beside.is_file():
         check_input_file(beside, "run config")
-        check_config(read_text(beside, limit=_MAX_CONFIG_BYTES), beside)
-        yield ["--config", str(beside)]
+        with safe_config_file(read_text(beside, limit=_MAX_CONFIG_BYTES), beside) as path:
+            yield ["--config", str(path)]
         return
     raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
 

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import sys
+import typing
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import yaml
-from jsonargparse import get_loader, set_loader
+from jsonargparse import Namespace, get_loader, set_loader
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
@@ -97,7 +99,22 @@ class StamLaneCLI(LightningCLI):
         given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
         check_flags(given)  # --data.num_frames: one line naming --data.clip.num_frames
         super().parse_arguments(parser, args)
+        self._check_option_groups()
         self._logs_follow_root(given)
+
+    def _check_option_groups(self) -> None:
+        """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
+        mapping (``data.loader: [1, 2]``) passes jsonargparse's parsing and fails when it is built, as a
+        TypeError without the key: said here, in one line naming it (ValueError)."""
+        config = self.config.get(str(self.config.get("subcommand"))) or self.config
+        for section, cls in (("model", StamLaneModule), ("data", ClipDataModule)):
+            for name, hint in typing.get_type_hints(cls.__init__).items():
+                arms = typing.get_args(hint) or (hint,)
+                if not any(dataclasses.is_dataclass(arm) for arm in arms):
+                    continue
+                value = config.get(f"{section}.{name}")
+                if value is not None and not isinstance(value, Namespace):
+                    raise ValueError(f"{section}.{name} must be a mapping of options, got {value!r:.80}")
 
     def _logs_follow_root(self, given: list[str]) -> None:
         """``--trainer.default_root_dir DIR`` on the command line, without a ``--trainer.logger`` option, moves
@@ -189,7 +206,27 @@ class StamLaneCLI(LightningCLI):
         if path == "last":  # Lightning looks only where THIS run would save, and silently starts from step 0
             path = self.config_init[subcommand]["ckpt_path"] = str(self._last_checkpoint())
         if path is not None and path not in ("best", "hpc", "registry"):
-            read_checkpoint(path)  # a missing, truncated or foreign file: one line (CheckpointError), not a traceback
+            # a missing, truncated or foreign file, or weights of another network: one line, not a traceback
+            self._check_fits(path, read_checkpoint(path))
+
+    def _check_fits(self, path: str, content: dict[str, Any]) -> None:
+        """Refuse, before Lightning restores it (a KeyError or a RuntimeError of many lines there), a checkpoint
+        without Lightning's version record or whose weights do not fit the network the config builds.
+
+        Raises:
+            CheckpointError: naming the file, the count of missing / unexpected / reshaped weights and the first.
+        """
+        if "pytorch-lightning_version" not in content:
+            raise CheckpointError(f"checkpoint {path} records no pytorch-lightning_version (not written by Lightning)")
+        own, stored = self.model.state_dict(), content["state_dict"]
+        problems = {
+            "missing": [k for k in own if k not in stored],
+            "unexpected": [k for k in stored if k not in own],
+            "of another shape": [k for k in own if k in stored and getattr(stored[k], "shape", None) != own[k].shape],
+        }
+        said = [f"{len(keys)} weights {what} (first: {keys[0]})" for what, keys in problems.items() if keys]
+        if said:
+            raise CheckpointError(f"checkpoint {path} does not fit the network of the config: {'; '.join(said)}")
 
     def _last_checkpoint(self) -> Path:
         """The newest ``last.ckpt`` under the run's logger folder (``save_dir/name``), else ``default_root_dir``."""

@@ -35,7 +35,7 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
-from stamlane.checkpoints import CheckpointError, check_classes, read_checkpoint
+from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.hardware import resolve_bf16
 from stamlane.lightning_compat import drop_hyperparameters
 from stamlane.losses import LaneLoss
@@ -183,7 +183,7 @@ class StamLaneModule(LightningModule):
             try:
                 state = read_checkpoint(self.init_weights)["state_dict"]
             except CheckpointError as err:
-                raise ValueError(f"init_weights: {err}") from None
+                raise CheckpointError(f"init_weights: {err}") from None
             own = self.state_dict()
             for fusion in ("net.fusion.", "net.skip_fusion."):
 
@@ -210,25 +210,18 @@ class StamLaneModule(LightningModule):
     def from_checkpoint(cls, path: str | Path) -> StamLaneModule:
         """The module stored in a checkpoint, built safely, on the CPU, in eval mode.
 
-        The file is read with ``weights_only=True`` and every ``class_path`` of its hyperparameters is checked
-        against `stamlane.checkpoints.ALLOWED_CLASSES` before anything is built (Lightning's own
-        ``load_from_checkpoint`` would import and call whatever the file names).
+        The file is read with ``weights_only=True``; its hyperparameters are checked against the closed registry
+        and the network is built from it (`stamlane.registry.build_module`): every class is looked up by its
+        exact name, nothing named in the file is imported (Lightning's own ``load_from_checkpoint`` would import
+        and call whatever the file names).
 
         Raises:
-            CheckpointError: see `stamlane.checkpoints.read_checkpoint` and `check_classes`; also for
-                hyperparameters that build no stamlane network and for weights of another network.
+            CheckpointError: see `stamlane.checkpoints.read_checkpoint` and `stamlane.registry.check_hparams`;
+                also for hyperparameters that build no stamlane network and for weights of another network.
         """
-        content = read_checkpoint(path)
-        hparams = content.get("hyper_parameters")
-        if not isinstance(hparams, dict):
-            raise CheckpointError(f"checkpoint {path} records no hyper_parameters: build the network from its config")
-        check_classes(hparams, path)
-        try:
-            module = cls.load_from_checkpoint(path, map_location="cpu", weights_only=True)
-        except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, ImportError) as err:
-            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-            raise CheckpointError(f"checkpoint {path} does not fit a stamlane network: {first[:200]}") from None
-        return module.eval()
+        from stamlane.registry import build_module
+
+        return build_module(read_checkpoint(path), path)
 
     # ------------------------------------------------------------------ network
     def forward(self, clip: Tensor, key_from_hist_net: Tensor | None = None) -> tuple[Tensor, Tensor]:

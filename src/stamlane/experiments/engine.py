@@ -37,7 +37,7 @@ from stamlane.experiments.scoring import (
     score_temporal,
 )
 from stamlane.experiments.stats import Scores, views
-from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
+from stamlane.experiments.store import DONE, StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.quiet import quiet_libraries
 
@@ -148,28 +148,61 @@ then each row for 300 steps from those weights with the key frame corrupted in h
 budget). Steps can be changed per call."""
 
 
-def _cli(args: list[str]) -> Any:
+def _cli(args: list[str], **kwargs: Any) -> Any:
     from stamlane.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
     try:
-        return StamLaneCLI(args=args, report=False)
+        return StamLaneCLI(args=args, report=False, **kwargs)
     finally:
         sys.argv = argv
 
 
-def _check_run_config(run: Path) -> None:
-    """A run folder's ``config.yaml`` is data, not the user's code: it may name only allow-listed classes
-    (`stamlane.checkpoints.check_config`); a tampered one is refused in one line."""
-    from stamlane.checkpoints import CheckpointError, check_config
-
+def _run_config(run: Path) -> str:
+    """The text of a run folder's ``config.yaml`` (one line naming it when it cannot be read)."""
     path = run / "config.yaml"
     try:
-        check_config(path.read_text(), path)
+        return path.read_text()
     except (OSError, UnicodeDecodeError) as err:
         raise ExperimentError(f"{path}: cannot read the run's config ({err}); delete the run folder") from None
+
+
+def _check_run_config(run: Path) -> None:
+    """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
+    (`stamlane.registry.check_run_config`); a tampered one is refused in one line."""
+    from stamlane.checkpoints import CheckpointError
+    from stamlane.registry import check_run_config
+
+    try:
+        check_run_config(_run_config(run), run / "config.yaml")
     except CheckpointError as err:
         raise ExperimentError(str(err)) from None
+
+
+_RECORD_TYPES: dict[str, tuple[type, ...]] = {
+    "run": (str,),
+    "last_ckpt": (str,),
+    "frames": (int,),
+    "seed": (int,),
+    "train_minutes": (int, float),
+    "pretrain_minutes": (int, float),
+    "scores": (dict,),
+    "labels": (dict,),
+}
+"""The values of a finished run's record (``done.json``) the engine computes with, and their types."""
+
+
+def _check_record(record: dict[str, Any], path: Path) -> None:
+    """A finished run's record is data: each value the engine uses of the type it computes with (``frames: null``
+    was a TypeError far from the file); one line naming the file and the key."""
+    for key, types in _RECORD_TYPES.items():
+        value = record.get(key)
+        if value is None and key in ("pretrain_minutes", "scores", "labels"):
+            continue  # written later, or only by two-stage recipes
+        if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
+            continue
+        wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
+        raise ExperimentError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
 
 
 def _frames_of(run: Path) -> int:
@@ -283,48 +316,62 @@ class Experiment:
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
         row_args = self.recipe.row_args if row is not self.recipe.pretrain and row.recipe_args else ()
-        cli = _cli(
-            [
-                "fit",
-                *([f"--ckpt_path={last}"] if last.is_file() else []),
-                *self._common(row),
-                *row_args,
-                *([f"--model.init_weights={init}"] if init else []),
-                f"--seed_everything={seed}",
-                f"--trainer.max_steps={steps}",
-                f"--trainer.val_check_interval={val_every}",
-                f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
-                f"--trainer.default_root_dir={self.out / name}",
-                f"--trainer.logger.save_dir={self.out}",
-                f"--trainer.logger.name={name}",
-                "--trainer.logger.version=run",
-            ]
-        )
+        from stamlane.checkpoints import CheckpointError
+
+        try:
+            cli = _cli(
+                [
+                    "fit",
+                    *([f"--ckpt_path={last}"] if last.is_file() else []),
+                    *self._common(row),
+                    *row_args,
+                    *([f"--model.init_weights={init}"] if init else []),
+                    f"--seed_everything={seed}",
+                    f"--trainer.max_steps={steps}",
+                    f"--trainer.val_check_interval={val_every}",
+                    f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
+                    f"--trainer.default_root_dir={self.out / name}",
+                    f"--trainer.logger.save_dir={self.out}",
+                    f"--trainer.logger.name={name}",
+                    "--trainer.logger.version=run",
+                ]
+            )
+        except CheckpointError as err:  # a tampered checkpoint to resume from or to start from: one line
+            raise ExperimentError(f"{self.out / name}: {err}") from None
         return Path(cli.trainer.logger.log_dir)
 
     def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
         """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks; returns the
         predictions folder."""
+        from jsonargparse import ArgumentError
+
+        from stamlane.cli import one_line
+        from stamlane.registry import safe_config_file
+
         pred_dir = self.pred_dir(name, split, source)
-        _check_run_config(run)
-        _cli(
-            [
-                "predict",
-                "--config",
-                str(run / "config.yaml"),
-                f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
-                f"--data.root={self.root}",
-                f"--data.predict_labels=[{split}.json]",
-                f"--data.history_source={'real' if source == 'exact' else source}",
-                *(["--data.clip.align=true"] if source == "exact" else []),
-                "--trainer.logger=false",
-                "--trainer.callbacks=[]",
-                "--trainer.enable_progress_bar=false",
-                "--predictions.verbose=false",
-                f"--predictions.output_dir={pred_dir}",
-                f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
-            ]
-        )
+        try:  # the run's config is data: a checked copy is what LightningCLI reads
+            with safe_config_file(_run_config(run), run / "config.yaml") as config:
+                _cli(
+                    [
+                        "predict",
+                        "--config",
+                        str(config),
+                        f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
+                        f"--data.root={self.root}",
+                        f"--data.predict_labels=[{split}.json]",
+                        f"--data.history_source={'real' if source == 'exact' else source}",
+                        *(["--data.clip.align=true"] if source == "exact" else []),
+                        "--trainer.logger=false",
+                        "--trainer.callbacks=[]",
+                        "--trainer.enable_progress_bar=false",
+                        "--predictions.verbose=false",
+                        f"--predictions.output_dir={pred_dir}",
+                        f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
+                    ],
+                    parser_kwargs={"exit_on_error": False},
+                )
+        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
+            raise ExperimentError(f"{run}: {one_line(err)}") from None
         return pred_dir
 
     def _trained(self, row: Row, seed: int, steps: int, init: Path | None, label: str) -> dict[str, Any]:
@@ -335,6 +382,7 @@ class Experiment:
         except StoreError as err:
             raise ExperimentError(str(err)) from None
         if record is not None:
+            _check_record(record, self.out / name / DONE)
             _check_run_config(Path(record["run"]))
             if record.get("recipe_args", True) != row.recipe_args:
                 raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")

@@ -112,6 +112,7 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     from stamlane.checkpoints import CheckpointError, read_checkpoint
     from stamlane.data.flat_options import clip_options
     from stamlane.module import StamLaneModule
+    from stamlane.registry import check_data_hparams
 
     if args.config:
         from stamlane.cli import build_cli
@@ -134,10 +135,10 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
     try:
-        module = StamLaneModule.from_checkpoint(
-            args.ckpt
-        )  # only stamlane's classes and torch.optim may be built from it
+        module = StamLaneModule.from_checkpoint(args.ckpt)  # built from the closed registry, nothing imported
         data = read_checkpoint(args.ckpt).get("datamodule_hyper_parameters")
+        if data is not None:
+            check_data_hparams(data, args.ckpt)
         clip = clip_options(data) if isinstance(data, dict) else None
     except CheckpointError as err:
         raise StreamError(str(err)) from None

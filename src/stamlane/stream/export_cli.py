@@ -5,8 +5,8 @@
 Writes the whole clip model (input ``clip`` (B, T, 3, H, W) float32 RGB in [0, 1], key frame last, history
 pre-aligned; outputs ``logits`` (B, 2, H, W) and ``embedding`` (B, E, H, W); see `stamlane.stream.export`) to
 ``--output`` (default: the checkpoint's path with ``.onnx``), and with ``--streaming DIR`` also the two graphs of
-the streaming predictor. The network is built from the checkpoint alone (only stamlane's classes may be named
-in it). Parity: onnxruntime and PyTorch run on the same random clip and the largest absolute differences are
+the streaming predictor. The network is built from the checkpoint alone, from the closed registry (`stamlane.registry`:
+nothing the file names is imported). Parity: onnxruntime and PyTorch run on the same random clip and the largest absolute differences are
 printed; without onnxruntime (``pip install "stamlane[export]"``) the files are written and parity is skipped.
 """
 
