@@ -144,6 +144,18 @@ def _cli(args: list[str]) -> Any:
         sys.argv = argv
 
 
+def _run_config(run: Path) -> str:
+    """The text of a run folder's ``config.yaml``, read only inside the folder (links resolved)."""
+    from stamlane.budget import MAX_RECORD_BYTES
+    from stamlane.guard import GuardError, read_inside
+
+    path = run / "config.yaml"
+    try:
+        return read_inside(path, run, MAX_RECORD_BYTES, "run config")
+    except GuardError as err:
+        raise ExperimentError(f"{err}; delete the run folder") from None
+
+
 def _check_run_config(run: Path) -> None:
     """A run folder's ``config.yaml`` is data, not the user's code: it may name only allow-listed classes
     (`stamlane.checkpoints.check_config`); a tampered one is refused in one line."""
@@ -151,18 +163,49 @@ def _check_run_config(run: Path) -> None:
 
     path = run / "config.yaml"
     try:
-        check_config(path.read_text(), path)
-    except (OSError, UnicodeDecodeError) as err:
-        raise ExperimentError(f"{path}: cannot read the run's config ({err}); delete the run folder") from None
+        check_config(_run_config(run), path)
     except CheckpointError as err:
         raise ExperimentError(str(err)) from None
+
+
+def _run_data(run: Path, section: str) -> dict[str, Any]:
+    """A section of a run folder's config (``data``, ``model``) as a mapping."""
+    path = run / "config.yaml"
+    try:
+        config = yaml.safe_load(_run_config(run))
+    except yaml.YAMLError as err:
+        raise ExperimentError(f"{path}: not YAML ({_one_line(err)}); delete the run folder") from None
+    value = config.get(section) if isinstance(config, dict) else None
+    if not isinstance(value, dict):
+        raise ExperimentError(f"{path}: its {section!r} section is not a mapping; delete the run folder")
+    return value
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split())
 
 
 def _frames_of(run: Path) -> int:
     from stamlane.data.flat_options import clip_options  # a run of before the data options were grouped too
 
-    config = yaml.safe_load((run / "config.yaml").read_text())
-    return clip_options(config["data"]).num_frames
+    try:
+        return clip_options(_run_data(run, "data")).num_frames
+    except ValueError as err:
+        raise ExperimentError(f"{run / 'config.yaml'}: {err}") from None
+
+
+def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
+    """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
+    checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
+    from stamlane.checkpoints import CheckpointError, read_checkpoint
+
+    if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
+        try:
+            state = read_checkpoint(record["last_ckpt"])
+        except CheckpointError as err:
+            raise ExperimentError(f"{folder}: {err}; delete the folder to run it again") from None
+        if not isinstance(state.get("state_dict"), dict) or not state["state_dict"]:
+            raise ExperimentError(f"{folder}: its checkpoint holds no weights; delete the folder to run it again")
 
 
 def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
@@ -175,8 +218,7 @@ def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def _postprocess_of(run: Path) -> dict[str, Any]:
-    config = yaml.safe_load((run / "config.yaml").read_text())
-    return dict(config["model"].get("postprocess") or {})
+    return dict(_run_data(run, "model").get("postprocess") or {})
 
 
 @dataclass
@@ -306,6 +348,7 @@ class Experiment:
             raise ExperimentError(str(err)) from None
         if record is not None:
             _check_run_config(Path(record["run"]))
+            _verify_checkpoint(record, self.out / name)
             if record.get("recipe_args", True) != row.recipe_args:
                 raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")
             self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
