@@ -149,13 +149,14 @@ def read_inside(path: PathLike, top: PathLike, limit: int, what: str = "record")
 def atomic_path(path: PathLike) -> Iterator[Path]:
     """A temporary name to write ``path`` under (`temporary_name`), renamed over ``path`` when the block ends
     without an error, removed when it fails: a reader never sees half a file, an interrupted write leaves the old
-    one."""
+    one. A block that writes nothing at the temporary name leaves ``path`` as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_name(path)
     try:
         yield tmp
-        os.replace(tmp, path)
+        if os.path.lexists(tmp):
+            os.replace(tmp, path)
     finally:
         if os.path.lexists(tmp):
             tmp.unlink()

@@ -370,8 +370,9 @@ def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> l
 def write_csv(path: Path, summary: Summary) -> None:
     """Every value and difference of a summary, one line each (``kind, subject, b, view, metric, value, low, high,
     seed_low, seed_high, std, seeds``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
+    from stamlane.guard import atomic_path
+
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as f:  # written whole, then renamed
         w = csv.writer(f)
         w.writerow(
             ["kind", "subject", "b", "view", "metric", "value", "low", "high", "seed_low", "seed_high", "std", "seeds"]
