@@ -42,14 +42,19 @@ class FlatOptionError(ValueError):
 def group_data(data: Mapping[str, Any]) -> dict[str, Any]:
     """A ``data`` section (a config's or a checkpoint's ``datamodule_hyper_parameters``) in today's grouped form.
 
-    Flat keys move into their group; values already grouped win over flat ones (a section holds one or the
-    other); any other key is kept as it is. A section without flat keys comes back unchanged (as a new dict).
+    Flat keys move into their group; a value given both flat and grouped must be the same in both (a section
+    holds one or the other); any other key is kept as it is. A section without flat keys comes back unchanged
+    (as a new dict).
 
     Args:
         data: the section, flat, grouped or mixed.
 
     Returns:
         a new dict; the groups it touches are new dicts too (``data`` is not changed).
+
+    Raises:
+        FlatOptionError: a value given flat and grouped with two different values (``data: {num_frames: 1,
+            clip: {num_frames: 2}}``): which one was meant cannot be known.
     """
     out: dict[str, Any] = {}
     moved: dict[str, dict[str, Any]] = {}
@@ -60,8 +65,14 @@ def group_data(data: Mapping[str, Any]) -> dict[str, Any]:
         else:
             out[key] = value
     for group, values in moved.items():
-        given = out.get(group)
-        out[group] = {**values, **(dict(given) if isinstance(given, Mapping) else {})}
+        given = dict(out[group]) if isinstance(out.get(group), Mapping) else {}
+        for field, value in values.items():
+            if field in given and given[field] != value:
+                flat = _flat_name(group, field)
+                raise FlatOptionError(
+                    f"data.{flat} is {value!r} but data.{group}.{field} is {given[field]!r}: give one of them"
+                )
+        out[group] = {**values, **given}
     return out
 
 

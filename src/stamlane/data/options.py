@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from stamlane.budget import check_clip, check_size
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
@@ -83,8 +84,7 @@ class ClipOptions:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "image_size", _pair(self.image_size, int, "image_size"))
-        if self.num_frames < 1:
-            raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
+        check_clip(self.num_frames, self.image_size, "data.clip")  # the size budget, before any clip is read
         if self.stride < 1:
             raise ValueError(f"stride must be >= 1, got {self.stride}")
         if self.align not in ALIGN_MODES:
@@ -213,6 +213,8 @@ class SynthOptions:
                 raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
         if min(self.size) < 1:
             raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
+        check_size(self.size, "data.synth.size")
+        self.config()  # the generator's size budget (`stamlane.budget`), checked when the config is read
 
     def splits(self) -> dict[str, int]:
         """Clips per split as ``dataset.json`` records them (``train``, ``val``, ``test``, ``challenging``,
