@@ -112,10 +112,10 @@ def check_outputs(
         target = _resolved(out)
         for given, source in ins:
             if target == source:
-                raise GuardError(f"{out}: the output would overwrite the input {given}")
+                raise GuardError(f"{out}: the output would overwrite or write into the input {given}")
         for given, source in trees:
             if _is_within(target, source):
-                raise GuardError(f"{out}: the output would write into the input {given}")
+                raise GuardError(f"{out}: the output would overwrite or write into the input {given}")
         _check_writable(out, target, folder)
 
 
