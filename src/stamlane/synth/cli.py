@@ -9,6 +9,8 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
+from stamlane.boundary import run_command
+from stamlane.guard import check_outputs
 from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
 __all__ = ["main"]
@@ -52,6 +54,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
+    return run_command("stamlane synth", lambda: _synth(args))
+
+
+def _synth(args: argparse.Namespace) -> int:
+    check_outputs(folders=[args.out])  # a folder, or missing under a writable one
     if args.clips < 1:
         print(f"stamlane synth: --clips must be >= 1, got {args.clips}", file=sys.stderr)
         return 2
@@ -74,30 +81,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
-    try:
-        cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
-    except ValueError as err:
-        print(f"stamlane synth: {err}", file=sys.stderr)
-        return 2
+    cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
     train, val, test = split_counts(args.clips)
     start = time.perf_counter()
-    try:
-        info = generate_dataset(
-            args.out,
-            train=train,
-            val=val,
-            test=test,
-            challenging=challenging,
-            seed=args.seed,
-            config=cfg,
-            progress=not args.quiet,
-            train_key_step=args.train_key_step,
-            eval_key_step=args.eval_key_step,
-            workers=args.workers,
-        )
-    except OSError as err:
-        print(f"stamlane synth: cannot write {args.out}: {err}", file=sys.stderr)
-        return 2
+    info = generate_dataset(
+        args.out,
+        train=train,
+        val=val,
+        test=test,
+        challenging=challenging,
+        seed=args.seed,
+        config=cfg,
+        progress=not args.quiet,
+        train_key_step=args.train_key_step,
+        eval_key_step=args.eval_key_step,
+        workers=args.workers,
+    )
     seconds = time.perf_counter() - start
     frames = (train + val + test + challenging) * cfg.num_frames
     print(
