@@ -88,21 +88,29 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _check_data(root: Path | None, quick: bool) -> None:
+    """Refuse, before anything is made, a ``--data`` that is not a folder, and one that holds another set's labels
+    without the synthetic ``dataset.json`` where ``--quick`` would generate its tiny set over them."""
+    if root is None:
+        return
+    if root.exists() and not root.is_dir():
+        raise ExperimentError(f"--data {root} is not a folder")
+    labels = [name for name in ("train.json", "val.json", "test.json") if os.path.lexists(root / name)]
+    if quick and labels and not (root / "dataset.json").is_file():  # a set of someone else's: never written over
+        raise ExperimentError(
+            f"--data {root} holds {labels[0]} but no dataset.json: not a synthetic set, --quick would write over "
+            "it; give an empty or synthetic folder"
+        )
+
+
 def _data(root: Path | None, out: Path, quick: bool) -> Path:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
-    if root is not None and root.exists() and not root.is_dir():
-        raise ExperimentError(f"--data {root} is not a folder")
+    _check_data(root, quick)
     if quick:
         root = root or out / "quick_data"
-        labels = [name for name in ("train.json", "val.json", "test.json") if (root / name).exists()]
-        if labels and not (root / "dataset.json").is_file():  # a set of someone else's: never written over
-            raise ExperimentError(
-                f"--data {root} holds {labels[0]} but no dataset.json: not a synthetic set, --quick would write "
-                "over it; give an empty or synthetic folder"
-            )
         if not (root / "dataset.json").is_file():  # two clips per factor: an interval per factor
             config = SynthConfig(width=256, height=144, num_frames=4)
             generate_dataset(root, train=4, val=2, test=2, challenging=2 * len(FACTORS), config=config, progress=False)
@@ -145,6 +153,7 @@ def run(args: argparse.Namespace) -> None:
     rows += [SINGLE_CLEAN] if args.single_clean else []
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
+    _check_data(args.data, args.quick)
     outputs = [args.out / name for name in OUTPUTS]
     check_outputs(
         [*outputs, *map(temporary_name, outputs)], [args.data], folders=[args.out], protected=[args.data]

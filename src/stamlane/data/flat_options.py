@@ -78,9 +78,16 @@ def group_data(data: Mapping[str, Any]) -> dict[str, Any]:
 
 def group_config(config: Any) -> Any:
     """A whole config (the mapping a YAML file holds) with its ``data`` section grouped (`group_data`); anything
-    else, or a config whose ``data`` is not a mapping (null, a file name), comes back as it is."""
+    else, or a config whose ``data`` is not a mapping (null, a file name), comes back as it is.
+
+    Raises:
+        FlatOptionError: a group of the ``data`` section (``clip``, ``loader``, ...) that is not a mapping.
+    """
     if isinstance(config, Mapping) and isinstance(config.get("data"), Mapping):
         data = config["data"]
+        for group in GROUPS:  # a group given as a list or a number: one line here, not a TypeError when built
+            if data.get(group) is not None and not isinstance(data[group], Mapping):
+                raise FlatOptionError(f"data.{group} must be a mapping of {group} options, got {data[group]!r}")
         if any(key in FLAT_KEYS for key in data):
             return {**config, "data": group_data(data)}
     return config
