@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -21,7 +22,7 @@ def test_an_output_that_is_an_input_or_lies_in_a_protected_one_is_refused(tmp_pa
     summary.write_text("{}")
     link = tmp_path / "link.md"
     link.symlink_to(summary)
-    with pytest.raises(GuardError, match="summary.json: the output would overwrite"):
+    with pytest.raises(GuardError, match=r"summary\.json: the output would overwrite"):
         check_outputs([summary], [summary])
     with pytest.raises(GuardError, match=r"link\.md: the output would overwrite or write into the input .*summary"):
         check_outputs([link], [summary])  # links resolved
@@ -118,11 +119,11 @@ def test_the_budget_fits_the_paper_and_refuses_what_would_not_fit_memory() -> No
     check_clip(5, (1080, 1920))  # the paper's longest clip at full HD
     check_clip(8, (720, 1280))
     check_size((16384, 16384))  # the evaluators' side limit
-    with pytest.raises(BudgetError, match="num_frames must be in 1..32, got 1000000"):
+    with pytest.raises(BudgetError, match=r"num_frames must be in 1\.\.32, got 1000000"):
         check_clip(1_000_000, (80, 256))
-    with pytest.raises(BudgetError, match="sides in 1..16384"):
+    with pytest.raises(BudgetError, match=r"sides in 1\.\.16384"):
         check_size([100000, 100000])
-    with pytest.raises(BudgetError, match=f"over the budget of {MAX_CLIP_PIXELS:,} px"):
+    with pytest.raises(BudgetError, match=re.escape(f"over the budget of {MAX_CLIP_PIXELS:,} px")):
         check_clip(4, (16384, 16384))
     with pytest.raises(BudgetError, match="two integers"):
         check_size(["80", True])
