@@ -151,6 +151,8 @@ class StamLaneModule(LightningModule):
         # keep only what a weights_only checkpoint can hold (under LightningCLI the hparams are the plain
         # config, which all stays; built objects passed from Python are dropped)
         drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
+        if num_frames is not None and num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {num_frames}")
         if num_frames is not None:
             check_frames(num_frames, "model num_frames")  # before anything sized by it (a checkpoint's too)
         if image_size is not None:

@@ -83,7 +83,7 @@ def test_clip_options_from_a_checkpoint_of_either_form() -> None:
         clip_options({"clip": "fly"})
     with pytest.raises(ValueError, match="unexpected keyword argument 'frames'"):
         clip_options({"clip": {"frames": 2}})
-    with pytest.raises(ValueError, match=r"num_frames must be in 1\.\.32, got 0"):
+    with pytest.raises(ValueError, match="num_frames must be >= 1"):
         clip_options({"num_frames": 0})
 
 

@@ -52,7 +52,7 @@ def test_yaml_lists_become_tuples_and_the_groups_are_frozen() -> None:
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: ClipOptions(num_frames=0), r"num_frames must be in 1\.\.32, got 0"),
+        (lambda: ClipOptions(num_frames=0), "num_frames must be >= 1, got 0"),
         (lambda: ClipOptions(stride=0), "stride must be >= 1, got 0"),
         (lambda: ClipOptions(image_size=(4, 64)), r"image_size must be \(H, W\) with sides >= 8, got \(4, 64\)"),
         (lambda: ClipOptions(image_size=(64, 128, 3)), "image_size must have two values"),

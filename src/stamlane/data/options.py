@@ -84,7 +84,8 @@ class ClipOptions:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "image_size", _pair(self.image_size, int, "image_size"))
-        check_clip(self.num_frames, self.image_size, "data.clip")  # the size budget, before any clip is read
+        if self.num_frames < 1:
+            raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
         if self.stride < 1:
             raise ValueError(f"stride must be >= 1, got {self.stride}")
         if self.align not in ALIGN_MODES:
@@ -94,6 +95,7 @@ class ClipOptions:
         if self.align_strategy not in ALIGN_STRATEGIES:
             raise ValueError(f"align_strategy must be one of {ALIGN_STRATEGIES}, got {self.align_strategy!r}")
         self.transform()  # ClipTransform checks image_size and crop_top
+        check_clip(self.num_frames, self.image_size, "data.clip")  # the size budget, before any clip is read
 
     def transform(self) -> ClipTransform:
         """The evaluation and prediction transform: the sky cut and the resize to ``image_size``, no augmentation."""
