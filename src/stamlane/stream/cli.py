@@ -124,7 +124,11 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")
-        cli = build_cli(["--config", args.config], run=False)
+        argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own
+        try:  # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
+            cli = build_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
+        finally:
+            sys.argv = argv
         module = cli.model
         if args.ckpt:
             try:
