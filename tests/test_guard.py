@@ -130,3 +130,44 @@ def test_the_budget_fits_the_paper_and_refuses_what_would_not_fit_memory() -> No
     for fps in (float("inf"), float("nan"), 0, -1, 1e9):
         with pytest.raises(BudgetError, match="finite rate"):
             check_rate(fps)
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_predict_never_writes_over_a_checkpoint_named_like_its_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], plain_argv: None
+) -> None:
+    from stamlane.cli import main
+
+    out = tmp_path / "preds"
+    out.mkdir()
+    ckpt = out / "predictions.json"
+    torch.save({"state_dict": {}}, ckpt)
+    before = ckpt.read_bytes()
+    argv = ["predict", "--config", str(REPO / "configs" / "demo.yaml"), f"--ckpt_path={ckpt}"]
+    argv += [f"--predictions.output_dir={out}", f"--data.root={tmp_path / 'no-set'}", "--trainer.logger=false"]
+    assert main(argv) == 2
+    ours = [line for line in capsys.readouterr().err.splitlines() if line.startswith("stamlane predict")]
+    assert len(ours) == 1 and "would overwrite or write into the input" in ours[0], ours
+    assert ckpt.read_bytes() == before
+
+
+def test_a_video_source_is_decoded_afresh_never_beside_the_video(tmp_path: Path) -> None:
+    import cv2
+    import numpy as np
+
+    from stamlane.data.datamodule import FramesDataModule
+
+    video = tmp_path / "drive.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (128, 72))
+    for i in range(3):
+        writer.write(np.full((72, 128, 3), 60 * i, np.uint8))
+    writer.release()
+    stale = tmp_path / "drive.frames"
+    stale.mkdir()
+    cv2.imwrite(str(stale / "000000.jpg"), np.full((72, 128, 3), 255, np.uint8))  # an old decoding's frame
+    data = FramesDataModule(str(video))
+    data.prepare_data()
+    assert not data.root.is_relative_to(tmp_path) and len(list(data.root.glob("*.jpg"))) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.frames", "drive.mp4"]
