@@ -21,11 +21,13 @@ __all__ = [
     "MAX_RECORD_BYTES",
     "MAX_SIDE",
     "MAX_SYNTH_FRAMES",
+    "MAX_WORKERS",
     "BudgetError",
     "check_clip",
     "check_frames",
     "check_rate",
     "check_size",
+    "check_workers",
 ]
 
 MAX_FRAMES = 32
@@ -39,6 +41,8 @@ MAX_CLIP_PIXELS = 1 << 26
 takes 768 MiB)."""
 MAX_FPS = 1000.0
 """Frame rate of a written or simulated video, frames per second."""
+MAX_WORKERS = 256
+"""Worker processes of one pool (``synth --workers``, ``data.loader.num_workers``)."""
 MAX_RECORD_BYTES = 64 << 20
 """Largest summary, table index, run record or run config read (64 MiB; the largest written takes a few MiB)."""
 
@@ -92,6 +96,17 @@ def check_clip(
             "(frames x height x width)"
         )
     return t, (h, w)
+
+
+def check_workers(workers: object, what: str, minimum: int = 0) -> int:
+    """A count of worker processes in ``minimum..MAX_WORKERS``.
+
+    Raises:
+        BudgetError: not an integer or out of that range.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or not minimum <= workers <= MAX_WORKERS:
+        raise BudgetError(f"{what} must be an integer in {minimum}..{MAX_WORKERS}, got {workers!r}")
+    return workers
 
 
 def check_rate(fps: object, what: str = "--fps") -> float:

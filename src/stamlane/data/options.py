@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from stamlane.budget import check_clip, check_size
+from stamlane.budget import check_clip, check_size, check_workers
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
@@ -246,6 +246,7 @@ class LoaderOptions:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.num_workers < 0:
             raise ValueError(f"num_workers must be >= 0, got {self.num_workers}")
+        check_workers(self.num_workers, "data.loader.num_workers")
 
 
 GROUPS: dict[str, type] = {

@@ -10,6 +10,7 @@ from pathlib import Path
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
 from stamlane.boundary import run_command
+from stamlane.budget import check_workers
 from stamlane.guard import check_outputs
 from stamlane.synth.generator import EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig, generate_dataset
 
@@ -81,6 +82,7 @@ def _synth(args: argparse.Namespace) -> int:
     if args.workers < 1:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
+    check_workers(args.workers, "--workers", minimum=1)
     cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
     train, val, test = split_counts(args.clips)
     start = time.perf_counter()
