@@ -204,8 +204,10 @@ class Summary:
                 data = convert_format_1(data)
             except (TypeError, KeyError, AttributeError, IndexError, ValueError) as err:
                 raise SummaryError(f"malformed format-1 summary: {type(err).__name__} {err}") from None
+        elif isinstance(fmt, int) and not isinstance(fmt, bool) and fmt > FORMAT:
+            raise SummaryError(f"summary format {fmt} is newer than this stamlane reads ({FORMAT}); upgrade stamlane")
         elif fmt != FORMAT:
-            raise SummaryError(f"summary format {fmt!r} is not one this stamlane reads ({FORMAT}); upgrade stamlane")
+            raise SummaryError(f"summary format {reprlib.repr(fmt)} is not one this stamlane reads (1, {FORMAT})")
         if not isinstance(data.get("models"), list):
             raise SummaryError("malformed summary: 'models' is not a list")
         try:
