@@ -400,6 +400,74 @@ def test_demo_quick(capsys: pytest.CaptureFixture[str], data: str, out: str, see
         assert _contract(capsys, argv, [tusimple, tmp / "file", tmp / "fifo"]) == 2
 
 
+# ---------------------------------------------------------------------------------------------- demo: records
+RECORD_VALUES = st.sampled_from([None, "x", 3, 2.5, True, [], {}, [1], {"a": 1}, "/etc/passwd", "../../outside"])
+RECORD_KINDS = st.sampled_from(["json", "link-outside", "fifo", "deep", "binary", "folder-linked", "truncated-ckpt"])
+
+
+@_settings(80)
+@given(
+    kind=RECORD_KINDS,
+    changes=st.dictionaries(
+        st.sampled_from(["run", "last_ckpt", "frames", "scores", "labels", "last_ckpt_sha256", "data"]),
+        RECORD_VALUES,
+        max_size=3,
+    ),
+)
+def test_demo_run_records(kind: str, changes: dict[str, object]) -> None:
+    """What a resumed ``stamlane demo`` / ``ablate`` reads back from a run folder (``done.json``, the checkpoint
+    it names): a record that is hostile in kind or value is refused in one line (`StoreError`, `ExperimentError`),
+    one that is used holds the types it is used with, and nothing outside the experiment's folder is read."""
+    from stamlane.experiments.engine import ExperimentError, _verify_checkpoint
+    from stamlane.experiments.store import StoreError, file_sha256, finished
+
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        top, name = tmp / "out", "a-s0"
+        run = top / name / "run"
+        ckpt = run / "checkpoints" / "last.ckpt"
+        ckpt.parent.mkdir(parents=True)
+        torch.save({"state_dict": {"w": torch.zeros(64)}}, ckpt)
+        record = {"data": "d", "run": str(run), "last_ckpt": str(ckpt), "frames": 4, "scores": {}, "labels": {}}
+        record |= {"last_ckpt_sha256": file_sha256(ckpt)} | changes
+        if kind == "truncated-ckpt":  # cut short, and its digest taken out of the record
+            ckpt.write_bytes(ckpt.read_bytes()[:100])
+            record.pop("last_ckpt_sha256", None)
+        outside = tmp / "outside.json"
+        outside.write_text(json.dumps(record))
+        done = top / name / "done.json"
+        if kind in ("json", "truncated-ckpt"):
+            done.write_text(json.dumps(record))
+        elif kind == "link-outside":
+            done.symlink_to(outside)
+        elif kind == "fifo":
+            os.mkfifo(done)
+        elif kind == "deep":
+            done.write_text("{" + '"a":{' * 50_000 + "}" * 50_001)
+        elif kind == "binary":
+            done.write_bytes(bytes(range(256)))
+        else:  # the run folder itself a link to a folder outside the experiment
+            elsewhere = tmp / "elsewhere"
+            elsewhere.mkdir()
+            (elsewhere / "done.json").write_text(json.dumps(record))
+            (top / "b-s0").symlink_to(elsewhere)
+            name = "b-s0"
+        seen = _fingerprint(outside)
+        with _bounded(30):
+            try:
+                got = finished(top / name, {"data": "d"}, top)
+                if got is not None:
+                    _verify_checkpoint(got, top / name)
+            except (StoreError, ExperimentError) as err:
+                assert len(str(err).splitlines()) == 1
+                got = None
+        if got is not None:  # what is reused holds what it is used with, inside the experiment
+            assert isinstance(got["frames"], int) and not isinstance(got["frames"], bool)
+            assert Path(got["run"]).resolve().is_relative_to(top.resolve())
+            assert kind not in ("link-outside", "folder-linked", "truncated-ckpt", "fifo", "deep", "binary")
+        assert _fingerprint(outside) == seen
+
+
 # ---------------------------------------------------------------------------------------------- fit / predict
 @pytest.fixture
 def plain_argv_module(monkeypatch: pytest.MonkeyPatch) -> None:

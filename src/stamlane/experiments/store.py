@@ -76,6 +76,8 @@ def finished(
     path = folder / DONE
     if not path.is_file():
         return None
+    if not _inside(str(folder), top):  # a run folder linked from elsewhere: its record is not read
+        raise StoreError(f"{folder} leads outside {top} (a link?); delete it to run it again")
     try:  # only inside the run's folder: a done.json that links elsewhere is never read
         record = json.loads(read_inside(path, folder, MAX_RECORD_BYTES, "run record"))
     except GuardError as err:
@@ -97,10 +99,12 @@ def finished(
         value = record.get(key)
         if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
             raise StoreError(f"{path}: {key} {value!r} is not {kind.__name__}; delete the folder to run it again")
-    if record.get("last_ckpt") is not None and not (
-        isinstance(record.get("frames"), int) and isinstance(record.get("run"), str)
+    if not (isinstance(record.get("run"), str) and isinstance(record.get("last_ckpt"), str)) or not isinstance(
+        record.get("frames"), int
     ):
-        raise StoreError(f"{path}: a finished run records its run folder and frames; delete the folder to run it again")
+        raise StoreError(
+            f"{path}: a finished run records its run folder, checkpoint and frames; delete the folder to run it again"
+        )
     ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
     if ckpt is not None:
         if not Path(ckpt).is_file():
