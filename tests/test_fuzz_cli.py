@@ -233,12 +233,17 @@ def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (root / "junk.json").write_bytes(b"\x00\xff{" * 50)
     (root / "strings.json").write_text(json.dumps(line | {"lanes": [["1", True]]}) + "\n")
     os.mkfifo(root / "fifo.json")
+    outside = tmp_path_factory.mktemp("outside") / "labels.json"
+    outside.write_text((root / "train.json").read_text())
+    (root / "link-out.json").symlink_to(outside)
     return root
 
 
 @_settings(80)
 @given(
-    labels=st.sampled_from(["train.json", "long.json", "junk.json", "strings.json", "fifo.json", "missing.json"]),
+    labels=st.sampled_from(
+        ["train.json", "long.json", "junk.json", "strings.json", "fifo.json", "missing.json", "link-out.json"]
+    ),
     size=st.sampled_from(["64x32", "65536x65536", "16384x16384", "0x4", "axb", "8192x8192"]),
     frames=st.sampled_from([1, 2, 33, 10**6, 0, -1]),
     n=st.sampled_from([1, 0, 10**9]),
@@ -295,6 +300,16 @@ def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     for i in range(3):
         cv2.imwrite(str(frames_dir / f"{i}.jpg"), np.full((72, 128, 3), 40 * i, np.uint8))
     found["frames"] = frames_dir
+    video = folder / "drive.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (128, 72))
+    for i in range(3):
+        writer.write(np.full((72, 128, 3), 40 * i, np.uint8))
+    writer.release()
+    found["video"] = video
+    (folder / "link-to-frames").symlink_to(frames_dir)
+    found["link"] = folder / "link-to-frames"
+    os.mkfifo(folder / "fifo.mp4")
+    found["fifo"] = folder / "fifo.mp4"
     return found
 
 
@@ -306,9 +321,10 @@ def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     size=st.sampled_from([None, (32, 64), (65536, 65536), (63, 5)]),
     out=st.sampled_from([*PLACES, "ckpt-named-like-output"]),
     video=st.booleans(),
+    source=st.sampled_from(["frames", "video", "link", "fifo"]),
 )
-@example(ckpt="good", fps=None, frames=None, size=None, out="fresh", video=False)  # the run that succeeds
-@example(ckpt="good", fps="10", frames=2, size=(32, 64), out="fresh", video=True)
+@example(ckpt="good", fps=None, frames=None, size=None, out="fresh", video=False, source="frames")  # succeeds
+@example(ckpt="good", fps="10", frames=2, size=(32, 64), out="fresh", video=True, source="video")
 def test_stream(
     stream_inputs: dict[str, Path],
     capsys: pytest.CaptureFixture[str],
@@ -318,8 +334,9 @@ def test_stream(
     size: tuple[int, int] | None,
     out: str,
     video: bool,
+    source: str,
 ) -> None:
-    source = stream_inputs["frames"]
+    source_path = stream_inputs[source]
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
         checkpoint = stream_inputs[ckpt]
@@ -329,14 +346,16 @@ def test_stream(
             checkpoint = target / "lanes.jsonl"
             checkpoint.write_bytes(stream_inputs[ckpt].read_bytes())
         else:
-            target = _place(out, tmp, "stream", source / "0.jpg", source)
-        argv = ["stream", str(source), "--ckpt", str(checkpoint), "--out", str(target), "--max-frames", "2"]
+            target = _place(out, tmp, "stream", stream_inputs["video"], stream_inputs["frames"])
+        argv = ["stream", str(source_path), "--ckpt", str(checkpoint), "--out", str(target), "--max-frames", "2"]
         argv += [] if fps is None else [f"--fps={fps}"]
         argv += [] if frames is None else ["--num-frames", str(frames)]
         argv += [] if size is None else ["--image-size", *map(str, size)]
         argv += [] if video else ["--no-video"]
-        code = _contract(capsys, argv, [source, checkpoint, stream_inputs["good"], stream_inputs["huge"]])
-        if (ckpt, fps, out) == ("good", None, "fresh") and frames in (None, 2) and size in (None, (32, 64)):
+        inputs = [stream_inputs[k] for k in ("frames", "video", "link", "good", "huge")]
+        code = _contract(capsys, argv, [*inputs, checkpoint])
+        ok = source in ("frames", "video", "link") and (ckpt, fps in (None, "10"), out) == ("good", True, "fresh")
+        if ok and frames in (None, 2) and size in (None, (32, 64)):
             assert code == 0 and (target / "lanes.jsonl").is_file()  # what is valid is done
 
 
