@@ -22,13 +22,16 @@ import os
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
+from stamlane.boundary import run_command
 from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
+from stamlane.guard import check_outputs, exclusive, temporary_name
 
-__all__ = ["MODELS", "PAIRS", "SINGLE_CLEAN", "main", "pairs"]
+__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "main", "pairs"]
 
 MODELS = (
     Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",), paper="f4_mixed_cs_features"),
@@ -41,6 +44,8 @@ PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noal
 PAIRS += (("stam4", "single_clean"), ("single", "single_clean"))
 """The demo's comparisons, A against B: what the history frames bring, with and without alignment; what the
 key-frame corruption costs a single frame and whether STAM is ahead of one trained without it."""
+OUTPUTS = ("summary.json", "tables.md", "val_f1.png", "history_use.png", "comparison.jpg")
+"""The files the demo writes at the top of ``--out`` (the runs and predictions go in folders beside them)."""
 
 
 def pairs(rows: list[Row]) -> list[tuple[str, str]]:
@@ -83,11 +88,27 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _check_data(root: Path | None, quick: bool) -> None:
+    """Refuse, before anything is made, a ``--data`` that is not a folder, and one that holds another set's labels
+    without the synthetic ``dataset.json`` where ``--quick`` would generate its tiny set over them."""
+    if root is None:
+        return
+    if root.exists() and not root.is_dir():
+        raise ExperimentError(f"--data {root} is not a folder")
+    labels = [name for name in ("train.json", "val.json", "test.json") if os.path.lexists(root / name)]
+    if quick and labels and not (root / "dataset.json").is_file():  # a set of someone else's: never written over
+        raise ExperimentError(
+            f"--data {root} holds {labels[0]} but no dataset.json: not a synthetic set, --quick would write over "
+            "it; give an empty or synthetic folder"
+        )
+
+
 def _data(root: Path | None, out: Path, quick: bool) -> Path:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, REVEAL, REVEAL_TRAFFIC
 
+    _check_data(root, quick)
     if quick:
         root = root or out / "quick_data"
         if not (root / "dataset.json").is_file():  # two clips per factor: an interval per factor
@@ -105,8 +126,6 @@ def _data(root: Path | None, out: Path, quick: bool) -> Path:
                 progress=False,
             )
         return root
-    if root is not None and root.exists() and not root.is_dir():
-        raise ExperimentError(f"--data {root} is not a folder")
     if root is None:
         ClipDataModule(root=None).prepare_data()  # generates it when missing, with a progress bar
         return Path(DEFAULT_SYNTHETIC_ROOT)
@@ -138,8 +157,6 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
 def run(args: argparse.Namespace) -> None:
     import torch
 
-    from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
-    from stamlane.experiments.store import write_atomic
     from stamlane.hardware import resolve_bf16
 
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
@@ -147,8 +164,11 @@ def run(args: argparse.Namespace) -> None:
     rows += [SINGLE_CLEAN] if args.single_clean else []
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
-    if args.out.exists() and not args.out.is_dir():
-        raise ExperimentError(f"--out {args.out} is a file, not a folder")
+    _check_data(args.data, args.quick)
+    outputs = [args.out / name for name in OUTPUTS]
+    check_outputs(
+        [*outputs, *map(temporary_name, outputs)], [args.data], folders=[args.out], protected=[args.data]
+    )  # the experiment never writes among the frames and labels it reads
     steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     recipe = replace(RECIPES["cpu"], pretrain_steps=steps[0], steps=steps[1])
     bf16 = (
@@ -157,6 +177,14 @@ def run(args: argparse.Namespace) -> None:
         else resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
     )
     args.out.mkdir(parents=True, exist_ok=True)
+    with exclusive(args.out):  # two demos writing one --out at once: the second is refused
+        _run(args, rows, recipe, bf16)
+
+
+def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> None:
+    from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
+    from stamlane.experiments.store import write_atomic
+
     root = _data(args.data, args.out, args.quick)
     experiment = Experiment(
         rows,
@@ -199,12 +227,7 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-    try:
-        run(args)
-    except ExperimentError as err:
-        print(f"stamlane demo: {err}", file=sys.stderr)
-        return 2
-    return 0
+    return run_command("stamlane demo", lambda: run(args) or 0, ExperimentError)
 
 
 if __name__ == "__main__":

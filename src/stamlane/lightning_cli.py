@@ -14,14 +14,14 @@ import yaml
 from jsonargparse import Namespace, get_loader, set_loader
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import ModelCheckpoint
-from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
-from stamlane_eval.cli_tools import check_output
+from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.data.flat_options import check_flags, group_config
 from stamlane.final_checkpoint import FinalCheckpoint
+from stamlane.guard import check_outputs
 from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
@@ -179,23 +179,32 @@ class StamLaneCLI(LightningCLI):
         self._safe_load(subcommand)
 
     def _check_outputs(self, subcommand: str) -> None:
-        """No output folder (``--trainer.default_root_dir``, a logger's ``save_dir``, ``--predictions.output_dir``)
-        may be an input or lie inside one (the data root, ``--source``, a ``--config`` file), symlinks resolved:
-        logs, checkpoints and predictions never land among the frames and labels they are made from.
+        """No output (``--trainer.default_root_dir``, a logger's ``save_dir``, ``--predictions.output_dir``, the
+        merged ``config.yaml`` the run writes, ``predictions.json``) may be an input or lie inside one (the data
+        root, ``--source``, a ``--config`` file), nor replace a file the command reads (the checkpoint), symlinks
+        resolved: logs, checkpoints and predictions never land among the frames and labels they are made from
+        (`stamlane.guard.check_outputs`).
 
         Raises:
-            OutputError: naming the output and the input.
+            GuardError: naming the output and the input.
         """
         config = self.config[subcommand]
-        inputs = [getattr(self.datamodule, "root", None), config.get("source")]
-        inputs += [str(c) for c in config.get("config") or []]
-        outputs = [self.trainer.default_root_dir]
-        outputs += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
+        configs = [str(c) for c in config.get("config") or []]
+        inputs = [getattr(self.datamodule, "root", None), config.get("source"), *configs]
+        ckpt = self.config_init[subcommand].get("ckpt_path") if subcommand != "fit" else None
+        reads = [*inputs, ckpt if ckpt not in ("last", "best", "hpc", "registry") else None]
+        folders = [self.trainer.default_root_dir]
+        folders += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
+        files = []
+        saver = next((cb for cb in self.trainer.callbacks if isinstance(cb, SaveConfigCallback)), None)
+        if saver is not None:  # the merged config, written over a --config of the same name in that folder
+            files.append(Path(self.trainer.log_dir or self.trainer.default_root_dir) / saver.config_filename)
         if subcommand == "predict":
-            outputs += [cb.output_dir for cb in self.trainer.callbacks if isinstance(cb, LanePredictionWriter)]
-        for out in outputs:
-            if out is not None:
-                check_output(out, inputs)
+            for cb in self.trainer.callbacks:
+                if isinstance(cb, LanePredictionWriter):
+                    folders += [cb.output_dir, cb.output_dir / "lines", cb.output_dir / "overlays"]
+                    files.append(cb.output_dir / "predictions.json")
+        check_outputs(files, reads, folders=folders, protected=inputs)
 
     def _safe_load(self, subcommand: str) -> None:
         # our checkpoints hold only tensors and plain values, so they load with weights_only=True (Lightning

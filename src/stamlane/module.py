@@ -35,6 +35,7 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from stamlane.budget import check_clip, check_frames
 from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.hardware import resolve_bf16
 from stamlane.lightning_compat import drop_hyperparameters
@@ -152,6 +153,10 @@ class StamLaneModule(LightningModule):
         drop_hyperparameters(self, [k for k, v in self.hparams.items() if not _is_plain(v)])
         if num_frames is not None and num_frames < 1:
             raise ValueError(f"num_frames must be >= 1, got {num_frames}")
+        if num_frames is not None:
+            check_frames(num_frames, "model num_frames")  # before anything sized by it (a checkpoint's too)
+        if image_size is not None:
+            check_clip(num_frames or 1, list(image_size), "model")
         self.net = LaneNet(encoder, fusion, decoder, fuse_skip)
         self.loss = loss if loss is not None else LaneLoss()
         self.optimizer_factory = optimizer

@@ -139,7 +139,7 @@ def test_write_frames_for_every_key_frame_with_a_stride(dataset, tmp_path):
     [
         (["--write-frames", "{file}"], "is not a folder"),
         (["--write-frames"], "expected one argument"),
-        (["--write-frames", "{file}/sub"], "cannot create --write-frames"),
+        (["--write-frames", "{file}/sub"], "a file, not a folder"),
     ],
 )
 def test_write_frames_bad_input_is_one_line_and_status_2(dataset, tmp_path, capsys, extra, message):

@@ -65,9 +65,11 @@ def test_a_flat_config_is_grouped_value_for_value() -> None:
         assert group_config(other) == other
 
 
-def test_grouped_values_win_over_flat_ones_and_other_keys_stay() -> None:
-    mixed = {"root": "r", "num_frames": 2, "clip": {"num_frames": 3, "stride": 2}, "_instantiator": "x"}
+def test_a_value_given_flat_and_grouped_must_agree_and_other_keys_stay() -> None:
+    mixed = {"root": "r", "num_frames": 3, "clip": {"num_frames": 3, "stride": 2}, "_instantiator": "x"}
     assert group_data(mixed) == {"root": "r", "clip": {"num_frames": 3, "stride": 2}, "_instantiator": "x"}
+    with pytest.raises(FlatOptionError, match=r"data\.num_frames is 1 but data\.clip\.num_frames is 2"):
+        group_data({"num_frames": 1, "clip": {"num_frames": 2}})  # which was meant cannot be known: refused
 
 
 def test_clip_options_from_a_checkpoint_of_either_form() -> None:

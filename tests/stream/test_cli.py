@@ -95,7 +95,10 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
         (["{frames}", "--ckpt", "nowhere.ckpt"], "checkpoint nowhere.ckpt does not exist"),
         (["{empty}", "--ckpt", "x.ckpt"], "holds no image"),
         (["{frames}", "--ckpt", "x.ckpt", "--max-frames", "0"], "--max-frames must be >= 1"),
-        (["{frames}", "--ckpt", "x.ckpt", "--fps", "-5"], "--fps must be > 0, got -5.0"),
+        (
+            ["{frames}", "--ckpt", "x.ckpt", "--fps", "-5"],
+            "--fps must be a finite rate in (0, 1000] frames/s, got -5.0",
+        ),
         (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}"], "would overwrite or write into the input"),
         (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}/out"], "would overwrite or write into the input"),
     ],

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from tqdm import tqdm
 
 from stamlane.align.cache import (
@@ -46,6 +46,8 @@ from stamlane.align.homography import (
     resolve_horizon_row,
 )
 from stamlane.align.warp import alignments_to_key
+from stamlane.budget import check_workers
+from stamlane.guard import check_outputs
 from stamlane.imageio import read_image
 
 __all__ = ["AlignJob", "ClipResult", "main", "process_clip"]
@@ -256,19 +258,23 @@ def main(argv: list[str]) -> int:
         if bad:
             print(f"stamlane align: {message}", file=sys.stderr)
             return 2
-    for option, out in (("--write-frames", args.write_frames), ("--visualize", args.visualize)):
+    cache_dir = args.cache or Path("outputs") / "align" / args.root.resolve().name
+    for option, out in (("--write-frames", args.write_frames), ("--visualize", args.visualize), ("--cache", cache_dir)):
         try:  # warped frames and pictures never land among the frames they are made from (symlinks resolved)
-            if out is not None:
-                check_output(out, [args.root])
-        except OutputError as err:
+            check_outputs(folders=[out], protected=[args.root] if option != "--cache" else [])
+        except ValueError as err:
             print(f"stamlane align: {option} {err}", file=sys.stderr)
             return 2
+    try:
+        check_workers(args.workers, "--workers", minimum=1)
+    except ValueError as err:
+        print(f"stamlane align: {err}", file=sys.stderr)
+        return 2
     root = args.root.resolve()  # clip folders are then absolute; cache_file reads relative ones as under root
     clips = find_clip_dirs(root)
     if not clips:
         print(f"stamlane align: no clip folders (numbered frames <n>.jpg/.png) under {args.root}", file=sys.stderr)
         return 2
-    cache_dir = args.cache or Path("outputs") / "align" / args.root.resolve().name
     job = AlignJob(
         root,
         cache_dir,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 import warnings
 from dataclasses import asdict
 from pathlib import Path
@@ -217,7 +218,8 @@ class FramesDataModule(LightningDataModule):
         clip: how a clip is read and resized; ``stride`` counts positions of the sorted listing, ``align`` is
             ``"fly"`` or ``"none"`` (a folder has neither an alignment cache nor true homographies).
         loader: batch size and DataLoader workers.
-        frames_dir: where a video is decoded (default: ``<video>.frames`` beside the video).
+        frames_dir: where a video is decoded (default: a fresh temporary folder, removed with the module: frames
+            are never written beside the input, nor frames of an earlier decoding reused).
     """
 
     def __init__(
@@ -237,7 +239,11 @@ class FramesDataModule(LightningDataModule):
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
         if path.is_file() and not self.is_video:
             raise DataError(f"{path} is neither a folder of frames nor a video ({', '.join(VIDEO_SUFFIXES)})")
-        self.root = Path(frames_dir) if frames_dir else (path.with_suffix(".frames") if self.is_video else path)
+        self._decoded: tempfile.TemporaryDirectory | None = None
+        if self.is_video and not frames_dir:
+            self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
+            frames_dir = self._decoded.name
+        self.root = Path(frames_dir) if frames_dir else path
         self.clip, self.loader = clip, loader
         self.dataset: FolderClips | None = None
 

@@ -42,14 +42,19 @@ class FlatOptionError(ValueError):
 def group_data(data: Mapping[str, Any]) -> dict[str, Any]:
     """A ``data`` section (a config's or a checkpoint's ``datamodule_hyper_parameters``) in today's grouped form.
 
-    Flat keys move into their group; values already grouped win over flat ones (a section holds one or the
-    other); any other key is kept as it is. A section without flat keys comes back unchanged (as a new dict).
+    Flat keys move into their group; a value given both flat and grouped must be the same in both (a section
+    holds one or the other); any other key is kept as it is. A section without flat keys comes back unchanged
+    (as a new dict).
 
     Args:
         data: the section, flat, grouped or mixed.
 
     Returns:
         a new dict; the groups it touches are new dicts too (``data`` is not changed).
+
+    Raises:
+        FlatOptionError: a value given flat and grouped with two different values (``data: {num_frames: 1,
+            clip: {num_frames: 2}}``): which one was meant cannot be known.
     """
     out: dict[str, Any] = {}
     moved: dict[str, dict[str, Any]] = {}
@@ -60,16 +65,29 @@ def group_data(data: Mapping[str, Any]) -> dict[str, Any]:
         else:
             out[key] = value
     for group, values in moved.items():
-        given = out.get(group)
-        out[group] = {**values, **(dict(given) if isinstance(given, Mapping) else {})}
+        given = dict(out[group]) if isinstance(out.get(group), Mapping) else {}
+        for field, value in values.items():
+            if field in given and given[field] != value:
+                flat = _flat_name(group, field)
+                raise FlatOptionError(
+                    f"data.{flat} is {value!r} but data.{group}.{field} is {given[field]!r}: give one of them"
+                )
+        out[group] = {**values, **given}
     return out
 
 
 def group_config(config: Any) -> Any:
     """A whole config (the mapping a YAML file holds) with its ``data`` section grouped (`group_data`); anything
-    else, or a config whose ``data`` is not a mapping (null, a file name), comes back as it is."""
+    else, or a config whose ``data`` is not a mapping (null, a file name), comes back as it is.
+
+    Raises:
+        FlatOptionError: a group of the ``data`` section (``clip``, ``loader``, ...) that is not a mapping.
+    """
     if isinstance(config, Mapping) and isinstance(config.get("data"), Mapping):
         data = config["data"]
+        for group in GROUPS:  # a group given as a list or a number: one line here, not a TypeError when built
+            if data.get(group) is not None and not isinstance(data[group], Mapping):
+                raise FlatOptionError(f"data.{group} must be a mapping of {group} options, got {data[group]!r}")
         if any(key in FLAT_KEYS for key in data):
             return {**config, "data": group_data(data)}
     return config

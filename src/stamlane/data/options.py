@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from stamlane.budget import check_clip, check_size, check_workers
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
@@ -94,6 +95,7 @@ class ClipOptions:
         if self.align_strategy not in ALIGN_STRATEGIES:
             raise ValueError(f"align_strategy must be one of {ALIGN_STRATEGIES}, got {self.align_strategy!r}")
         self.transform()  # ClipTransform checks image_size and crop_top
+        check_clip(self.num_frames, self.image_size, "data.clip")  # the size budget, before any clip is read
 
     def transform(self) -> ClipTransform:
         """The evaluation and prediction transform: the sky cut and the resize to ``image_size``, no augmentation."""
@@ -212,6 +214,8 @@ class SynthOptions:
                 raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
         if min(self.size) < 1:
             raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
+        check_size(self.size, "data.synth.size")
+        self.config()  # the generator's size budget (`stamlane.budget`), checked when the config is read
 
     def splits(self) -> dict[str, int]:
         """Clips per split as ``dataset.json`` records them (the arguments of
@@ -242,6 +246,7 @@ class LoaderOptions:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.num_workers < 0:
             raise ValueError(f"num_workers must be >= 0, got {self.num_workers}")
+        check_workers(self.num_workers, "data.loader.num_workers")
 
 
 GROUPS: dict[str, type] = {

@@ -14,13 +14,14 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, parse_or_status, parse_wxh
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
+from stamlane.boundary import run_command
 from stamlane.data.alignment import ALIGN_MODES
 from stamlane.data.clips import FORMATS, ClipDataset, make_clips
-from stamlane.data.labels import DataError
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
+from stamlane.guard import atomic_path, check_outputs, temporary_name
 
 __all__ = ["main", "render_grid"]
 
@@ -71,35 +72,31 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
+    return run_command("stamlane show", lambda: _show(args))
+
+
+def _show(args: argparse.Namespace) -> int:
     if args.n < 1:
-        print(f"stamlane show: --n must be >= 1, got {args.n}", file=sys.stderr)
-        return 2
-    try:
-        check_output(args.out, [args.root])  # a picture never replaces a frame or a label of the data
-    except OutputError as err:
-        print(f"stamlane show: {err}", file=sys.stderr)
-        return 2
-    try:
-        clip = ClipOptions(args.num_frames, args.stride, args.size, align=args.align, cache_dir=args.cache_dir)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            label_dir = args.label_dir if args.format == "apollo" else None
-            ds: ClipDataset = make_clips(
-                args.format, args.root, args.labels, label_dir, transform=clip.transform(), **clip.dataset_kwargs()
-            )
-        if len(ds) == 0:
-            print(f"stamlane show: no samples in {args.labels} under {args.root}", file=sys.stderr)
-            return 2
-        indices = sorted({int(i) for i in np.linspace(0, len(ds) - 1, min(args.n, len(ds)))})
-        grid = render_grid(ds, indices)
-    except (DataError, ValueError) as err:
-        print(f"stamlane show: {err}", file=sys.stderr)
-        return 2
+        raise ValueError(f"--n must be >= 1, got {args.n}")
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), grid):
-        print(f"stamlane show: cannot write {out} (unknown image extension?)", file=sys.stderr)
-        return 2
+    labels = [Path(args.root) / name for name in args.labels]
+    check_outputs(  # a picture never replaces a frame, a label or the alignment cache of the data
+        [out, temporary_name(out)], [*labels, args.label_dir, args.cache_dir], protected=[args.root]
+    )
+    clip = ClipOptions(args.num_frames, args.stride, args.size, align=args.align, cache_dir=args.cache_dir)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        label_dir = args.label_dir if args.format == "apollo" else None
+        ds: ClipDataset = make_clips(
+            args.format, args.root, args.labels, label_dir, transform=clip.transform(), **clip.dataset_kwargs()
+        )
+    if len(ds) == 0:
+        raise ValueError(f"no samples in {' '.join(args.labels)} under {args.root}")
+    indices = sorted({int(i) for i in np.linspace(0, len(ds) - 1, min(args.n, len(ds)))})
+    grid = render_grid(ds, indices)
+    with atomic_path(out) as tmp:
+        if not cv2.imwrite(str(tmp), grid):
+            raise ValueError(f"cannot write {out} (unknown image extension?)")
     print(f"wrote {out} ({len(indices)} clips of {args.num_frames} frames)")
     return 0
 

@@ -108,47 +108,57 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    try:
-        index = load_tables(args.tables)
-        if args.list:
-            _list(index)
-            return 0
-        if not args.table:
-            raise ValueError("--table is required (see --list)")
-        for flag in ("steps", "pretrain_steps"):
-            if getattr(args, flag) is not None and getattr(args, flag) < 1:
-                raise ValueError(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(args, flag)}")
-        if len(set(args.seeds)) != len(args.seeds):
-            raise ValueError(f"--seeds must be distinct, got {args.seeds}")
-        if args.report_only:
-            if not (args.out / "summary.json").is_file():
-                raise ValueError(f"{args.out} holds no summary.json (nothing run there)")
-            print(_report(args.out, index, args.table))
-            return 0
-        base = args.base.resolve() if args.base else index.default_base
-        if not base.is_file():
-            raise ValueError(f"--base {args.base} not found")
-        rows = _rows(index, args.table, args.rows, base)
-        recipe = RECIPES[args.recipe]
-        if args.pretrain_steps and recipe.pretrain is None:
-            raise ValueError("--pretrain-steps is for the two-stage recipe (--recipe cpu)")
-        recipe = replace(recipe, steps=args.steps or recipe.steps)
-        recipe = replace(recipe, pretrain_steps=args.pretrain_steps or recipe.pretrain_steps)
-        root = _data(args.data)
-        missing = [s for s in args.splits if not (root / f"{s}.json").is_file()]
-        if missing:
-            raise ValueError(f"--splits: {root} has no {missing[0]}.json")
-        from stamlane.hardware import resolve_bf16
+    from stamlane.boundary import run_command
 
-        bf16 = resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
-        experiment = Experiment(
-            rows, recipe, args.seeds, root, args.out, bf16=bf16, splits=tuple(args.splits), extra=tuple(extra)
-        )
-        experiment.run(_pairs(rows))
+    return run_command("stamlane ablate", lambda: _ablate(args, extra), ExperimentError)
+
+
+def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
+    from stamlane.guard import check_outputs, exclusive, temporary_name
+
+    index = load_tables(args.tables)
+    if args.list:
+        _list(index)
+        return 0
+    if not args.table:
+        raise ValueError("--table is required (see --list)")
+    for flag in ("steps", "pretrain_steps"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 1:
+            raise ValueError(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(args, flag)}")
+    if len(set(args.seeds)) != len(args.seeds):
+        raise ValueError(f"--seeds must be distinct, got {args.seeds}")
+    if args.report_only:
+        if not (args.out / "summary.json").is_file():
+            raise ValueError(f"{args.out} holds no summary.json (nothing run there)")
         print(_report(args.out, index, args.table))
-    except (ValueError, FileNotFoundError, ExperimentError) as err:
-        print(f"stamlane ablate: {err}", file=sys.stderr)
-        return 2
+        return 0
+    base = args.base.resolve() if args.base else index.default_base
+    if not base.is_file():
+        raise ValueError(f"--base {args.base} not found")
+    rows = _rows(index, args.table, args.rows, base)
+    recipe = RECIPES[args.recipe]
+    if args.pretrain_steps and recipe.pretrain is None:
+        raise ValueError("--pretrain-steps is for the two-stage recipe (--recipe cpu)")
+    recipe = replace(recipe, steps=args.steps or recipe.steps)
+    recipe = replace(recipe, pretrain_steps=args.pretrain_steps or recipe.pretrain_steps)
+    root = _data(args.data)
+    missing = [s for s in args.splits if not (root / f"{s}.json").is_file()]
+    if missing:
+        raise ValueError(f"--splits: {root} has no {missing[0]}.json")
+    outputs = [args.out / "summary.json", args.out / "tables.md"]
+    check_outputs(  # the runs never land among the frames and labels, nor replace the base or the index
+        [*outputs, *map(temporary_name, outputs)], [base, index.path], folders=[args.out], protected=[root]
+    )
+    from stamlane.hardware import resolve_bf16
+
+    bf16 = resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
+    experiment = Experiment(
+        rows, recipe, args.seeds, root, args.out, bf16=bf16, splits=tuple(args.splits), extra=tuple(extra)
+    )
+    args.out.mkdir(parents=True, exist_ok=True)
+    with exclusive(args.out):  # two runs writing one --out at once: the second is refused
+        experiment.run(_pairs(rows))
+    print(_report(args.out, index, args.table))
     print(f"stamlane ablate: tables written to {args.out / 'tables.md'}", file=sys.stderr)
     return 0
 

@@ -159,12 +159,15 @@ def _cli(args: list[str], **kwargs: Any) -> Any:
 
 
 def _run_config(run: Path) -> str:
-    """The text of a run folder's ``config.yaml`` (one line naming it when it cannot be read)."""
+    """The text of a run folder's ``config.yaml``, read only inside the folder (links resolved)."""
+    from stamlane.budget import MAX_RECORD_BYTES
+    from stamlane.guard import GuardError, read_inside
+
     path = run / "config.yaml"
     try:
-        return path.read_text()
-    except (OSError, UnicodeDecodeError) as err:
-        raise ExperimentError(f"{path}: cannot read the run's config ({err}); delete the run folder") from None
+        return read_inside(path, run, MAX_RECORD_BYTES, "run config")
+    except GuardError as err:
+        raise ExperimentError(f"{err}; delete the run folder") from None
 
 
 def _check_run_config(run: Path) -> None:
@@ -205,11 +208,44 @@ def _check_record(record: dict[str, Any], path: Path) -> None:
         raise ExperimentError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
 
 
+def _run_data(run: Path, section: str) -> dict[str, Any]:
+    """A section of a run folder's config (``data``, ``model``) as a mapping."""
+    path = run / "config.yaml"
+    try:
+        config = yaml.safe_load(_run_config(run))
+    except yaml.YAMLError as err:
+        raise ExperimentError(f"{path}: not YAML ({_one_line(err)}); delete the run folder") from None
+    value = config.get(section) if isinstance(config, dict) else None
+    if not isinstance(value, dict):
+        raise ExperimentError(f"{path}: its {section!r} section is not a mapping; delete the run folder")
+    return value
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split())
+
+
 def _frames_of(run: Path) -> int:
     from stamlane.data.flat_options import clip_options  # a run of before the data options were grouped too
 
-    config = yaml.safe_load((run / "config.yaml").read_text())
-    return clip_options(config["data"]).num_frames
+    try:
+        return clip_options(_run_data(run, "data")).num_frames
+    except ValueError as err:
+        raise ExperimentError(f"{run / 'config.yaml'}: {err}") from None
+
+
+def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
+    """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
+    checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
+    from stamlane.checkpoints import CheckpointError, read_checkpoint
+
+    if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
+        try:
+            state = read_checkpoint(record["last_ckpt"])
+        except CheckpointError as err:
+            raise ExperimentError(f"{folder}: {err}; delete the folder to run it again") from None
+        if not isinstance(state.get("state_dict"), dict) or not state["state_dict"]:
+            raise ExperimentError(f"{folder}: its checkpoint holds no weights; delete the folder to run it again")
 
 
 def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
@@ -222,8 +258,7 @@ def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def _postprocess_of(run: Path) -> dict[str, Any]:
-    config = yaml.safe_load((run / "config.yaml").read_text())
-    return dict(config["model"].get("postprocess") or {})
+    return dict(_run_data(run, "model").get("postprocess") or {})
 
 
 @dataclass
@@ -384,6 +419,7 @@ class Experiment:
         if record is not None:
             _check_record(record, self.out / name / DONE)
             _check_run_config(Path(record["run"]))
+            _verify_checkpoint(record, self.out / name)
             if record.get("recipe_args", True) != row.recipe_args:
                 raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")
             self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
@@ -601,8 +637,7 @@ def _visibility_reach(root: Path) -> dict[str, int]:
 
 def _clip_option(run: Path, name: str, default: Any) -> Any:
     """A ``data.clip`` option of a run's config (``default`` where it is not set)."""
-    config = yaml.safe_load((run / "config.yaml").read_text())
-    return ((config.get("data") or {}).get("clip") or {}).get(name, default)
+    return (_run_data(run, "data").get("clip") or {}).get(name, default)
 
 
 def _hardware() -> str:

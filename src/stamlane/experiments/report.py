@@ -527,8 +527,9 @@ def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> l
 def write_csv(path: Path, summary: Summary) -> None:
     """Every value and difference of a summary, one line each (``kind, subject, b, view, metric, value, low, high,
     seed_low, seed_high, std, seeds``)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
+    from stamlane.guard import atomic_path
+
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as f:  # written whole, then renamed
         w = csv.writer(f)
         w.writerow(
             ["kind", "subject", "b", "view", "metric", "value", "low", "high", "seed_low", "seed_high", "std", "seeds"]
@@ -593,12 +594,17 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from stamlane.budget import MAX_RECORD_BYTES
+    from stamlane.guard import read_inside
+
     fig, ax = plt.subplots(figsize=(7, 4))
     for colour, (name, label, first) in enumerate(runs):
         labelled = False
         for seed in seeds:
             metrics = out / f"{name}-s{seed}" / "run" / "metrics.csv"
-            rows = list(csv.DictReader(metrics.open())) if metrics.is_file() else []
+            # a record of the run folder: read only inside it, bounded (a link out of it or a FIFO is refused)
+            text = read_inside(metrics, metrics.parent, MAX_RECORD_BYTES, "metrics") if metrics.is_file() else ""
+            rows = list(csv.DictReader(text.splitlines()))
             points = [
                 (int(r["step"]) + 1 + first, float(r["val/tusimple_f1"])) for r in rows if r.get("val/tusimple_f1")
             ]

@@ -38,28 +38,42 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
-    from stamlane.experiments.store import write_atomic
-    from stamlane.experiments.summary import Summary, SummaryError
-    from stamlane.experiments.tables import load_tables
+    from stamlane.boundary import run_command
+    from stamlane.experiments.summary import SummaryError
 
-    try:
-        summaries = [Summary.read(path) for path in args.summary]
-        if args.paper or args.replication:
-            index = load_tables(args.index)
-            text = replication(summaries, index) if args.replication else paper_tables(summaries, index, args.tables)
-        elif len(summaries) > 1:
-            raise ValueError("several summaries go with --paper or --replication")
-        else:
-            text = tables(summaries[0], args.models)
-    except (SummaryError, ValueError, KeyError, FileNotFoundError) as err:
-        message = err.args[0] if isinstance(err, KeyError) and err.args else err
-        print(f"stamlane report: {message}", file=sys.stderr)
-        return 2
+    return run_command("stamlane report", lambda: _report(args), SummaryError, KeyError)
+
+
+def _report(args: argparse.Namespace) -> int:
+    from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
+    from stamlane.experiments.summary import Summary
+    from stamlane.experiments.tables import default_index_path, load_tables
+    from stamlane.guard import atomic_path, check_outputs, temporary_name, write_atomic
+
+    outputs = [p for p in (args.out, args.csv, args.plot) if p is not None]
+    index = args.index if args.index is not None else default_index_path() if args.paper or args.replication else None
+    check_outputs(  # no output replaces a summary or the index, nor another output
+        [*outputs, *map(temporary_name, outputs)], [*args.summary, index]
+    )
+    if len({p.resolve() for p in outputs}) != len(outputs):
+        raise ValueError("--out, --csv and --plot must name different files")
+    summaries = [Summary.read(path) for path in args.summary]
+    if args.paper or args.replication:
+        tables_index = load_tables(index)
+        text = (
+            replication(summaries, tables_index)
+            if args.replication
+            else paper_tables(summaries, tables_index, args.tables)
+        )
+    elif len(summaries) > 1:
+        raise ValueError("several summaries go with --paper or --replication")
+    else:
+        text = tables(summaries[0], args.models)
     if args.csv:
         write_csv(args.csv, summaries[0])
     if args.plot:
-        plot_history_use(summaries[0], args.plot)
+        with atomic_path(args.plot) as tmp:
+            plot_history_use(summaries[0], tmp)
     if args.out:
         write_atomic(args.out, text + "\n")
     sys.stdout.write(text + "\n")

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from stamlane.budget import MAX_RECORD_BYTES
+from stamlane.guard import GuardError, read_inside, write_atomic  # the one atomic writer, re-exported here
 
 __all__ = ["DONE", "StoreError", "file_sha256", "finished", "mark_finished", "write_atomic"]
 
@@ -25,15 +27,6 @@ class StoreError(Exception):
     """A run folder that cannot be used: printed as one line, exit status 2."""
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file beside it and a rename: a reader never sees half a file,
-    and an interrupted write leaves the old file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def file_sha256(path: Path) -> str:
     """SHA-256 (hex) of a file's bytes."""
     digest = hashlib.sha256()
@@ -41,6 +34,15 @@ def file_sha256(path: Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+RECORD_TYPES: dict[str, type] = {
+    "frames": int,
+    "scores": dict,
+    "labels": dict,
+    "last_ckpt_sha256": str,
+}
+"""The type of each value of a run record that is read back (a tampered record is refused, not half used)."""
 
 
 def _inside(path: str, top: Path) -> bool:
@@ -74,9 +76,13 @@ def finished(
     path = folder / DONE
     if not path.is_file():
         return None
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+    if not _inside(str(folder), top):  # a run folder linked from elsewhere: its record is not read
+        raise StoreError(f"{folder} leads outside {top} (a link?); delete it to run it again")
+    try:  # only inside the run's folder: a done.json that links elsewhere is never read
+        record = json.loads(read_inside(path, folder, MAX_RECORD_BYTES, "run record"))
+    except GuardError as err:
+        raise StoreError(f"{err}; delete the folder to run it again") from None
+    except (RecursionError, json.JSONDecodeError) as err:
         raise StoreError(f"{path} is not a run record ({err}); delete the folder to run it again") from None
     if not isinstance(record, dict):
         raise StoreError(f"{path} is not a run record (a JSON object); delete the folder to run it again")
@@ -89,6 +95,16 @@ def finished(
         value = record.get(key)
         if value is not None and (not isinstance(value, str) or not _inside(value, top)):
             raise StoreError(f"{path}: {key} {value!r} is not a path inside {top}; delete the folder to run it again")
+    for key, kind in RECORD_TYPES.items():
+        value = record.get(key)
+        if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
+            raise StoreError(f"{path}: {key} {value!r} is not {kind.__name__}; delete the folder to run it again")
+    if not (isinstance(record.get("run"), str) and isinstance(record.get("last_ckpt"), str)) or not isinstance(
+        record.get("frames"), int
+    ):
+        raise StoreError(
+            f"{path}: a finished run records its run folder, checkpoint and frames; delete the folder to run it again"
+        )
     ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
     if ckpt is not None:
         if not Path(ckpt).is_file():

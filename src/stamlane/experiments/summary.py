@@ -14,6 +14,7 @@ another clip's history) or an oracle of the labels (``oracle:key``, ``oracle:his
 from __future__ import annotations
 
 import json
+import reprlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -199,9 +200,16 @@ class Summary:
         if fmt == 1:
             from stamlane.experiments.legacy import convert_format_1
 
-            data = convert_format_1(data)
-        elif fmt != FORMAT:
+            try:
+                data = convert_format_1(data)
+            except (TypeError, KeyError, AttributeError, IndexError, ValueError) as err:
+                raise SummaryError(f"malformed format-1 summary: {type(err).__name__} {err}") from None
+        elif isinstance(fmt, int) and not isinstance(fmt, bool) and fmt > FORMAT:
             raise SummaryError(f"summary format {fmt} is newer than this stamlane reads ({FORMAT}); upgrade stamlane")
+        elif fmt != FORMAT:
+            raise SummaryError(f"summary format {reprlib.repr(fmt)} is not one this stamlane reads (1, {FORMAT})")
+        if not isinstance(data.get("models"), list):
+            raise SummaryError("malformed summary: 'models' is not a list")
         try:
             models = [
                 ModelEntry(
@@ -213,7 +221,7 @@ class Summary:
                 for m in data["models"]
             ]
             rest = {k: v for k, v in data.items() if k not in ("models", "oracles", "differences")}
-            return cls(
+            summary = cls(
                 **rest,
                 models=models,
                 oracles={name: _values(v) for name, v in data.get("oracles", {}).items()},
@@ -221,6 +229,8 @@ class Summary:
             )
         except (TypeError, KeyError, AttributeError) as err:
             raise SummaryError(f"malformed summary: {err}") from None
+        _check_types(summary)
+        return summary
 
     @classmethod
     def read(cls, path: Path) -> Summary:
@@ -229,14 +239,84 @@ class Summary:
         Raises:
             SummaryError: unreadable, not json, or not a summary (the message names the file).
         """
-        try:
-            data = json.loads(Path(path).read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-            raise SummaryError(f"{path}: cannot read it as a summary ({err})") from None
+        from stamlane.budget import MAX_RECORD_BYTES
+        from stamlane.guard import GuardError, read_input
+
+        try:  # a regular file within the budget: a FIFO or /dev/zero is refused unread
+            data = json.loads(read_input(path, MAX_RECORD_BYTES, "summary"))
+        except GuardError as err:
+            raise SummaryError(str(err)) from None
+        except (RecursionError, json.JSONDecodeError) as err:
+            raise SummaryError(f"{path}: cannot read it as a summary ({type(err).__name__}: {err})") from None
         try:
             return cls.from_dict(data)
         except SummaryError as err:
             raise SummaryError(f"{path}: {err}") from None
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _interval(value: Any) -> bool:
+    return isinstance(value, list) and len(value) == 2 and all(_number(v) for v in value)
+
+
+def _check_types(summary: Summary) -> None:
+    """Every field the tables read holds the type it is declared with (a mean of null, a string, an interval of
+    one value is refused here in one line, not met as a TypeError in the middle of a table)."""
+
+    def fail(where: str, value: Any) -> None:
+        raise SummaryError(f"malformed summary: {where} is {reprlib.repr(value)}")
+
+    def check_values(values: Any, where: str) -> None:
+        if not isinstance(values, dict):
+            fail(where, values)
+        for metric, per_view in values.items():
+            for view, v in per_view.items():
+                at = f"{where} {metric} {view}"
+                if not _number(v.mean):
+                    fail(f"{at} mean", v.mean)
+                if v.std is not None and not _number(v.std):
+                    fail(f"{at} std", v.std)
+                if v.ci95 is not None and not _interval(v.ci95):
+                    fail(f"{at} ci95", v.ci95)
+                for name in ("seeds", "images"):
+                    if not isinstance(getattr(v, name), int) or isinstance(getattr(v, name), bool):
+                        fail(f"{at} {name}", getattr(v, name))
+
+    if not isinstance(summary.seeds, list) or not all(isinstance(s, int) for s in summary.seeds):
+        fail("seeds", summary.seeds)
+    if not isinstance(summary.recipe, dict):
+        fail("recipe", summary.recipe)
+    for m in summary.models:
+        for name in ("name", "label"):
+            if not isinstance(getattr(m, name), str):
+                fail(f"a model's {name}", getattr(m, name))
+        if m.paper_row is not None and not isinstance(m.paper_row, str):
+            fail(f"model {m.name} paper_row", m.paper_row)
+        if not isinstance(m.frames, int) or isinstance(m.frames, bool):
+            fail(f"model {m.name} frames", m.frames)
+        check_values(m.values, f"model {m.name}")
+        if not isinstance(m.probes, dict):
+            fail(f"model {m.name} probes", m.probes)
+        for source, values in m.probes.items():
+            check_values(values, f"model {m.name}@{source}")
+    for name, values in summary.oracles.items():
+        check_values(values, f"oracle {name}")
+    for d in summary.differences:
+        where = f"difference {d.a!r} - {d.b!r}"
+        for name in ("kind", "a", "b", "view", "metric"):
+            if not isinstance(getattr(d, name), str):
+                fail(f"{where} {name}", getattr(d, name))
+        if not _number(d.diff):
+            fail(f"{where} diff", d.diff)
+        if not _interval(d.ci95):
+            fail(f"{where} ci95", d.ci95)
+        if d.seed_ci95 is not None and not _interval(d.seed_ci95):
+            fail(f"{where} seed_ci95", d.seed_ci95)
+        if not isinstance(d.seed_diffs, list) or not all(_number(x) for x in d.seed_diffs):
+            fail(f"{where} seed_diffs", d.seed_diffs)
 
 
 def _values(data: dict[str, dict[str, dict]]) -> Values:

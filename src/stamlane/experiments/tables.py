@@ -127,30 +127,48 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
     path = Path(path) if path is not None else default_index_path()
     if not path.is_file():
         raise FileNotFoundError(f"table index {path} not found")
-    raw = yaml.safe_load(path.read_text())
+    from stamlane.budget import MAX_RECORD_BYTES
+    from stamlane.guard import read_input
+
+    try:  # plain YAML: a !!python tag is refused, never run
+        raw = yaml.safe_load(read_input(path, MAX_RECORD_BYTES, "table index"))
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not a plain YAML table index ({str(err).splitlines()[0]})") from None
     if not isinstance(raw, dict) or not isinstance(raw.get("tables"), dict):
         raise ValueError(f"{path}: expected a mapping with a 'tables' mapping")
     here = path.parent
 
-    def existing(rel: str) -> Path:
+    def existing(rel: object) -> Path:
+        if not isinstance(rel, str):
+            raise ValueError(f"{path}: a config path must be a string, got {rel!r}")
         p = (here / rel).resolve()
         if not p.is_file():
             raise FileNotFoundError(f"{path}: config {rel!r} not found at {p}")
         return p
 
     default_base = existing(raw.get("default_base", "../demo.yaml"))
-    layers = tuple(existing(p) for p in raw.get("layers", []))
+    layers_given = raw.get("layers", [])
+    if not isinstance(layers_given, list):
+        raise ValueError(f"{path}: layers must be a list of config paths, got {layers_given!r}")
+    layers = tuple(existing(p) for p in layers_given)
     tables: dict[str, PaperTable] = {}
     for name, spec in raw["tables"].items():
         name = str(name)
+        if not isinstance(spec, dict) or not isinstance(spec.get("rows", []), list):
+            raise ValueError(f"{path}: table {name} must be a mapping with a list of rows")
         kind = spec.get("metrics")
         if kind not in METRIC_KINDS:
             raise ValueError(f"{path}: table {name}: metrics must be one of {METRIC_KINDS}, got {kind!r}")
         rows = []
         for r in spec.get("rows", []):
+            if not isinstance(r, dict) or not isinstance(r.get("paper") or {}, dict):
+                raise ValueError(f"{path}: table {name}: a row must be a mapping (id, label, paper), got {r!r}")
             if "id" not in r:
                 raise ValueError(f"{path}: table {name}: a row without 'id': {r!r}")
-            paper = {metric_key(kind, k): float(v) for k, v in (r.get("paper") or {}).items()}
+            given = r.get("paper") or {}
+            if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in given.values()):
+                raise ValueError(f"{path}: table {name}: row {r['id']!r}: paper values must be numbers")
+            paper = {metric_key(kind, k): float(v) for k, v in given.items()}
             rows.append(PaperRow(str(r["id"]), str(r.get("label", r["id"])), existing(f"rows/{r['id']}.yaml"), paper))
         ids = [r.id for r in rows]
         if len(set(ids)) != len(ids) or not ids:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -30,8 +31,11 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, check_output, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
+from stamlane.boundary import run_command
+from stamlane.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
+from stamlane.guard import check_outputs, temporary_name
 from stamlane.imageio import open_video, read_image
 
 if TYPE_CHECKING:
@@ -85,6 +89,8 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
     capture = open_video(source, StreamError)
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
+    if fps is not None and not (math.isfinite(fps) and 0 < fps <= MAX_FPS):  # a header's absurd rate: the default
+        fps = None
     if max_frames and count:
         count = min(count, max_frames)
 
@@ -119,7 +125,11 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")
-        cli = build_cli(["--config", args.config], run=False)
+        argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own
+        try:  # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
+            cli = build_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
+        finally:
+            sys.argv = argv
         module = cli.model
         if args.ckpt:
             try:
@@ -158,6 +168,7 @@ def load_predictor(args: argparse.Namespace) -> Any:
     image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
     if num_frames is None or image_size is None:
         raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
+    check_clip(num_frames, list(image_size), "the streamed clip")  # the network's or the flags' size, one budget
     horizon_row = args.horizon_row if args.horizon_row is not None else getattr(clip, "horizon_row", None)
     overrides["crop_top"] = float(module.hparams.get("crop_top") or getattr(clip, "crop_top", None) or 0.0)
     return StreamingPredictor.from_module(
@@ -175,17 +186,24 @@ def run(args: argparse.Namespace) -> int:
         raise StreamError(f"{source} does not exist")
     if args.max_frames is not None and args.max_frames < 1:
         raise StreamError(f"--max-frames must be >= 1, got {args.max_frames}")
-    if args.fps is not None and not args.fps > 0:
-        raise StreamError(f"--fps must be > 0, got {args.fps}")
-    if args.num_frames is not None and args.num_frames < 1:
-        raise StreamError(f"--num-frames must be >= 1, got {args.num_frames}")
+    if args.fps is not None:
+        check_rate(args.fps, "--fps")  # inf or nan would never finish writing the video
+    if args.num_frames is not None:
+        check_frames(args.num_frames, "--num-frames")
+    if args.image_size is not None:
+        check_size(args.image_size, "--image-size")
+    if args.num_frames is not None and args.image_size is not None:
+        check_clip(args.num_frames, args.image_size, "--num-frames x --image-size")
     out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
-    check_output(out_dir, [source])
+    finals = [out_dir / "lanes.jsonl", *([] if args.no_video else [out_dir / "overlay.mp4"])]
+    lanes_tmp, video_tmp = temporary_name(out_dir / "lanes.jsonl"), temporary_name(out_dir / "overlay.mp4")
+    check_outputs(  # no output replaces the video, the checkpoint or the config, nor lands among the frames
+        [*finals, lanes_tmp, video_tmp], [source, args.ckpt, args.config], folders=[out_dir], protected=[source]
+    )
     frames, count, fps = iter_frames(source, args.max_frames)
     predictor = load_predictor(args)
     out_dir.mkdir(parents=True, exist_ok=True)
     # written under temporary names and renamed at the end: a failed run leaves the previous results whole
-    lanes_tmp, video_tmp = out_dir / ".lanes.jsonl.tmp", out_dir / ".overlay.tmp.mp4"
     finished = False
     try:
         written, seconds = _stream(args, source, frames, count, fps, predictor, lanes_tmp, video_tmp)
@@ -257,11 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(build_parser(), sys.argv[1:] if argv is None else argv)
     if isinstance(args, int):
         return args
-    try:
-        return run(args)
-    except (StreamError, FileNotFoundError, ValueError) as err:
-        print(f"stamlane stream: {err}", file=sys.stderr)
-        return 2
+    return run_command("stamlane stream", lambda: run(args), StreamError)
 
 
 if __name__ == "__main__":

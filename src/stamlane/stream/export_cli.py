@@ -17,7 +17,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, OutputError, check_output, format_wxh, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, format_wxh, parse_or_status
+
+from stamlane.boundary import expected_errors, one_line
+from stamlane.guard import check_outputs
 
 __all__ = ["main", "parity"]
 
@@ -54,6 +57,19 @@ def parity(net: object, path: Path, num_frames: int, image_size: tuple[int, int]
     }
 
 
+ONNX_HINT = 'pip install "stamlane[export]"'
+"""How the ONNX packages are installed (the ``export`` extra)."""
+
+
+def _need_onnx() -> None:
+    """Refuse at once, with the install line, where the packages ``torch.onnx.export`` needs are missing."""
+    import importlib.util
+
+    missing = [name for name in ("onnx", "onnxscript") if importlib.util.find_spec(name) is None]
+    if missing:
+        raise ValueError(f"exporting to ONNX needs {' and '.join(missing)}: {ONNX_HINT}")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
@@ -67,9 +83,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not 16 <= opset <= 21:
             raise ValueError(f"--opset must be in 16..21, got {opset}")
-        for out in (output, args.streaming):
-            if out is not None:
-                check_output(out, [args.ckpt_path])
+        tmp = output.with_name(f".{output.stem}.tmp.onnx")  # written whole, then renamed over the output
+        check_outputs([output, tmp], [args.ckpt_path], folders=[args.streaming], protected=[args.ckpt_path])
+        _need_onnx()
         if output.suffix != ".onnx":
             raise ValueError(f"--output must end in .onnx, got {output}")
         module = StamLaneModule.from_checkpoint(args.ckpt_path)
@@ -78,14 +94,13 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"checkpoint {args.ckpt_path} records no num_frames / image_size")
         size = (int(image_size[0]), int(image_size[1]))
         output.parent.mkdir(parents=True, exist_ok=True)
-        tmp = output.with_name(f".{output.stem}.tmp.onnx")  # written whole, then renamed over the output
         export_clip(module.net, tmp, int(num_frames), size, opset)
         os.replace(tmp, output)
         written = [output]
         if args.streaming is not None:
             written += list(export_all(module.net, args.streaming, int(num_frames), size, opset).values())
-    except (CheckpointError, OutputError, ValueError, OSError) as err:
-        print(f"stamlane export: {err}", file=sys.stderr)
+    except expected_errors(CheckpointError) as err:
+        print(f"stamlane export: {one_line(err)}", file=sys.stderr)
         return 2
     print(f"stamlane export: {', '.join(map(str, written))} (T={num_frames}, {format_wxh(size)}, opset {opset})")
     diff = parity(module.net, output, int(num_frames), size)

@@ -9,6 +9,9 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
+from stamlane.boundary import run_command
+from stamlane.budget import check_workers
+from stamlane.guard import check_outputs
 from stamlane.synth.generator import (
     DEMO_SPLITS,
     EVAL_KEY_STEP,
@@ -78,6 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
+    return run_command("stamlane synth", lambda: _synth(args))
+
+
+def _synth(args: argparse.Namespace) -> int:
+    check_outputs(folders=[args.out])  # a folder, or missing under a writable one
     if args.clips < 1:
         print(f"stamlane synth: --clips must be >= 1, got {args.clips}", file=sys.stderr)
         return 2
@@ -112,11 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
-    try:
-        cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
-    except ValueError as err:
-        print(f"stamlane synth: {err}", file=sys.stderr)
-        return 2
+    check_workers(args.workers, "--workers", minimum=1)
+    cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
     train, val, test = split_counts(args.clips)
     counts |= {"train": train, "val": val, "test": test}
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
@@ -125,13 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0}
         cfg = SynthConfig()
     start = time.perf_counter()
-    try:
-        info = generate_dataset(
-            args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers
-        )
-    except OSError as err:
-        print(f"stamlane synth: cannot write {args.out}: {err}", file=sys.stderr)
-        return 2
+    info = generate_dataset(args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
     seconds = time.perf_counter() - start
     long = counts["reveal"] + counts["reveal_traffic"] + counts["train_motion"]
     frames = (sum(counts.values()) - long) * cfg.num_frames + long * REVEAL_FRAMES

@@ -325,8 +325,11 @@ class SynthConfig:
     def __post_init__(self) -> None:
         if self.width < 64 or self.height < 48:
             raise ValueError(f"frame size must be at least 64x48, got {self.width}x{self.height}")
-        if self.num_frames < 1:
-            raise ValueError(f"num_frames must be >= 1, got {self.num_frames}")
+        from stamlane.budget import MAX_SYNTH_FRAMES, check_clip, check_rate
+
+        # one clip is rendered in memory: its frames x height x width within the size budget
+        check_clip(self.num_frames, (self.height, self.width), "synthetic", frames_limit=MAX_SYNTH_FRAMES)
+        check_rate(self.fps, "synthetic fps")
         if not 0.0 <= self.glare_prob <= 1.0:
             raise ValueError(f"glare_prob must be in [0, 1], got {self.glare_prob}")
         if self.key_occluder and self.key_occluder not in KEY_OCCLUDERS:

@@ -1,0 +1,530 @@
+"""Fuzzing the ``stamlane`` commands (hypothesis): hostile files, links, special files, sizes and argument
+combinations, one harness per command, each checked against the contract of README "Errors and limits":
+
+- exit status 0, or 2 with exactly one line on stderr and no traceback;
+- nothing among the inputs changed (every input file and folder hashed before and after, links included);
+- bounded time (an alarm fails a hang) and memory (the peak resident size may not grow by more than 1.5 GiB:
+  a size read from a flag, a config or a checkpoint is checked against the budget before anything is allocated).
+
+The examples are derandomized and few per command (the whole file runs in about a minute on 2 cores).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import resource
+import signal
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from hypothesis import HealthCheck, currently_in_test_context, event, example, given, settings
+from hypothesis import strategies as st
+
+from stamlane.cli import main
+from stamlane.experiments.summary import Difference, ModelEntry, Summary, Value
+
+REPO = Path(__file__).resolve().parents[1]
+torch.set_num_threads(1)
+
+
+def _settings(examples: int) -> settings:
+    return settings(
+        max_examples=examples,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+    )
+
+
+# ---------------------------------------------------------------------------------------------- the contract
+def _fingerprint(path: Path) -> object:
+    """What a path is, links and contents included (a folder: every entry below it)."""
+    if os.path.islink(path):
+        return ("link", os.readlink(path), _fingerprint(path.resolve()) if path.exists() else None)
+    if not os.path.lexists(path):
+        return None
+    if path.is_dir():
+        return ("dir", tuple((p.name, _fingerprint(p)) for p in sorted(path.iterdir())))
+    if path.is_file():
+        return ("file", hashlib.sha256(path.read_bytes()).hexdigest())
+    return ("special", os.stat(path).st_mode)
+
+
+def _peak_bytes() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux reports KiB
+
+
+@contextmanager
+def _bounded(seconds: int = 60) -> Iterator[None]:
+    def hang(*_: object) -> None:
+        raise TimeoutError(f"the command ran past {seconds} s (a hang: a FIFO read, an endless video)")
+
+    previous = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _contract(capsys: pytest.CaptureFixture[str], argv: list[str], inputs: list[Path]) -> int:
+    """Run ``stamlane argv`` in-process and check the contract; returns the exit status."""
+    before = {p: _fingerprint(p) for p in inputs}
+    peak = _peak_bytes()
+    capsys.readouterr()
+    with _bounded():
+        code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code in (0, 2), (argv, code, err)
+    if currently_in_test_context():
+        event(f"exit status {code}")  # --hypothesis-show-statistics: both outcomes are reached
+    if code == 2:
+        ours = [line for line in err.splitlines() if line.startswith("stamlane")]
+        assert len(ours) == 1 and "Traceback" not in err, (argv, err)
+    assert _peak_bytes() - peak < 1.5 * 2**30, argv
+    for p, seen in before.items():
+        assert _fingerprint(p) == seen, f"{argv} changed the input {p}"
+    return code
+
+
+PLACES = ("fresh", "input", "link-to-input", "under-a-file", "a-folder", "a-fifo", "inside-input-folder")
+"""Where an output option points: somewhere new, at an input, through a link to one, under a file, at a folder,
+at a FIFO, among the inputs' folder."""
+
+
+def _place(kind: str, tmp: Path, name: str, input_file: Path, input_folder: Path) -> Path:
+    out = tmp / "outs" / kind / name
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "input":
+        return input_file
+    if kind == "link-to-input":
+        out.symlink_to(input_file)
+    elif kind == "under-a-file":
+        (tmp / "outs" / kind / "file").write_text("x")
+        return tmp / "outs" / kind / "file" / name
+    elif kind == "a-folder":
+        out.mkdir()
+    elif kind == "a-fifo":
+        os.mkfifo(out)
+    elif kind == "inside-input-folder":
+        return input_folder / name
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- report
+def _summary_dict() -> dict:
+    v = Value(0.5, 0.01, [0.4, 0.6], 2, 10)
+    models = [
+        ModelEntry("stam4", "STAM", "f4_mixed_cs_features", [], 4, 10, [], {"tusimple_f1": {"test": v}}),
+        ModelEntry("single", "one frame", "f1_keyonly", [], 1, 10, [], {"tusimple_f1": {"test": v}}),
+    ]
+    diff = Difference("models", "stam4", "single", "test", "tusimple_f1", 0.1, [0.05, 0.15], [0.1, 0.1], [0.0, 0.2])
+    return json.loads(Summary("d", {}, [0, 1], {"name": "cpu"}, False, None, models, {}, [diff]).to_json())
+
+
+def _leaves(data: object, at: tuple = ()) -> list[tuple]:
+    if isinstance(data, dict):
+        return [at, *(p for k, v in data.items() for p in _leaves(v, (*at, k)))]
+    if isinstance(data, list):
+        return [at, *(p for i, v in enumerate(data) for p in _leaves(v, (*at, i)))]
+    return [at]
+
+
+def _set(data: dict, at: tuple, value: object) -> dict:
+    if not at:
+        return value  # type: ignore[return-value]
+    node = data
+    for key in at[:-1]:
+        node = node[key]
+    node[at[-1]] = value
+    return data
+
+
+HOSTILE_VALUES = st.sampled_from([None, "x", "", [], {}, [0.1], [1, 2, 3], -1, 1e308, True, {"a": [[[[]]]]}, 10**30])
+SUMMARY_FILES = st.sampled_from(["json", "fifo", "device", "folder", "link-outside", "deep", "binary", "format-1"])
+
+
+@_settings(150)
+@given(
+    kind=SUMMARY_FILES,
+    mutations=st.lists(st.tuples(st.integers(0, 10**6), HOSTILE_VALUES), max_size=3),
+    outs=st.lists(st.sampled_from(PLACES), min_size=3, max_size=3),
+    use=st.lists(st.booleans(), min_size=3, max_size=3),
+    index=st.sampled_from([None, "tag", "not-a-mapping", "rows-not-mappings", "fifo"]),
+)
+def test_report(
+    capsys: pytest.CaptureFixture[str],
+    kind: str,
+    mutations: list[tuple[int, object]],
+    outs: list[str],
+    use: list[bool],
+    index: str | None,
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        data = _summary_dict()
+        if kind == "format-1":
+            data = {"seeds": [0], "models": [{"name": "a", "test": {"f1_mean": 0.5}}]}
+        for pick, value in mutations:  # each replaces one node of what the previous ones left
+            paths = _leaves(data)
+            data = _set(data, paths[pick % len(paths)], copy.deepcopy(value))  # never a shared node (a cycle)
+        summary = tmp / "data" / "summary.json"
+        summary.parent.mkdir()
+        outside = tmp / "outside.json"
+        outside.write_text(json.dumps(_summary_dict()))
+        if kind in ("json", "format-1"):
+            summary.write_text(json.dumps(data))
+        elif kind == "fifo":
+            os.mkfifo(summary)
+        elif kind == "device":
+            summary = Path("/dev/zero")
+        elif kind == "folder":
+            summary.mkdir()
+        elif kind == "link-outside":
+            summary.symlink_to(outside)
+        elif kind == "deep":
+            summary.write_text("[" * 100_000 + "]" * 100_000)
+        else:
+            summary.write_bytes(bytes(range(256)) * 4)
+        argv = ["report", str(summary)]
+        for option, place, on in zip(("--out", "--csv", "--plot"), outs, use):
+            if on:
+                name = {"--out": "t.md", "--csv": "s.csv", "--plot": "h.png"}[option]
+                argv += [option, str(_place(place, tmp, name, summary, summary.parent))]
+        inputs = [summary, outside]  # tables may go beside the summary; the summary itself stays
+        if index is not None:
+            path = tmp / "index.yaml"
+            if index == "fifo":
+                os.mkfifo(path)
+            else:
+                path.write_text(
+                    {
+                        "tag": "tables: !!python/object/apply:os.system ['echo pwned']\n",
+                        "not-a-mapping": "tables: 5\n",
+                        "rows-not-mappings": "tables: {1: {metrics: tusimple, rows: [5]}}\n",
+                    }[index]
+                )
+            argv += ["--paper", "--index", str(path)]
+            inputs.append(path)
+        _contract(capsys, argv, inputs)
+
+
+# ---------------------------------------------------------------------------------------------- show
+@pytest.fixture(scope="module")
+def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from stamlane.synth import SynthConfig, generate_dataset
+
+    root = tmp_path_factory.mktemp("set")
+    config = SynthConfig(width=128, height=72, num_frames=4)
+    generate_dataset(root, train=1, val=0, test=0, challenging=0, seed=1, config=config, progress=False)
+    line = json.loads((root / "train.json").read_text().splitlines()[0])
+    (root / "long.json").write_text(json.dumps(line | {"raw_file": "clips/" + "a" * 300 + "/4.jpg"}) + "\n")
+    (root / "junk.json").write_bytes(b"\x00\xff{" * 50)
+    (root / "strings.json").write_text(json.dumps(line | {"lanes": [["1", True]]}) + "\n")
+    os.mkfifo(root / "fifo.json")
+    outside = tmp_path_factory.mktemp("outside") / "labels.json"
+    outside.write_text((root / "train.json").read_text())
+    (root / "link-out.json").symlink_to(outside)
+    return root
+
+
+@_settings(80)
+@given(
+    labels=st.sampled_from(
+        ["train.json", "long.json", "junk.json", "strings.json", "fifo.json", "missing.json", "link-out.json"]
+    ),
+    size=st.sampled_from(["64x32", "65536x65536", "16384x16384", "0x4", "axb", "8192x8192"]),
+    frames=st.sampled_from([1, 2, 33, 10**6, 0, -1]),
+    n=st.sampled_from([1, 0, 10**9]),
+    out=st.sampled_from(PLACES),
+)
+@example(labels="train.json", size="64x32", frames=2, n=1, out="fresh")  # the run that succeeds
+def test_show(
+    tiny_set: Path, capsys: pytest.CaptureFixture[str], labels: str, size: str, frames: int, n: int, out: str
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        target = _place(out, Path(folder), "grid.png", tiny_set / "train.json", tiny_set)
+        argv = ["show", "--root", str(tiny_set), "--labels", labels, "--out", str(target)]
+        argv += ["--size", size, "--num-frames", str(frames), "--n", str(n), "--align", "none"]
+        _contract(capsys, argv, [tiny_set])
+
+
+# ---------------------------------------------------------------------------------------------- stream
+HPARAMS = {
+    "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
+    "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
+    "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
+    "num_frames": 2,
+    "image_size": [32, 64],
+    "_instantiator": "lightning.pytorch.cli.instantiate_module",
+}
+
+
+@pytest.fixture(scope="module")
+def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A checkpoint as `stamlane fit` writes it, one whose recorded T is 100,000, and a folder of 3 frames."""
+    import lightning
+    from lightning.pytorch.cli import instantiate_module
+
+    from stamlane.module import StamLaneModule
+
+    torch.manual_seed(0)
+    module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})
+    folder = tmp_path_factory.mktemp("stream")
+    found = {}
+    for name, frames in (("good", 2), ("huge", 100_000)):
+        path = folder / f"{name}.ckpt"
+        torch.save(
+            {
+                "state_dict": module.state_dict(),
+                "hyper_parameters": HPARAMS | {"num_frames": frames},
+                "datamodule_hyper_parameters": {"num_frames": frames, "image_size": [32, 64]},
+                "pytorch-lightning_version": lightning.__version__,
+            },
+            path,
+        )
+        found[name] = path
+    frames_dir = folder / "frames"
+    frames_dir.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(frames_dir / f"{i}.jpg"), np.full((72, 128, 3), 40 * i, np.uint8))
+    found["frames"] = frames_dir
+    video = folder / "drive.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (128, 72))
+    for i in range(3):
+        writer.write(np.full((72, 128, 3), 40 * i, np.uint8))
+    writer.release()
+    found["video"] = video
+    (folder / "link-to-frames").symlink_to(frames_dir)
+    found["link"] = folder / "link-to-frames"
+    os.mkfifo(folder / "fifo.mp4")
+    found["fifo"] = folder / "fifo.mp4"
+    return found
+
+
+@_settings(80)
+@given(
+    ckpt=st.sampled_from(["good", "huge"]),
+    fps=st.sampled_from([None, "inf", "nan", "-5", "0", "1e9", "10"]),
+    frames=st.sampled_from([None, 1, 2, 10**6, 0]),
+    size=st.sampled_from([None, (32, 64), (65536, 65536), (63, 5)]),
+    out=st.sampled_from([*PLACES, "ckpt-named-like-output"]),
+    video=st.booleans(),
+    source=st.sampled_from(["frames", "video", "link", "fifo"]),
+)
+@example(ckpt="good", fps=None, frames=None, size=None, out="fresh", video=False, source="frames")  # succeeds
+@example(ckpt="good", fps="10", frames=2, size=(32, 64), out="fresh", video=True, source="video")
+def test_stream(
+    stream_inputs: dict[str, Path],
+    capsys: pytest.CaptureFixture[str],
+    ckpt: str,
+    fps: str | None,
+    frames: int | None,
+    size: tuple[int, int] | None,
+    out: str,
+    video: bool,
+    source: str,
+) -> None:
+    source_path = stream_inputs[source]
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        checkpoint = stream_inputs[ckpt]
+        if out == "ckpt-named-like-output":  # a checkpoint in --out named like the command's output
+            target = tmp / "run"
+            target.mkdir()
+            checkpoint = target / "lanes.jsonl"
+            checkpoint.write_bytes(stream_inputs[ckpt].read_bytes())
+        else:
+            target = _place(out, tmp, "stream", stream_inputs["video"], stream_inputs["frames"])
+        argv = ["stream", str(source_path), "--ckpt", str(checkpoint), "--out", str(target), "--max-frames", "2"]
+        argv += [] if fps is None else [f"--fps={fps}"]
+        argv += [] if frames is None else ["--num-frames", str(frames)]
+        argv += [] if size is None else ["--image-size", *map(str, size)]
+        argv += [] if video else ["--no-video"]
+        inputs = [stream_inputs[k] for k in ("frames", "video", "link", "good", "huge")]
+        code = _contract(capsys, argv, [*inputs, checkpoint])
+        ok = source in ("frames", "video", "link") and (ckpt, fps in (None, "10"), out) == ("good", True, "fresh")
+        if ok and frames in (None, 2) and size in (None, (32, 64)):
+            assert code == 0 and (target / "lanes.jsonl").is_file()  # what is valid is done
+
+
+# ---------------------------------------------------------------------------------------------- synth
+@_settings(60)
+@given(
+    size=st.sampled_from(["64x48", "100000x100000", "8192x8192", "10x10"]),
+    frames=st.sampled_from([2, 10**6, 0]),
+    fps=st.sampled_from(["inf", "nan", "0", "20", "1e12"]),
+    clips=st.sampled_from([1, 0, -1]),
+    out=st.sampled_from(["fresh", "existing-set", "under-a-file", "a-file", "a-fifo"]),
+)
+@example(size="64x48", frames=2, fps="20", clips=1, out="fresh")  # the run that succeeds
+def test_synth(
+    tiny_set: Path, capsys: pytest.CaptureFixture[str], size: str, frames: int, fps: str, clips: int, out: str
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        target = {
+            "fresh": tmp / "new",
+            "existing-set": tiny_set,
+            "under-a-file": tiny_set / "train.json" / "set",
+            "a-file": tiny_set / "train.json",
+            "a-fifo": tiny_set / "fifo.json",
+        }[out]
+        argv = ["synth", "--out", str(target), "--size", size, "--frames", str(frames), f"--fps={fps}"]
+        argv += ["--clips", str(clips), "--challenging-clips", "0", "--quiet"]
+        code = _contract(capsys, argv, [tiny_set])
+        if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh"):
+            assert code == 0 and (target / "train.json").is_file()  # what is valid is done
+
+
+# ---------------------------------------------------------------------------------------------- demo --quick
+@_settings(40)
+@given(
+    data=st.sampled_from(["tusimple-set", "a-file", "a-fifo", "is-out"]),
+    out=st.sampled_from(["fresh", "inside-data", "under-a-file", "a-file"]),
+    seeds=st.sampled_from([1, 0, -3]),
+)
+def test_demo_quick(capsys: pytest.CaptureFixture[str], data: str, out: str, seeds: int) -> None:
+    """Arguments a careless or hostile user gives ``demo --quick``: every one is refused before anything is
+    trained or written (a valid run is `tests/test_demo.py`'s)."""
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        tusimple = tmp / "tusimple"
+        (tusimple / "clips" / "0").mkdir(parents=True)
+        (tusimple / "train.json").write_text('{"raw_file": "clips/0/20.jpg", "lanes": [], "h_samples": []}\n')
+        (tusimple / "clips" / "0" / "20.jpg").write_bytes(b"frame")
+        (tmp / "file").write_text("x")
+        os.mkfifo(tmp / "fifo")
+        root = {"tusimple-set": tusimple, "a-file": tmp / "file", "a-fifo": tmp / "fifo", "is-out": tusimple}[data]
+        target = {
+            "fresh": tmp / "out",
+            "inside-data": tusimple / "out",
+            "under-a-file": tmp / "file" / "out",
+            "a-file": tmp / "file",
+        }[out]
+        if data == "is-out":
+            target = tusimple
+        argv = ["demo", "--quick", "--data", str(root), "--out", str(target), "--seeds", str(seeds)]
+        assert _contract(capsys, argv, [tusimple, tmp / "file", tmp / "fifo"]) == 2
+
+
+# ---------------------------------------------------------------------------------------------- demo: records
+RECORD_VALUES = st.sampled_from([None, "x", 3, 2.5, True, [], {}, [1], {"a": 1}, "/etc/passwd", "../../outside"])
+RECORD_KINDS = st.sampled_from(["json", "link-outside", "fifo", "deep", "binary", "folder-linked", "truncated-ckpt"])
+
+
+@_settings(80)
+@given(
+    kind=RECORD_KINDS,
+    changes=st.dictionaries(
+        st.sampled_from(["run", "last_ckpt", "frames", "scores", "labels", "last_ckpt_sha256", "data"]),
+        RECORD_VALUES,
+        max_size=3,
+    ),
+)
+def test_demo_run_records(kind: str, changes: dict[str, object]) -> None:
+    """What a resumed ``stamlane demo`` / ``ablate`` reads back from a run folder (``done.json``, the checkpoint
+    it names): a record that is hostile in kind or value is refused in one line (`StoreError`, `ExperimentError`),
+    one that is used holds the types it is used with, and nothing outside the experiment's folder is read."""
+    from stamlane.experiments.engine import ExperimentError, _verify_checkpoint
+    from stamlane.experiments.store import StoreError, file_sha256, finished
+
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        top, name = tmp / "out", "a-s0"
+        run = top / name / "run"
+        ckpt = run / "checkpoints" / "last.ckpt"
+        ckpt.parent.mkdir(parents=True)
+        torch.save({"state_dict": {"w": torch.zeros(64)}}, ckpt)
+        record = {"data": "d", "run": str(run), "last_ckpt": str(ckpt), "frames": 4, "scores": {}, "labels": {}}
+        record |= {"last_ckpt_sha256": file_sha256(ckpt)} | changes
+        if kind == "truncated-ckpt":  # cut short, and its digest taken out of the record
+            ckpt.write_bytes(ckpt.read_bytes()[:100])
+            record.pop("last_ckpt_sha256", None)
+        outside = tmp / "outside.json"
+        outside.write_text(json.dumps(record))
+        done = top / name / "done.json"
+        if kind in ("json", "truncated-ckpt"):
+            done.write_text(json.dumps(record))
+        elif kind == "link-outside":
+            done.symlink_to(outside)
+        elif kind == "fifo":
+            os.mkfifo(done)
+        elif kind == "deep":
+            done.write_text("{" + '"a":{' * 50_000 + "}" * 50_001)
+        elif kind == "binary":
+            done.write_bytes(bytes(range(256)))
+        else:  # the run folder itself a link to a folder outside the experiment
+            elsewhere = tmp / "elsewhere"
+            elsewhere.mkdir()
+            (elsewhere / "done.json").write_text(json.dumps(record))
+            (top / "b-s0").symlink_to(elsewhere)
+            name = "b-s0"
+        seen = _fingerprint(outside)
+        with _bounded(30):
+            try:
+                got = finished(top / name, {"data": "d"}, top)
+                if got is not None:
+                    _verify_checkpoint(got, top / name)
+            except (StoreError, ExperimentError) as err:
+                assert len(str(err).splitlines()) == 1
+                got = None
+        if got is not None:  # what is reused holds what it is used with, inside the experiment
+            assert isinstance(got["frames"], int) and not isinstance(got["frames"], bool)
+            assert Path(got["run"]).resolve().is_relative_to(top.resolve())
+            assert kind not in ("link-outside", "folder-linked", "truncated-ckpt", "fifo", "deep", "binary")
+        assert _fingerprint(outside) == seen
+
+
+# ---------------------------------------------------------------------------------------------- fit / predict
+@pytest.fixture
+def plain_argv_module(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    monkeypatch.setattr(sys, "argv", ["stamlane"])
+
+
+HOSTILE_CONFIGS = {
+    "data:\n  clip: {num_frames: 1000000}\n": "num_frames must be in 1..32",
+    "data:\n  clip: {image_size: [100000, 100000]}\n": "sides in 1..16384",
+    "data:\n  synth: {size: [100000, 100000]}\n": "sides in 1..16384",
+    "data:\n  num_frames: 1\n  clip: {num_frames: 2}\n": "give one of them",
+    "data:\n  loader: [1, 2]\n": "must be a mapping",
+    "data:\n  clip: {num_frames: 4, image_size: [16384, 16384]}\n": "over the budget",
+    "data: !!python/object/apply:os.system ['echo pwned']\n": "python/object",
+}
+"""Config values a careless or hostile user gives: sizes past the budget, conflicting and mistyped values, a tag."""
+
+
+@pytest.mark.parametrize("config", list(HOSTILE_CONFIGS))
+def test_fit_and_predict_config_values(
+    plain_argv_module: None, capsys: pytest.CaptureFixture[str], config: str
+) -> None:
+    """Sizes and types from a config: refused in one line before anything is allocated or trained."""
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        path = tmp / "hostile.yaml"
+        path.write_text(config)
+        command = ("fit", "predict")[list(HOSTILE_CONFIGS).index(config) % 2]
+        argv = [command, "--config", str(REPO / "configs" / "demo.yaml"), "--config", str(path)]
+        argv += [f"--trainer.default_root_dir={tmp / 'run'}", "--trainer.logger=false", "--trainer.max_steps=1"]
+        argv += [f"--data.root={tmp / 'no-set'}"]  # never a default set generated in the working folder
+        capsys.readouterr()
+        before = _fingerprint(path)
+        with _bounded():
+            code = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        ours = [line for line in err if line.startswith(f"stamlane {command}")]
+        assert code == 2 and len(ours) == 1 and HOSTILE_CONFIGS[config] in ours[0], err
+        assert _fingerprint(path) == before
