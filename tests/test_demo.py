@@ -20,11 +20,17 @@ from stamlane.experiments.engine import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
 from stamlane.experiments.store import file_sha256
 from stamlane.experiments.summary import Summary
-from stamlane.synth.generator import FACTORS
+from stamlane.synth.generator import FACTORS, REVEAL, REVEAL_TRAFFIC
 
 torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[1]
 VIEWS = ["test", "challenging", *(f"challenging:{f}" for f in FACTORS)]
+VIEWS += [
+    "reveal",
+    "reveal-traffic",
+    *(f"reveal:{k}" for k in REVEAL),
+    *(f"reveal-traffic:{k}" for k in REVEAL_TRAFFIC),
+]
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +46,9 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     assert [m.name for m in summary.models] == ["stam4", "single"]  # --quick leaves the no-alignment model out
     assert [m.frames for m in summary.models] == [4, 1] and summary.seeds == [0]
     assert summary.recipe == {"name": "cpu", "pretrain_steps": 3, "steps": 2, "row_args": list(KEY_CORRUPTION)}
-    assert set(summary.splits_sha256) == {"test", "challenging"} and summary.iou_width == 5  # 30 px at 256 of 1640
+    assert (
+        set(summary.splits_sha256) == {"test", "challenging", "reveal", "reveal-traffic"} and summary.iou_width == 5
+    )  # 30 px at 256 of 1640
     # stage 2 starts from the final weights of stage 1
     ckpt = quick / "pretrain-s0" / "run" / "checkpoints" / "last.ckpt"
     assert f"init_weights: {ckpt}" in (quick / "stam4-s0" / "run" / "config.yaml").read_text()
@@ -79,7 +87,7 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     assert {(d.a, d.b) for d in summary.differences if d.kind == "models"} == {("stam4", "single")}
     views = {d.view for d in summary.differences if d.kind == "models" and d.metric == "tusimple_f1"}
     assert views == set(VIEWS)
-    for name in ("val_f1.png", "history_use.png", "comparison.jpg"):
+    for name in ("val_f1.png", "history_use.png", "history_use_vs_headroom.png", "comparison.jpg"):
         picture = cv2.imread(str(quick / name))
         assert picture is not None and picture.std() > 10, name
     assert cv2.imread(str(quick / "comparison.jpg")).shape == (3 * 144, 2 * 256, 3)  # 3 key frames x 2 models
@@ -90,7 +98,9 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
 def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> None:
     summary = Summary.read(quick / "summary.json")
     stam4, single = summary.model("stam4"), summary.model("single")
-    assert set(stam4.probes) == {"key", "other_clip"} and not single.probes  # one frame has no history to probe
+    assert set(stam4.probes) == {"key", "warped_key", "reversed", "other_clip", "exact"} and not single.probes
+    assert not (quick / "predictions" / "stam4-s0" / "challenging@reversed").exists()  # the reveal splits only
+    assert stam4.runs[0].scores["reveal@warped_key"]["images"] == 2 * len(REVEAL)
     for source in ("key", "other_clip"):
         pred = quick / "predictions" / "stam4-s0" / f"challenging@{source}"
         assert (pred / "per_image.jsonl").is_file() and not list(pred.rglob("*.jpg"))  # no overlays for probes
@@ -105,7 +115,11 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
         )
         assert d.diff == pytest.approx(real.mean - probed.mean, abs=1e-12)
     # the oracles of the labels: the quick set has visibility masks, so every view has a headroom
-    assert set(summary.oracles) == {"oracle:key", "oracle:history-4f"}
+    assert {"oracle:key", "oracle:history-4f", "oracle:unaligned-4f", "oracle:history-8f"} <= set(summary.oracles)
+    assert "oracle:history-8f-x2" not in summary.oracles  # 14 frames back: beyond every split's masks (7, 11)
+    assert summary.value("oracle:history-4f-x2", "tusimple_f1", "reveal") is not None
+    alignment = {d.view for d in summary.differences if d.kind == "alignment_oracle"}
+    assert {"reveal", "reveal:key_spray"} <= alignment
     headroom = {d.view for d in summary.differences if d.kind == "headroom" and d.metric == "tusimple_f1"}
     assert headroom == set(VIEWS) - {"test"} or headroom == set(VIEWS)
     # recall per visibility class: the visible points of every scored split

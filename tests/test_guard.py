@@ -91,9 +91,9 @@ def test_run_records_that_link_out_or_hold_the_wrong_types_are_refused(tmp_path:
     ckpt = top / "a" / "run" / "checkpoints" / "last.ckpt"
     ckpt.parent.mkdir(parents=True)
     torch.save({"state_dict": {"w": torch.zeros(2)}}, ckpt)
-    good = {"run": str(ckpt.parents[1]), "last_ckpt": str(ckpt), "frames": 4}
+    good = {"run": str(ckpt.parents[1]), "last_ckpt": str(ckpt), "frames": 4, "seed": 0, "train_minutes": 0.5}
     assert finished(_done(top / "a", **good), {}, top) is not None
-    with pytest.raises(StoreError, match="records its run folder, checkpoint and frames"):
+    with pytest.raises(StoreError, match="frames must be int >= 1, got None"):
         finished(_done(top / "a", **(good | {"frames": None})), {}, top)
     with pytest.raises(StoreError, match="scores"):
         finished(_done(top / "a", **(good | {"scores": [1]})), {}, top)

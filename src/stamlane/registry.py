@@ -502,7 +502,7 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
     """
     import yaml
 
-    from stamlane.data.flat_options import group_config
+    from stamlane.data.flat_options import FlatOptionError, group_config
 
     if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
         size = f"{len(text):,} characters" if isinstance(text, str) else type(text).__name__
@@ -513,6 +513,8 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
         config = group_config(yaml.safe_load(text))
     except yaml.YAMLError as err:
         raise CheckpointError(f"the config of {source} is not YAML: {str(err).splitlines()[0]}") from None
+    except FlatOptionError as err:  # a data group that is not a mapping, or a value given flat and grouped twice
+        raise CheckpointError(f"the config of {source}: {err}") from None
     except RecursionError:
         raise CheckpointError(f"the config of {source} is nested too deeply") from None
     if not isinstance(config, dict):

@@ -28,8 +28,13 @@ def _flat_name(group: str, field: str) -> str:
     return f"synth_{field}" if group == "synth" else field
 
 
+GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion")}
+"""Options added after the groups (generator format 6): they never had a flat name."""
 FLAT_KEYS: dict[str, tuple[str, str]] = {
-    _flat_name(group, f.name): (group, f.name) for group, cls in GROUPS.items() for f in fields(cls)
+    _flat_name(group, f.name): (group, f.name)
+    for group, cls in GROUPS.items()
+    for f in fields(cls)
+    if (group, f.name) not in GROUPED_ONLY
 }
 """Each flat key of the old ``data`` section -> ``(group, field)`` of today's (``"synth_train"`` -> ``("synth",
 "train")``). Options of a labelled dataset (``root``, ``format``, label files, ...) kept their place."""

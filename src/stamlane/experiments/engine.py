@@ -37,7 +37,7 @@ from stamlane.experiments.scoring import (
     score_temporal,
 )
 from stamlane.experiments.stats import Scores, views
-from stamlane.experiments.store import DONE, StoreError, finished, mark_finished, write_atomic
+from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.quiet import quiet_libraries
 
@@ -182,32 +182,6 @@ def _check_run_config(run: Path) -> None:
         raise ExperimentError(str(err)) from None
 
 
-_RECORD_TYPES: dict[str, tuple[type, ...]] = {
-    "run": (str,),
-    "last_ckpt": (str,),
-    "frames": (int,),
-    "seed": (int,),
-    "train_minutes": (int, float),
-    "pretrain_minutes": (int, float),
-    "scores": (dict,),
-    "labels": (dict,),
-}
-"""The values of a finished run's record (``done.json``) the engine computes with, and their types."""
-
-
-def _check_record(record: dict[str, Any], path: Path) -> None:
-    """A finished run's record is data: each value the engine uses of the type it computes with (``frames: null``
-    was a TypeError far from the file); one line naming the file and the key."""
-    for key, types in _RECORD_TYPES.items():
-        value = record.get(key)
-        if value is None and key in ("pretrain_minutes", "scores", "labels"):
-            continue  # written later, or only by two-stage recipes
-        if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
-            continue
-        wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
-        raise ExperimentError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
-
-
 def _run_data(run: Path, section: str) -> dict[str, Any]:
     """A section of a run folder's config (``data``, ``model``) as a mapping."""
     path = run / "config.yaml"
@@ -314,8 +288,9 @@ class Experiment:
         return self.out / "predictions" / name / (split if source == "real" else f"{split}@{source}")
 
     def scored_splits(self) -> tuple[str, ...]:
-        """``splits``, and the `REVEAL_SPLITS` the set has."""
-        extra = [s for s in REVEAL_SPLITS if s not in self.splits and (self.root / f"{s}.json").is_file()]
+        """``splits``, and the `REVEAL_SPLITS` the set has (a label file with key frames)."""
+        files = [self.root / f"{s}.json" for s in REVEAL_SPLITS if s not in self.splits]
+        extra = [f.stem for f in files if f.is_file() and f.stat().st_size > 0]
         return (*self.splits, *extra)
 
     def probes_of(self, split: str, record: dict[str, Any]) -> tuple[str, ...]:
@@ -417,7 +392,6 @@ class Experiment:
         except StoreError as err:
             raise ExperimentError(str(err)) from None
         if record is not None:
-            _check_record(record, self.out / name / DONE)
             _check_run_config(Path(record["run"]))
             _verify_checkpoint(record, self.out / name)
             if record.get("recipe_args", True) != row.recipe_args:

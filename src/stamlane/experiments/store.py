@@ -36,13 +36,20 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-RECORD_TYPES: dict[str, type] = {
-    "frames": int,
-    "scores": dict,
-    "labels": dict,
-    "last_ckpt_sha256": str,
+RECORD_TYPES: dict[str, tuple[type, ...]] = {
+    "run": (str,),
+    "last_ckpt": (str,),
+    "frames": (int,),
+    "seed": (int,),
+    "train_minutes": (int, float),
+    "pretrain_minutes": (int, float),
+    "scores": (dict,),
+    "labels": (dict,),
+    "last_ckpt_sha256": (str,),
 }
 """The type of each value of a run record that is read back (a tampered record is refused, not half used)."""
+OPTIONAL = ("pretrain_minutes", "scores", "labels", "last_ckpt_sha256")
+"""Values a finished record may lack: written later, only by two-stage recipes, or by older versions."""
 
 
 def _inside(path: str, top: Path) -> bool:
@@ -95,16 +102,14 @@ def finished(
         value = record.get(key)
         if value is not None and (not isinstance(value, str) or not _inside(value, top)):
             raise StoreError(f"{path}: {key} {value!r} is not a path inside {top}; delete the folder to run it again")
-    for key, kind in RECORD_TYPES.items():
+    for key, types in RECORD_TYPES.items():  # frames: null was a TypeError far from the file
         value = record.get(key)
-        if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
-            raise StoreError(f"{path}: {key} {value!r} is not {kind.__name__}; delete the folder to run it again")
-    if not (isinstance(record.get("run"), str) and isinstance(record.get("last_ckpt"), str)) or not isinstance(
-        record.get("frames"), int
-    ):
-        raise StoreError(
-            f"{path}: a finished run records its run folder, checkpoint and frames; delete the folder to run it again"
-        )
+        if value is None and key in OPTIONAL:
+            continue
+        if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
+            continue
+        wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
+        raise StoreError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
     ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
     if ckpt is not None:
         if not Path(ckpt).is_file():

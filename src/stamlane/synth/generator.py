@@ -914,7 +914,8 @@ def generate_dataset(
                 for k, v in clip_stats.items():
                     totals[k] += v
                 bar.update(1)
-            (root / f"{split}.json").write_text(_json_lines(records))
+            if records or split not in ("reveal", "reveal-traffic"):  # a set without them: no empty label files
+                (root / f"{split}.json").write_text(_json_lines(records))
             if extra.get(split):  # the clean clips alone too: the set as it was before factor clips
                 clean = [r for r in records if r["raw_file"].split("/")[1] not in clip_factors]
                 (root / f"{split}-clean.json").write_text(_json_lines(clean))
