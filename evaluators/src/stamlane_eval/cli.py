@@ -57,6 +57,8 @@ EXIT_BAD_INPUT = 2
 MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
 MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")  # an image beside a .lines.txt: a CULane dataset root, not predictions
+SWAP_SAMPLE = 16  # list entries looked at (evenly spread) for images beside their .lines.txt: 2 x 16 stat calls
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -181,6 +183,12 @@ def _build_parser() -> OneLineParser:
         cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
         _output_format(cu, official="what the C++ tool writes to its -o file, per IoU threshold")
         cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
+        cu.add_argument(
+            "--as-given",
+            action="store_true",
+            help="score PRED and GT in the order given even where they look swapped (images beside PRED's "
+            ".lines.txt and none beside GT's; TuSimple files: run_time in GT and not in PRED)",
+        )
         cu.set_defaults(default_size=size)
 
     vd = sub.add_parser(
@@ -270,9 +278,28 @@ def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | No
         raise
 
 
+def _timed(records: Sequence[dict]) -> bool:
+    """Whether any record carries ``run_time``: every prediction does (lane.py requires it), a label never."""
+    return any("run_time" in r for r in records)
+
+
+def _swapped_tusimple(args: argparse.Namespace, preds: Sequence[dict], gts: Sequence[dict]) -> str | None:
+    """Why PRED and GT look given in the wrong order, or None: no record of PRED has a ``run_time`` (every
+    prediction needs one) while GT's records have one."""
+    if _timed(preds) or not _timed(gts):
+        return None
+    return (
+        f"{args.pred} has no run_time (a label file?) and {args.gt} has one (a prediction file?): the files look "
+        f"swapped; the order is stamlane-eval {args.command} PRED GT"
+    )
+
+
 def _run_tusimple(args: argparse.Namespace) -> int:
     preds = read_tusimple(args.pred)
     gts = read_tusimple(args.gt)
+    swapped = _swapped_tusimple(args, preds, gts)
+    if swapped:  # never a valid input: a prediction without run_time is refused by lane.py's check anyway
+        raise LaneFileError(swapped)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -284,6 +311,9 @@ def _run_tusimple(args: argparse.Namespace) -> int:
         raise LaneFileError(f"{where}{line}: {e.message}") from None
     for w in caught:
         print(f"stamlane-eval: warning: {args.pred}: {w.message}", file=sys.stderr)
+    if args.time_limit and res.late_images:
+        message = tusimple.late_message(res.late_images, res.images, "--no-time-limit")
+        print(f"stamlane-eval: warning: {args.pred}: {message}", file=sys.stderr)
     if args.per_image:
         _write_jsonl(
             args.per_image,
@@ -321,8 +351,12 @@ def _run_culane(args: argparse.Namespace) -> int:
     if args.pred.suffix == ".json" or args.gt.suffix == ".json":
         if args.size is None:
             raise LaneFileError(f"{args.gt}: TuSimple-format files need --size WxH (TuSimple images are 1280x720)")
-        gt_map, rows = tusimple_lanes(read_tusimple(args.gt), args.gt)
-        pred_map, _ = tusimple_lanes(read_tusimple(args.pred), args.pred, rows)
+        gt_records, pred_records = read_tusimple(args.gt), read_tusimple(args.pred)
+        swapped = None if args.as_given else _swapped_tusimple(args, pred_records, gt_records)
+        if swapped:
+            raise LaneFileError(f"{swapped} (--as-given scores them as given)")
+        gt_map, rows = tusimple_lanes(gt_records, args.gt)
+        pred_map, _ = tusimple_lanes(pred_records, args.pred, rows)
         entries = list(gt_map)
         preds = [pred_map.get(e, []) for e in entries]
         gts = [gt_map[e] for e in entries]
@@ -330,6 +364,8 @@ def _run_culane(args: argparse.Namespace) -> int:
         if not args.pred.is_dir():
             raise LaneFileError(f"{args.pred}: not a directory")
         entries = culane_entries(args.gt, args.list)
+        if not args.as_given:
+            _refuse_swapped_folders(args, entries)
         gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
         in_gt, in_pred = Inside(gt_root), Inside(pred_root)
         gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
@@ -369,6 +405,37 @@ def _run_culane(args: argparse.Namespace) -> int:
         print(f"{args.command} ({args.variant}), {res.images} images, {format_wxh(size)}, width {args.width}")
         print(_table(rows))
     return 0
+
+
+def _images_beside(root: Path, entries: Sequence[str]) -> int:
+    """How many of ``entries`` have an image (``IMAGE_SUFFIXES``) beside their ``.lines.txt`` under ``root``
+    (looked up, never read)."""
+    found = 0
+    for entry in entries:
+        lines = culane_lines_path(root, entry)
+        stem = lines.name[: -len(".lines.txt")]
+        found += any(os.path.isfile(lines.parent / (stem + suffix)) for suffix in IMAGE_SUFFIXES)  # no OSError
+    return found
+
+
+def _refuse_swapped_folders(args: argparse.Namespace, entries: Sequence[str]) -> None:
+    """Refuse folders that look given in the wrong order (P and R would be exchanged, silently): the images lie
+    beside the ``.lines.txt`` of PRED, as in a CULane dataset root, and beside none of GT's. Looked at on
+    ``SWAP_SAMPLE`` entries spread over the list; a prediction folder holds no images (``stamlane predict``
+    writes its overlays elsewhere).
+
+    Raises:
+        LaneFileError: naming both folders, the order and ``--as-given``.
+    """
+    sample = list(entries[:: max(1, len(entries) // SWAP_SAMPLE)][:SWAP_SAMPLE])
+    in_pred = _images_beside(args.pred, sample)
+    if 2 * in_pred < len(sample) or _images_beside(args.gt, sample):
+        return
+    raise LaneFileError(
+        f"{args.pred} holds the images beside its .lines.txt ({in_pred} of {len(sample)} looked at), as a dataset "
+        f"root does, and {args.gt} none: the folders look swapped; the order is stamlane-eval {args.command} "
+        f"PRED_DIR GT_DIR (--as-given scores them as given)"
+    )
 
 
 def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace) -> None:
