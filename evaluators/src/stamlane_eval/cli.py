@@ -6,6 +6,7 @@
     stamlane-eval apollo PRED_DIR GT_DIR ...     (the culane command with ApolloScape's 3384x2710)
     stamlane-eval video PRED_DIR GT_DIR [--list LIST] [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
                         [--jobs N] [--json] [--per-sequence FILE]
+    stamlane-eval video PRED.json GT.json ...    (TuSimple json-lines, or folders of them; sequence: raw_file's folder)
     stamlane-eval video PRED_DIR GT_DIR --temporal [--protocol vil100|openlane-v] [--list LIST] [--iou 0.5 0.8]
                         [--size WxH] [--sizes FILE] [--jobs N] [--json] [--per-sequence FILE]   (RVLD's Rs/Rj/Rm)
 
@@ -38,6 +39,7 @@ from stamlane_eval.cli_tools import (
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
+    TUSIMPLE_SUFFIXES,
     Inside,
     LaneFileError,
     culane_entries,
@@ -46,6 +48,7 @@ from stamlane_eval.io import (
     read_culane_lines,
     read_text,
     read_tusimple,
+    read_tusimple_frames,
     read_vil100_json,
     tusimple_lanes,
     video_frames,
@@ -194,9 +197,17 @@ def _build_parser() -> OneLineParser:
     vd = sub.add_parser(
         "video", help="video metrics: mIoU, F@0.5/0.8 (MMA-Net), identity switches, flicker; --temporal: Rs/Rj/Rm"
     )
-    vd.add_argument("pred", type=Path, help="folder of predictions, <sequence>/<frame>.lines.txt")
     vd.add_argument(
-        "gt", type=Path, help="VIL-100 root (Json/<video>/<frame>.jpg.json) or <sequence>/<frame>.lines.txt"
+        "pred",
+        type=Path,
+        help="folder of predictions, <sequence>/<frame>.lines.txt, or TuSimple json-lines (stamlane predict's "
+        "predictions.json; sequence: the folder of raw_file)",
+    )
+    vd.add_argument(
+        "gt",
+        type=Path,
+        help="VIL-100 root (Json/<video>/<frame>.jpg.json), <sequence>/<frame>.lines.txt, or TuSimple records: a "
+        "json-lines file or a folder of .json files (frame_labels/)",
     )
     vd.add_argument(
         "--list", type=Path, help="frames in time order, <sequence>/<frame> per line; default: every frame, by name"
@@ -464,7 +475,7 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
     seqs: dict[str, list[tuple[str, Path]]] = {}
     first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
     last = None
-    for i, entry in enumerate(culane_entries(gt, list_file), 1):
+    for i, entry in enumerate(culane_entries(gt if gt.is_dir() else gt.parent, list_file), 1):
         rel = entry.strip().lstrip("/")
         rel = rel[len("JPEGImages/") :] if rel.startswith("JPEGImages/") else rel  # evaluate_iou.py drops it too
         if "/" not in rel:
@@ -509,32 +520,76 @@ def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
     return out
 
 
+def _is_tusimple(path: Path) -> bool:
+    """Whether ``stamlane-eval video`` reads ``path`` as TuSimple records (`read_tusimple_frames`): a file, or a
+    folder with ``.json`` / ``.jsonl`` files directly in it and neither a VIL-100 ``Json/`` folder nor any
+    ``.lines.txt`` under it."""
+    if path.is_file():
+        return True
+    if not path.is_dir() or (path / "Json").is_dir():
+        return False
+    try:
+        if not any(q.name.endswith(TUSIMPLE_SUFFIXES) for q in path.iterdir()):
+            return False
+    except OSError:
+        return False
+    return not any(any(f.endswith(".lines.txt") for f in files) for _, _, files in os.walk(path))
+
+
 def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[video.Frame]]:
-    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing file: no lanes)."""
-    if not args.pred.is_dir():
-        raise LaneFileError(f"{args.pred}: not a directory")
+    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing one: no lanes)."""
+    pred_tusimple = _is_tusimple(args.pred)
+    if not pred_tusimple and not args.pred.is_dir():
+        raise LaneFileError(f"{args.pred}: not a directory, nor a TuSimple json-lines file")
     sizes = _read_sizes(args.sizes)
-    kind, layout = video_frames(args.gt)
+    gt_frames = None
+    if _is_tusimple(args.gt):
+        gt_frames = read_tusimple_frames(args.gt, "gt")
+        kind = "tusimple"
+        layout = {seq: [(stem, args.gt) for stem in stems] for seq, stems in gt_frames.sequences.items()}
+    else:
+        kind, layout = video_frames(args.gt)
     if args.list is not None:
         layout = _listed_frames(args.gt, args.list, kind)
+    pred_frames = None
+    if pred_tusimple:
+        pred_frames = read_tusimple_frames(args.pred, "pred", None if gt_frames is None else gt_frames.rows)
     sequences: dict[str, list[video.Frame]] = {}
+    predicted = 0
     for seq, frames in layout.items():
         out = []
         for stem, path in frames:
-            inside(path, args.gt)  # nothing read outside the folders given, through links either
-            if kind == "vil100":
-                lanes, ids, size = read_vil100_json(path)
+            if gt_frames is not None:
+                lanes, ids, size = gt_frames.lanes.get((seq, stem)), None, None
+                if lanes is None:
+                    raise LaneFileError(f"{args.list}: frame {seq}/{stem} is not in {args.gt}")
             else:
-                lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
+                inside(path, args.gt)  # nothing read outside the folders given, through links either
+                if kind == "vil100":
+                    lanes, ids, size = read_vil100_json(path)
+                else:
+                    lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
             size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
             if size is None and need_size:
                 raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
-            pred_path = args.pred / seq / f"{stem}.lines.txt"
-            preds = read_culane_lines(
-                inside(pred_path, args.pred) if pred_path.exists() else pred_path, prediction=True
-            )
+            if pred_frames is not None:
+                preds = pred_frames.lanes.get((seq, stem))
+                predicted += preds is not None
+                preds = preds or []
+            else:
+                pred_path = args.pred / seq / f"{stem}.lines.txt"
+                found = pred_path.exists()
+                predicted += found
+                preds = read_culane_lines(inside(pred_path, args.pred) if found else pred_path, prediction=True)
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
+    if not predicted:  # every frame scored as missed: most likely a wrong folder or layout, not a model
+        where = "a record" if pred_frames is not None else f"a file {args.pred}/<sequence>/<frame>.lines.txt"
+        print(
+            f"stamlane-eval: warning: {args.pred}: no prediction for any of the {sum(map(len, layout.values()))} "
+            f"frames (expected {where} per frame of {args.gt}); every frame scores as without lanes",
+            file=sys.stderr,
+        )
     return sequences
 
 
