@@ -320,11 +320,11 @@ def _run_tusimple(args: argparse.Namespace) -> int:
         where = {"pred": args.pred, "gt": args.gt}.get(e.source or "", f"{args.pred} / {args.gt}")
         line = f": line {e.line}" if e.line is not None else ""
         raise LaneFileError(f"{where}{line}: {e.message}") from None
-    for w in caught:
-        print(f"stamlane-eval: warning: {args.pred}: {w.message}", file=sys.stderr)
+    said = [str(w.message) for w in caught]
     if args.time_limit and res.late_images:
-        message = tusimple.late_message(res.late_images, res.images, "--no-time-limit")
-        print(f"stamlane-eval: warning: {args.pred}: {message}", file=sys.stderr)
+        said.append(tusimple.late_message(res.late_images, res.images, "--no-time-limit"))
+    if said:  # at most one warning line, whatever there is to say
+        print(f"stamlane-eval: warning: {args.pred}: {'; '.join(said)}", file=sys.stderr)
     if args.per_image:
         _write_jsonl(
             args.per_image,

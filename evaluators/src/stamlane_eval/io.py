@@ -988,7 +988,10 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
                 )
             seqs.setdefault(seq, []).append((stem, path))
     if not seqs:
-        raise LaneFileError(f"{root}: no annotation found (expected Json/<video>/*.json or <video>/*.lines.txt)")
+        raise LaneFileError(
+            f"{root}: no annotation found (expected Json/<video>/*.json, <video>/*.lines.txt, or TuSimple records: "
+            f"*.json files in the folder, or a json-lines file)"
+        )
     return kind, seqs
 
 
