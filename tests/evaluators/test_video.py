@@ -313,3 +313,22 @@ def test_tusimple_frames_of_the_generator(capsys: pytest.CaptureFixture[str], tm
     }
     want = video.evaluate({s: [frames[s, k] for k in range(1, 13)] for s in ("clips/test-0000", "clips/test-0001")})
     assert res == want.as_dict()  # record order is time order: the flicker count needs 8 and 12 where they are
+
+
+def test_swapped_tusimple_records_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Labels given as PRED and predictions (with run_time) as GT: one line naming the order; --as-given scores
+    them as given (P and R exchanged)."""
+    h = list(range(160, 360, 10))
+    gt = [{"raw_file": f"clips/c/{n}.jpg", "lanes": [[100 + n] * len(h)], "h_samples": h} for n in range(3)]
+    pred = [{**r, "lanes": [[100] * len(h), [500] * len(h)], "run_time": 5.0} for r in gt]
+    (tmp_path / "gt.json").write_text("".join(json.dumps(r) + "\n" for r in gt))
+    (tmp_path / "pred.json").write_text("".join(json.dumps(r) + "\n" for r in pred))
+    args = ["--size", "640x360", "--json"]
+    assert main(["video", str(tmp_path / "pred.json"), str(tmp_path / "gt.json"), *args]) == 0
+    right = json.loads(capsys.readouterr().out)["0.5"]
+    assert main(["video", str(tmp_path / "gt.json"), str(tmp_path / "pred.json"), *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "look swapped" in err and "PRED GT" in err
+    assert main(["video", str(tmp_path / "gt.json"), str(tmp_path / "pred.json"), *args, "--as-given"]) == 0
+    given = json.loads(capsys.readouterr().out)["0.5"]
+    assert (given["fp"], given["fn"], given["precision"]) == (right["fn"], right["fp"], right["recall"])

@@ -244,6 +244,11 @@ def _build_parser() -> OneLineParser:
     )
     _output_format(vd, official=None)
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
+    vd.add_argument(
+        "--as-given",
+        action="store_true",
+        help="score TuSimple PRED and GT in the order given even where they look swapped (run_time in GT, not PRED)",
+    )
 
     return parser
 
@@ -554,6 +559,11 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
     pred_frames = None
     if pred_tusimple:
         pred_frames = read_tusimple_frames(args.pred, "pred", None if gt_frames is None else gt_frames.rows)
+        if gt_frames is not None and gt_frames.timed and not pred_frames.timed and not args.as_given:
+            raise LaneFileError(
+                f"{args.pred} has no run_time (a label file?) and {args.gt} has one (a prediction file?): the files "
+                f"look swapped; the order is stamlane-eval video PRED GT (--as-given scores them as given)"
+            )
     sequences: dict[str, list[video.Frame]] = {}
     predicted = 0
     for seq, frames in layout.items():

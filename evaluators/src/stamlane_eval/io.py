@@ -1011,11 +1011,13 @@ class TuSimpleFrames:
         lanes: per ``(sequence, frame)``, the lanes as ``(N, 2)`` float64 ``(x, y)`` points in original pixels,
             rows with x < 0 dropped (a lane absent on every row: 0 points, as an empty line of a ``.lines.txt``).
         rows: per ``(sequence, frame)``, its ``h_samples``.
+        timed: records that carry a ``run_time`` (predictions do, labels never: a sign of swapped inputs).
     """
 
     sequences: dict[str, list[str]]
     lanes: dict[tuple[str, str], list[np.ndarray]]
     rows: dict[tuple[str, str], list]
+    timed: int = 0
 
 
 def tusimple_frame_key(raw_file: str) -> tuple[str, str] | None:
@@ -1092,6 +1094,7 @@ def read_tusimple_frames(
     lanes: dict[tuple[str, str], list[np.ndarray]] = {}
     out_rows: dict[tuple[str, str], list] = {}
     first: dict[tuple[str, str], str] = {}
+    timed = 0
     for file in _tusimple_files(root):
         if file is not root:
             inside(file, root)
@@ -1101,6 +1104,7 @@ def read_tusimple_frames(
                 check_tusimple(records, "gt")
             except TuSimpleInputError as e:
                 raise LaneFileError(f"{file}: {unit} {e.line}: {e.message}") from None
+        timed += sum("run_time" in rec for rec in records)
         for i, rec in enumerate(records, 1):
             where = f"{file}: {unit} {i}"
             name = rec.get("raw_file")
@@ -1125,7 +1129,7 @@ def read_tusimple_frames(
             sequences.setdefault(key[0], []).append(key[1])
             lanes[key] = tusimple_points(rec["lanes"], h)
             out_rows[key] = h
-    return TuSimpleFrames(dict(sorted(sequences.items())), lanes, out_rows)
+    return TuSimpleFrames(dict(sorted(sequences.items())), lanes, out_rows, timed)
 
 
 def _frame_rows(h: object, rows: dict[tuple[str, str], list] | None, key: tuple[str, str], where: str) -> list:
