@@ -602,6 +602,8 @@ def test_video_tusimple_setups_that_cannot_be_scored_are_one_line(
     text_gt = _tree(tmp_path / "text", {"clips/c/1.lines.txt": LANE})
     bare = _jsonl(tmp_path / "bare.json", [{"raw_file": "clips/c/1.jpg", "lanes": [[1, 2, 3]], "run_time": 5}])
     assert "no h_samples" in _refused(capsys, "video", bare, text_gt, "--size", "640x360")
+    err = _refused(capsys, "video", bare, gt)
+    assert f"{gt}: frame clips/c/1: no image size: give --size" in err
     (tmp_path / "list.txt").write_text("clips/c/1.jpg\nclips/c/9.jpg\n")
     err = _refused(capsys, "video", bare, gt, "--size", "640x360", "--list", tmp_path / "list.txt")
     assert "clips/c/9 is not in" in err

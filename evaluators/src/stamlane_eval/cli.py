@@ -581,7 +581,8 @@ def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[vid
                     lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
             size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
             if size is None and need_size:
-                raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
+                where = path if gt_frames is None else f"{args.gt}: frame {seq}/{stem}"  # TuSimple: no size at all
+                raise LaneFileError(f"{where}: no image size: give --size WxH (or --sizes FILE)")
             if pred_frames is not None:
                 preds = pred_frames.lanes.get((seq, stem))
                 predicted += preds is not None
