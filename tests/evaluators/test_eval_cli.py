@@ -27,7 +27,7 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, s
 def test_tusimple_table_json_and_per_image(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     exp = json.loads((GOLDEN / "tusimple_expected.json").read_text())
     code, out, err = _run(capsys, "tusimple", TS_PRED, TS_GT)
-    assert code == 0 and err == ""
+    assert code == 0 and err.count("\n") == 1 and "1 of 22 images" in err  # the image at 200.001 ms, said once
     assert "accuracy %" in out and f"{100 * exp['totals']['accuracy']:.2f}" in out  # percent, like the papers
     code, out, _ = _run(capsys, "tusimple", TS_PRED, TS_GT, "--json", "--per-image", tmp_path / "per.jsonl")
     res = json.loads(out)
@@ -42,8 +42,8 @@ def test_tusimple_table_json_and_per_image(capsys: pytest.CaptureFixture[str], t
 def test_tusimple_without_the_time_limit(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """--no-time-limit scores the golden set's image timed at 200.001 ms on its lanes; every other image as before."""
     exp = json.loads((GOLDEN / "tusimple_expected.json").read_text())
-    code, _, _ = _run(capsys, "tusimple", TS_PRED, TS_GT, "--no-time-limit", "--per-image", tmp_path / "per.jsonl")
-    assert code == 0
+    code, _, err = _run(capsys, "tusimple", TS_PRED, TS_GT, "--no-time-limit", "--per-image", tmp_path / "per.jsonl")
+    assert code == 0 and err == ""  # nothing scored as missed for its time: nothing to warn about
     rows = [json.loads(x) for x in (tmp_path / "per.jsonl").read_text().splitlines()]
     preds = [json.loads(x) for x in TS_PRED.read_text().splitlines()]
     gts = {g["raw_file"]: g for g in map(json.loads, TS_GT.read_text().splitlines())}
@@ -57,6 +57,52 @@ def test_tusimple_without_the_time_limit(capsys: pytest.CaptureFixture[str], tmp
             assert (row["acc"], row["fn"]) != (e["acc"], e["fn"])  # the rule had scored it as missed
         else:
             assert (row["acc"], row["fp"], row["fn"]) == (e["acc"], e["fp"], e["fn"])
+
+
+def test_tusimple_late_images_are_warned_in_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The 200 ms rule, kept, and said: one line with the count and the flag; --json carries the count."""
+    preds = [{**PRED_REC, "raw_file": f"{i}.jpg", "run_time": 250 if i % 2 else 5} for i in range(40)]
+    gts = [{**GT_REC, "raw_file": f"{i}.jpg"} for i in range(40)]
+    p, g = _write(tmp_path / "pred.json", preds), _write(tmp_path / "gt.json", gts)
+    code, out, err = _run(capsys, "tusimple", p, g, "--json")
+    assert code == 0 and err.count("\n") == 1
+    assert "20 of 40 images" in err and "200 ms" in err and "--no-time-limit" in err and str(p) in err
+    res = json.loads(out)
+    assert res["late_images"] == 20 and res["accuracy"] == 0.5  # scored as missed, as lane.py does
+    code, out, err = _run(capsys, "tusimple", p, g, "--json", "--no-time-limit")
+    assert code == 0 and err == ""
+    assert json.loads(out)["late_images"] == 20 and json.loads(out)["accuracy"] == 1.0
+
+
+def test_tusimple_swapped_files_are_named(capsys: pytest.CaptureFixture[str]) -> None:
+    """GT PRED instead of PRED GT: one line naming the order, exit 2 (never a valid input: PRED needs run_time)."""
+    code, out, err = _run(capsys, "tusimple", TS_GT, TS_PRED)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "look swapped" in err and "PRED GT" in err and str(TS_GT) in err
+    code, _, err = _run(capsys, "culane", TS_GT, TS_PRED, "--size", "1280x720")  # the culane metric on json
+    assert code == 2 and "look swapped" in err and "--as-given" in err
+    code, _, err = _run(capsys, "culane", TS_GT, TS_PRED, "--size", "1280x720", "--as-given")
+    assert code == 2 and "look swapped" not in err and "h_samples" in err  # read as given: the pred has no rows
+
+
+def test_culane_swapped_folders_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A dataset root (images beside the .lines.txt) given as PRED and a prediction folder as GT: refused in one
+    line (P and R would be exchanged silently); --as-given scores them as given; the right order is unchanged."""
+    root = tmp_path / "culane"
+    shutil.copytree(CU / "anno", root)
+    for lines in root.rglob("*.lines.txt"):
+        (lines.parent / (lines.name[: -len(".lines.txt")] + ".jpg")).write_bytes(b"")
+    code, out, err = _run(capsys, "culane", root, CU / "pred", "--list", CU / "list.txt")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "look swapped" in err and "PRED_DIR GT_DIR" in err and "--as-given" in err
+    code, _, err = _run(capsys, "culane", root, CU / "pred")  # without a list too
+    assert code == 2 and "look swapped" in err
+    code, right, _ = _run(capsys, "culane", CU / "pred", root, "--list", CU / "list.txt", "--json")
+    code2, plain, _ = _run(capsys, "culane", CU / "pred", CU / "anno", "--list", CU / "list.txt", "--json")
+    assert code == code2 == 0 and json.loads(right) == json.loads(plain)
+    code, given, _ = _run(capsys, "culane", root, CU / "pred", "--list", CU / "list.txt", "--json", "--as-given")
+    swapped, normal = json.loads(given)["0.5"], json.loads(plain)["0.5"]
+    assert code == 0 and (swapped["fp"], swapped["fn"]) == (normal["fn"], normal["fp"])
 
 
 @pytest.mark.parametrize("variant", ["official", "lanedet"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from types import ModuleType
 
 import numpy as np
@@ -92,6 +93,7 @@ def _expected(images: list[dict], prefix: str) -> dict[str, float]:
         f"{prefix}/tusimple_fp": fp,
         f"{prefix}/tusimple_fn": fn,
         f"{prefix}/tusimple_f1": tusimple.paper_f1(fp, fn),
+        f"{prefix}/tusimple_late": float(sum(im["run_time"] > tusimple.MAX_RUN_TIME_MS for im in ts)),
     }
     for t in (0.3, 0.5):
         c = cu.totals[t]
@@ -120,9 +122,14 @@ def test_callback_in_trainer(golden: ModuleType) -> None:
         enable_progress_bar=False,
         enable_model_summary=False,
     )
-    trainer.fit(model, loader, loader)
+    with pytest.warns(UserWarning, match="run_time over 200 ms") as caught:
+        trainer.fit(model, loader, loader)
+    late = [w for w in caught if "run_time over 200 ms" in str(w.message)]
+    assert len(late) == 1 and "1 of 22 images" in str(late[0].message)  # the golden image at 200.001 ms
+    assert "LaneEvalCallback(tusimple_time_limit=False)" in str(late[0].message)
     want = _expected(images, "val")
     got = {k: float(v) for k, v in trainer.callback_metrics.items() if k.startswith("val/")}
+    assert got["val/tusimple_late"] == 1.0
     assert set(got) == set(want)
     for k, v in want.items():
         assert got[k] == pytest.approx(v, rel=1e-6), k  # logged as float32
@@ -131,6 +138,35 @@ def test_callback_in_trainer(golden: ModuleType) -> None:
     assert set(test) == set(want)
     for k, v in want.items():
         assert test[k] == pytest.approx(v, rel=1e-6), k
+
+
+def test_callback_warns_about_late_images_once(golden: ModuleType) -> None:
+    """The 200 ms rule said once per callback (not every validation), its count logged every time; without the
+    rule (``tusimple_time_limit=False``) the late image is scored on its lanes and nothing is said."""
+    images = [im for im in _images(golden) if im["h_samples"] is not None]
+    outputs = {k: [im[k] for im in images] for k in ("pred_lanes", "gt_lanes", "h_samples", "orig_size", "run_time")}
+
+    class _Module:
+        device = torch.device("cpu")
+
+        def __init__(self) -> None:
+            self.logged: dict[str, float] = {}
+
+        def log(self, name: str, value: float) -> None:
+            self.logged[name] = value
+
+    for time_limit, said in ((True, 1), (False, 0)):
+        cb, module = LaneEvalCallback(culane=False, tusimple_time_limit=time_limit), _Module()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(2):  # two validations
+                cb._reset(module)
+                cb._update(outputs)
+                cb._log(module, "val")
+        assert sum("run_time over 200 ms" in str(w.message) for w in caught) == said
+        assert module.logged["val/tusimple_late"] == 1.0
+        want = _expected(images, "val")["val/tusimple_accuracy"]
+        assert (module.logged["val/tusimple_accuracy"] == want) == time_limit  # the late image: missed, or not
 
 
 def test_callback_fixed_size_and_bad_outputs(golden: ModuleType) -> None:

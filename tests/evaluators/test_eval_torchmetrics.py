@@ -7,6 +7,7 @@ import os
 import socket
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 from types import ModuleType
 
@@ -43,6 +44,26 @@ def test_tusimple_metric_equals_function(golden: ModuleType) -> None:
     assert float(got["lane_f1"]) == want.lane_f1
     m.reset()
     assert int(m.images) == 0
+
+
+def test_tusimple_metric_says_the_200_ms_rule(golden: ModuleType) -> None:
+    """compute warns once with the count of images scored as missed for their run_time and returns it as late;
+    time_limit=False scores them on their lanes (as tusimple.evaluate(..., time_limit=False)) and says nothing."""
+    preds, gts = golden.tusimple_records()
+    m = TuSimpleMetric()
+    _tusimple_update(m, preds, gts)
+    with pytest.warns(UserWarning, match=r"1 of 22 images have a run_time over 200 ms") as caught:
+        got = m.compute()
+    assert len(caught) == 1 and "TuSimpleMetric(time_limit=False)" in str(caught[0].message)
+    assert int(got["late"]) == 1 == tusimple.evaluate(preds, gts).late_images
+    free = TuSimpleMetric(time_limit=False)
+    _tusimple_update(free, preds, gts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = free.compute()
+    want = tusimple.evaluate(preds, gts, time_limit=False)
+    assert float(got["accuracy"]) == want.accuracy and float(got["fn"]) == want.fn and int(got["late"]) == 1
+    assert want.accuracy != tusimple.evaluate(preds, gts).accuracy
 
 
 @pytest.mark.parametrize("batch", [1, 3, 7, 1000])

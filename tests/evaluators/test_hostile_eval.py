@@ -537,3 +537,113 @@ def test_too_many_thresholds_are_one_line(tmp_path: Path, capsys: pytest.Capture
     assert "more than the limit of 100" in _refused(capsys, "culane", pred, gt, "--iou", *many)
     code, _, err = _run(capsys, "culane", pred, gt, "--iou", *[f"{i / 100:.2f}" for i in range(100)], "--json")
     assert code == 0, err
+
+
+# ------------------------------------------------------------------- TuSimple records read as video frames
+_H = [300, 310, 320]
+_REC = {"raw_file": "clips/c/1.jpg", "lanes": [[100, 101, 102]], "h_samples": _H}
+_REC2 = {**_REC, "raw_file": "clips/c/2.jpg"}
+
+
+def _jsonl(path: Path, records: list[object]) -> Path:
+    path.write_text("".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in records))
+    return path
+
+
+VIDEO_TUSIMPLE_BAD = {  # case: (gt text or records, pred records, words of the one line)
+    "gt_invalid_json": (["{oops"], [_REC], "invalid JSON"),
+    "gt_list_of_numbers": ("[1, 2]", [_REC], "record 1: expected a JSON object"),
+    "gt_empty_list": ("[]", [_REC], "non-empty JSON list"),
+    "gt_nested_deep": ("[" * 100_000 + "]" * 100_000, [_REC], "nested too deeply"),
+    "gt_no_folder": ([{**_REC, "raw_file": "1.jpg"}], [_REC], "names no folder"),
+    "gt_same_frame_two_names": ([_REC, {**_REC, "raw_file": "clips/c/1.png"}], [_REC], "labelled twice"),
+    "gt_same_raw_file": ([_REC, _REC], [_REC], "two labels for one image"),
+    "gt_boolean": ("[" + json.dumps(_REC).replace("100", "true") + "]", [_REC], "boolean"),
+    "gt_nan": ([json.dumps(_REC).replace("100", "NaN")], [_REC], "not a pixel coordinate"),
+    "gt_lane_length": ([{**_REC, "lanes": [[1, 2]]}], [_REC], "h_samples has 3"),
+    "gt_no_h_samples": ([{"raw_file": "clips/c/1.jpg", "lanes": []}], [_REC], "h_samples"),
+    "pred_string_x": ([_REC], [{**_REC, "lanes": [["1", 2, 3]]}], "not 3 JSON numbers"),
+    "pred_boolean_x": ([_REC], [json.dumps(_REC).replace("100", "false")], "boolean"),
+    "pred_infinite_x": ([_REC], [json.dumps(_REC).replace("100", "Infinity")], "non-finite"),
+    "pred_short_lane": ([_REC], [{**_REC, "lanes": [[1, 2]]}], "not 3 JSON numbers"),
+    "pred_bad_h_samples": ([_REC], [{**_REC, "h_samples": ["300", 310, 320]}], "h_samples must be"),
+    "pred_huge_h_samples": ([_REC], [{**_REC, "h_samples": [1e300, 310, 320]}], "no pixel row"),
+    "pred_twice": ([_REC, _REC2], [_REC, _REC2, _REC], "predicted twice"),
+    "pred_too_many_lanes": ([_REC], [{**_REC, "lanes": [[1, 2, 3]] * 65}], "more than the limit"),
+    "pred_no_raw_file": ([_REC], [{"lanes": [], "h_samples": _H}], "needs raw_file"),
+    "pred_raw_file_number": ([_REC], [{**_REC, "raw_file": 7}], "needs raw_file"),
+    "pred_not_object": ([_REC], ["[1]"], "JSON object"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(VIDEO_TUSIMPLE_BAD))
+@pytest.mark.parametrize("temporal", [False, True])
+def test_video_tusimple_records_that_cannot_be_scored_are_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str, temporal: bool
+) -> None:
+    gt_recs, pred_recs, words = VIDEO_TUSIMPLE_BAD[case]
+    gt = tmp_path / "gt.json"
+    if isinstance(gt_recs, str):
+        gt.write_text(gt_recs)
+    else:
+        _jsonl(gt, gt_recs)
+    pred = _jsonl(tmp_path / "pred.json", pred_recs)
+    err = _refused(capsys, "video", pred, gt, "--size", "640x360", *(["--temporal"] if temporal else []))
+    assert words in err, err
+    assert str(gt if case.startswith("gt") else pred) in err, err
+
+
+def test_video_tusimple_setups_that_cannot_be_scored_are_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_hang: None
+) -> None:
+    """Predictions without h_samples against CULane text, a list naming an unlabelled frame, special files and
+    links to outside among the records, an empty folder, a file past the size limit: one line, exit 2, unread."""
+    gt = _jsonl(tmp_path / "gt.json", [_REC, _REC2])
+    text_gt = _tree(tmp_path / "text", {"clips/c/1.lines.txt": LANE})
+    bare = _jsonl(tmp_path / "bare.json", [{"raw_file": "clips/c/1.jpg", "lanes": [[1, 2, 3]], "run_time": 5}])
+    assert "no h_samples" in _refused(capsys, "video", bare, text_gt, "--size", "640x360")
+    err = _refused(capsys, "video", bare, gt)
+    assert f"{gt}: frame clips/c/1: no image size: give --size" in err
+    (tmp_path / "list.txt").write_text("clips/c/1.jpg\nclips/c/9.jpg\n")
+    err = _refused(capsys, "video", bare, gt, "--size", "640x360", "--list", tmp_path / "list.txt")
+    assert "clips/c/9 is not in" in err
+    folder = tmp_path / "labels"
+    folder.mkdir()
+    assert "TuSimple records" in _refused(capsys, "video", bare, folder, "--size", "640x360")
+    secret = tmp_path / "secret.txt"
+    secret.write_text('{"raw_file": "the secret 12 34"}\n')
+    (folder / "a.json").symlink_to(secret)
+    err = _refused(capsys, "video", bare, folder, "--size", "640x360")
+    assert "outside the folder" in err and "secret 12" not in err
+    (folder / "a.json").unlink()
+    os.mkfifo(folder / "a.json")
+    assert "FIFO" in _refused(capsys, "video", bare, folder, "--size", "640x360")
+    (folder / "a.json").unlink()
+    (folder / "a.json").symlink_to("/dev/zero")
+    _refused(capsys, "video", bare, folder, "--size", "640x360")
+    os.mkfifo(tmp_path / "fifo")
+    _refused(capsys, "video", tmp_path / "fifo", gt, "--size", "640x360")
+    _refused(capsys, "video", bare, tmp_path / "fifo", "--size", "640x360")
+    big = tmp_path / "big.json"
+    with open(big, "wb") as f:
+        f.truncate(MAX_FILE_BYTES + 1)
+    assert "larger than the limit" in _refused(capsys, "video", big, gt, "--size", "640x360")
+    assert "larger than the limit" in _refused(capsys, "video", bare, big, "--size", "640x360")
+
+
+@SETTINGS
+@given(st.lists(_JSON_VALUES, min_size=1, max_size=3), st.lists(_JSON_VALUES, min_size=1, max_size=3))
+def test_video_tusimple_malformed_records(
+    tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str], lanes: list, preds: list
+) -> None:
+    """Property: random JSON as the lanes of TuSimple frames (ground truth and predictions): numbers or one line,
+    exit 2."""
+    folder = tmp_path_factory.mktemp("vidts")
+    gt = _jsonl(folder / "gt.json", [{**_REC, "raw_file": f"clips/c/{i}.jpg", "lanes": v} for i, v in enumerate(lanes)])
+    pred = _jsonl(
+        folder / "pred.json", [{**_REC, "raw_file": f"clips/c/{i}.jpg", "lanes": v} for i, v in enumerate(preds)]
+    )
+    for extra in ([], ["--temporal"]):
+        code, out, err = _run(capsys, "video", pred, gt, "--size", "640x360", "--json", *extra)
+        assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
+        assert code in (0, 2) and (code == 0) == bool(out), err

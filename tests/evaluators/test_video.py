@@ -205,3 +205,130 @@ def test_mma_net_on_the_small_outcome_sets(name: str) -> None:
         assert res.totals[float(t)].f1 == want["F"]
         by_name = {s.name: s.miou for s in res.per_sequence}
         assert video.dataset_miou([by_name[v] for v in want["video_order"]]) == want["miou"]
+
+
+# ------------------------------------------------------------------- TuSimple json-lines as video sequences
+def _tusimple_record(raw_file: str, lanes: list[np.ndarray]) -> dict | None:
+    """One frame's CULane lanes as a TuSimple record, where that is exact: every x >= 0, each lane's rows strictly
+    monotone and all in one direction (the points come back in their order); None where it is not."""
+    ys = sorted({float(y) for lane in lanes for y in lane[:, 1]})
+    steps = [np.sign(np.diff(lane[:, 1])) for lane in lanes if len(lane) > 1]
+    if any((lane[:, 0] < 0).any() or len(set(lane[:, 1].tolist())) != len(lane) for lane in lanes):
+        return None
+    directions = {float(d) for s in steps for d in s}
+    if len(directions) > 1:
+        return None
+    if directions == {-1.0}:
+        ys = ys[::-1]
+    ys = ys or [0.0]  # a frame without points still needs a row (lanes of no point: all -2)
+    xs = [[dict(zip(lane[:, 1].tolist(), lane[:, 0].tolist(), strict=True)).get(y, -2) for y in ys] for lane in lanes]
+    return {"raw_file": raw_file, "lanes": xs, "h_samples": ys}
+
+
+def _golden_as_tusimple(tmp_path: Path) -> tuple[Path, Path, Path, Path, list[str]]:
+    """The golden temporal set's sequences that TuSimple can hold exactly, in both formats: CULane text trees
+    (copied), TuSimple json-lines (``<sequence>/<frame>.jpg``; a missing prediction file: no record), a --list
+    and --sizes. Returns (text pred, text anno, json pred, json gt, sequences)."""
+    from stamlane_eval.io import read_culane_lines
+
+    entries = (GOLDEN_T / "list.txt").read_text().split()
+    by_seq: dict[str, list[str]] = {}
+    for entry in entries:
+        by_seq.setdefault(entry.rsplit("/", 1)[0], []).append(entry)
+    kept, gt_recs, pred_recs = [], [], []
+    for seq, frames in by_seq.items():
+        g = [_tusimple_record(f"{e}.jpg", read_culane_lines(GOLDEN_T / "anno" / f"{e}.lines.txt")) for e in frames]
+        have = [e for e in frames if (GOLDEN_T / "pred" / f"{e}.lines.txt").exists()]
+        p = [_tusimple_record(f"{e}.jpg", read_culane_lines(GOLDEN_T / "pred" / f"{e}.lines.txt")) for e in have]
+        if all(r is not None for r in g + p):
+            kept.append(seq)
+            gt_recs += g
+            pred_recs += p
+    for name in ("anno", "pred"):
+        for seq in kept:
+            for src in (GOLDEN_T / name / seq).glob("*.lines.txt"):
+                (tmp_path / name / seq).mkdir(parents=True, exist_ok=True)
+                (tmp_path / name / seq / src.name).write_bytes(src.read_bytes())
+    (tmp_path / "list.txt").write_text("".join(e + "\n" for e in entries if e.rsplit("/", 1)[0] in kept))
+    sizes = json.loads((GOLDEN_T / "sizes.json").read_text())
+    (tmp_path / "sizes.json").write_text(json.dumps({k: f"{w}x{h}" for k, (h, w) in sizes.items()}))
+    for name, recs in (("gt.json", gt_recs), ("pred.json", pred_recs)):
+        (tmp_path / name).write_text("".join(json.dumps(r) + "\n" for r in recs))
+    return tmp_path / "pred", tmp_path / "anno", tmp_path / "pred.json", tmp_path / "gt.json", kept
+
+
+@pytest.mark.parametrize("mode", [[], ["--temporal"], ["--list"]])
+def test_tusimple_json_lines_score_as_culane_text(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, mode: list[str]
+) -> None:
+    """The same lanes as CULane text folders and as TuSimple json-lines (sequence: the folder of raw_file), in
+    any mix: the same numbers, per sequence too, for the video metrics and RVLD's."""
+    text_pred, text_anno, json_pred, json_gt, kept = _golden_as_tusimple(tmp_path)
+    assert len(kept) >= 15  # most of the golden sequences, edge cases among them
+    extra = ["--sizes", str(tmp_path / "sizes.json")]
+    extra += ["--list", str(tmp_path / "list.txt")] if mode == ["--list"] else mode
+    got = {}
+    for pred, gt in ((text_pred, text_anno), (json_pred, json_gt), (text_pred, json_gt), (json_pred, text_anno)):
+        per = tmp_path / f"seq-{pred.name}-{gt.name}.jsonl"
+        code = main(["video", str(pred), str(gt), "--json", "--per-sequence", str(per), *extra])
+        out, err = capsys.readouterr()
+        assert code == 0 and err == "", err
+        got[pred.name, gt.name] = (json.loads(out), per.read_text())
+    want = got["pred", "anno"]
+    assert want[0]["sequences"] == len(kept)
+    for key, value in got.items():
+        assert value == want, key
+
+
+def test_tusimple_frames_of_the_generator(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The generator's frame_labels/<clip>.json (one JSON list per clip, every frame) as ground truth and
+    stamlane predict's predictions.json (json-lines, key frames only): frames in record order (1 .. 12, not
+    1, 10, 11, 12, 2 ...), a frame without a record has no lanes, a prediction of an unlabelled frame is left out."""
+    h = list(range(160, 360, 10))
+    lane = [100 + 2 * i for i in range(len(h))]
+    labels = tmp_path / "frame_labels"
+    labels.mkdir()
+    preds = []
+    for clip in ("test-0000", "test-0001"):
+        recs = [
+            {"raw_file": f"clips/{clip}/{n}.jpg", "lanes": [lane], "h_samples": h, "occluded": []} for n in range(1, 13)
+        ]
+        (labels / f"{clip}.json").write_text(json.dumps(recs))
+        preds += [{**r, "run_time": 5.0} for r in recs if r["raw_file"].endswith(("/12.jpg", "/8.jpg"))]
+    preds.append({"raw_file": "clips/other/1.jpg", "lanes": [lane], "h_samples": h, "run_time": 5.0})
+    (tmp_path / "predictions.json").write_text("".join(json.dumps(r) + "\n" for r in preds))
+    code = main(["video", str(tmp_path / "predictions.json"), str(labels), "--size", "640x360", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0 and err == "", err
+    res = json.loads(out)
+    assert res["sequences"] == 2 and res["frames"] == 24 and res["0.5"]["tp"] == 4 and res["0.5"]["fn"] == 20
+    frames = {
+        (s, k): video.Frame(
+            [np.array([[x, y] for x, y in zip(lane, h, strict=True)])] if k in (8, 12) else [],
+            [np.array([[x, y] for x, y in zip(lane, h, strict=True)], dtype=float)],
+            size=SIZE,
+        )
+        for s in ("clips/test-0000", "clips/test-0001")
+        for k in range(1, 13)
+    }
+    want = video.evaluate({s: [frames[s, k] for k in range(1, 13)] for s in ("clips/test-0000", "clips/test-0001")})
+    assert res == want.as_dict()  # record order is time order: the flicker count needs 8 and 12 where they are
+
+
+def test_swapped_tusimple_records_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Labels given as PRED and predictions (with run_time) as GT: one line naming the order; --as-given scores
+    them as given (P and R exchanged)."""
+    h = list(range(160, 360, 10))
+    gt = [{"raw_file": f"clips/c/{n}.jpg", "lanes": [[100 + n] * len(h)], "h_samples": h} for n in range(3)]
+    pred = [{**r, "lanes": [[100] * len(h), [500] * len(h)], "run_time": 5.0} for r in gt]
+    (tmp_path / "gt.json").write_text("".join(json.dumps(r) + "\n" for r in gt))
+    (tmp_path / "pred.json").write_text("".join(json.dumps(r) + "\n" for r in pred))
+    args = ["--size", "640x360", "--json"]
+    assert main(["video", str(tmp_path / "pred.json"), str(tmp_path / "gt.json"), *args]) == 0
+    right = json.loads(capsys.readouterr().out)["0.5"]
+    assert main(["video", str(tmp_path / "gt.json"), str(tmp_path / "pred.json"), *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "look swapped" in err and "PRED GT" in err
+    assert main(["video", str(tmp_path / "gt.json"), str(tmp_path / "pred.json"), *args, "--as-given"]) == 0
+    given = json.loads(capsys.readouterr().out)["0.5"]
+    assert (given["fp"], given["fn"], given["precision"]) == (right["fn"], right["fp"], right["recall"])

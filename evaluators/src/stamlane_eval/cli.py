@@ -6,6 +6,7 @@
     stamlane-eval apollo PRED_DIR GT_DIR ...     (the culane command with ApolloScape's 3384x2710)
     stamlane-eval video PRED_DIR GT_DIR [--list LIST] [--iou 0.5 0.8] [--match-iou 0.5] [--width 30] [--size WxH]
                         [--jobs N] [--json] [--per-sequence FILE]
+    stamlane-eval video PRED.json GT.json ...    (TuSimple json-lines, or folders of them; sequence: raw_file's folder)
     stamlane-eval video PRED_DIR GT_DIR --temporal [--protocol vil100|openlane-v] [--list LIST] [--iou 0.5 0.8]
                         [--size WxH] [--sizes FILE] [--jobs N] [--json] [--per-sequence FILE]   (RVLD's Rs/Rj/Rm)
 
@@ -38,6 +39,7 @@ from stamlane_eval.cli_tools import (
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
+    TUSIMPLE_SUFFIXES,
     Inside,
     LaneFileError,
     culane_entries,
@@ -46,6 +48,7 @@ from stamlane_eval.io import (
     read_culane_lines,
     read_text,
     read_tusimple,
+    read_tusimple_frames,
     read_vil100_json,
     tusimple_lanes,
     video_frames,
@@ -57,6 +60,8 @@ EXIT_BAD_INPUT = 2
 MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
 MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")  # an image beside a .lines.txt: a CULane dataset root, not predictions
+SWAP_SAMPLE = 16  # list entries looked at (evenly spread) for images beside their .lines.txt: 2 x 16 stat calls
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -181,14 +186,28 @@ def _build_parser() -> OneLineParser:
         cu.add_argument("--variant", choices=culane.VARIANTS, default="official", help="official C++ or lanedet")
         _output_format(cu, official="what the C++ tool writes to its -o file, per IoU threshold")
         cu.add_argument("--per-image", type=Path, metavar="FILE", help="write per-image results as json-lines")
+        cu.add_argument(
+            "--as-given",
+            action="store_true",
+            help="score PRED and GT in the order given even where they look swapped (images beside PRED's "
+            ".lines.txt and none beside GT's; TuSimple files: run_time in GT and not in PRED)",
+        )
         cu.set_defaults(default_size=size)
 
     vd = sub.add_parser(
         "video", help="video metrics: mIoU, F@0.5/0.8 (MMA-Net), identity switches, flicker; --temporal: Rs/Rj/Rm"
     )
-    vd.add_argument("pred", type=Path, help="folder of predictions, <sequence>/<frame>.lines.txt")
     vd.add_argument(
-        "gt", type=Path, help="VIL-100 root (Json/<video>/<frame>.jpg.json) or <sequence>/<frame>.lines.txt"
+        "pred",
+        type=Path,
+        help="folder of predictions, <sequence>/<frame>.lines.txt, or TuSimple json-lines (stamlane predict's "
+        "predictions.json; sequence: the folder of raw_file)",
+    )
+    vd.add_argument(
+        "gt",
+        type=Path,
+        help="VIL-100 root (Json/<video>/<frame>.jpg.json), <sequence>/<frame>.lines.txt, or TuSimple records: a "
+        "json-lines file or a folder of .json files (frame_labels/)",
     )
     vd.add_argument(
         "--list", type=Path, help="frames in time order, <sequence>/<frame> per line; default: every frame, by name"
@@ -225,6 +244,11 @@ def _build_parser() -> OneLineParser:
     )
     _output_format(vd, official=None)
     vd.add_argument("--per-sequence", type=Path, metavar="FILE", help="write per-sequence results as json-lines")
+    vd.add_argument(
+        "--as-given",
+        action="store_true",
+        help="score TuSimple PRED and GT in the order given even where they look swapped (run_time in GT, not PRED)",
+    )
 
     return parser
 
@@ -270,9 +294,28 @@ def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | No
         raise
 
 
+def _timed(records: Sequence[dict]) -> bool:
+    """Whether any record carries ``run_time``: every prediction does (lane.py requires it), a label never."""
+    return any("run_time" in r for r in records)
+
+
+def _swapped_tusimple(args: argparse.Namespace, preds: Sequence[dict], gts: Sequence[dict]) -> str | None:
+    """Why PRED and GT look given in the wrong order, or None: no record of PRED has a ``run_time`` (every
+    prediction needs one) while GT's records have one."""
+    if _timed(preds) or not _timed(gts):
+        return None
+    return (
+        f"{args.pred} has no run_time (a label file?) and {args.gt} has one (a prediction file?): the files look "
+        f"swapped; the order is stamlane-eval {args.command} PRED GT"
+    )
+
+
 def _run_tusimple(args: argparse.Namespace) -> int:
     preds = read_tusimple(args.pred)
     gts = read_tusimple(args.gt)
+    swapped = _swapped_tusimple(args, preds, gts)
+    if swapped:  # never a valid input: a prediction without run_time is refused by lane.py's check anyway
+        raise LaneFileError(swapped)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -282,8 +325,11 @@ def _run_tusimple(args: argparse.Namespace) -> int:
         where = {"pred": args.pred, "gt": args.gt}.get(e.source or "", f"{args.pred} / {args.gt}")
         line = f": line {e.line}" if e.line is not None else ""
         raise LaneFileError(f"{where}{line}: {e.message}") from None
-    for w in caught:
-        print(f"stamlane-eval: warning: {args.pred}: {w.message}", file=sys.stderr)
+    said = [str(w.message) for w in caught]
+    if args.time_limit and res.late_images:
+        said.append(tusimple.late_message(res.late_images, res.images, "--no-time-limit"))
+    if said:  # at most one warning line, whatever there is to say
+        print(f"stamlane-eval: warning: {args.pred}: {'; '.join(said)}", file=sys.stderr)
     if args.per_image:
         _write_jsonl(
             args.per_image,
@@ -321,8 +367,12 @@ def _run_culane(args: argparse.Namespace) -> int:
     if args.pred.suffix == ".json" or args.gt.suffix == ".json":
         if args.size is None:
             raise LaneFileError(f"{args.gt}: TuSimple-format files need --size WxH (TuSimple images are 1280x720)")
-        gt_map, rows = tusimple_lanes(read_tusimple(args.gt), args.gt)
-        pred_map, _ = tusimple_lanes(read_tusimple(args.pred), args.pred, rows)
+        gt_records, pred_records = read_tusimple(args.gt), read_tusimple(args.pred)
+        swapped = None if args.as_given else _swapped_tusimple(args, pred_records, gt_records)
+        if swapped:
+            raise LaneFileError(f"{swapped} (--as-given scores them as given)")
+        gt_map, rows = tusimple_lanes(gt_records, args.gt)
+        pred_map, _ = tusimple_lanes(pred_records, args.pred, rows)
         entries = list(gt_map)
         preds = [pred_map.get(e, []) for e in entries]
         gts = [gt_map[e] for e in entries]
@@ -330,6 +380,8 @@ def _run_culane(args: argparse.Namespace) -> int:
         if not args.pred.is_dir():
             raise LaneFileError(f"{args.pred}: not a directory")
         entries = culane_entries(args.gt, args.list)
+        if not args.as_given:
+            _refuse_swapped_folders(args, entries)
         gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
         in_gt, in_pred = Inside(gt_root), Inside(pred_root)
         gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
@@ -371,6 +423,37 @@ def _run_culane(args: argparse.Namespace) -> int:
     return 0
 
 
+def _images_beside(root: Path, entries: Sequence[str]) -> int:
+    """How many of ``entries`` have an image (``IMAGE_SUFFIXES``) beside their ``.lines.txt`` under ``root``
+    (looked up, never read)."""
+    found = 0
+    for entry in entries:
+        lines = culane_lines_path(root, entry)
+        stem = lines.name[: -len(".lines.txt")]
+        found += any(os.path.isfile(lines.parent / (stem + suffix)) for suffix in IMAGE_SUFFIXES)  # no OSError
+    return found
+
+
+def _refuse_swapped_folders(args: argparse.Namespace, entries: Sequence[str]) -> None:
+    """Refuse folders that look given in the wrong order (P and R would be exchanged, silently): the images lie
+    beside the ``.lines.txt`` of PRED, as in a CULane dataset root, and beside none of GT's. Looked at on
+    ``SWAP_SAMPLE`` entries spread over the list; a prediction folder holds no images (``stamlane predict``
+    writes its overlays elsewhere).
+
+    Raises:
+        LaneFileError: naming both folders, the order and ``--as-given``.
+    """
+    sample = list(entries[:: max(1, len(entries) // SWAP_SAMPLE)][:SWAP_SAMPLE])
+    in_pred = _images_beside(args.pred, sample)
+    if 2 * in_pred < len(sample) or _images_beside(args.gt, sample):
+        return
+    raise LaneFileError(
+        f"{args.pred} holds the images beside its .lines.txt ({in_pred} of {len(sample)} looked at), as a dataset "
+        f"root does, and {args.gt} none: the folders look swapped; the order is stamlane-eval {args.command} "
+        f"PRED_DIR GT_DIR (--as-given scores them as given)"
+    )
+
+
 def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace) -> None:
     """Precision or recall 0/0 (no predicted lane, or no annotated lane, in any image): the C++ tool prints -1
     there, which is no rate; refused as a table or json (docs/evaluators.md, "What is scored and what is
@@ -397,7 +480,7 @@ def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple
     seqs: dict[str, list[tuple[str, Path]]] = {}
     first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
     last = None
-    for i, entry in enumerate(culane_entries(gt, list_file), 1):
+    for i, entry in enumerate(culane_entries(gt if gt.is_dir() else gt.parent, list_file), 1):
         rel = entry.strip().lstrip("/")
         rel = rel[len("JPEGImages/") :] if rel.startswith("JPEGImages/") else rel  # evaluate_iou.py drops it too
         if "/" not in rel:
@@ -442,32 +525,82 @@ def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
     return out
 
 
+def _is_tusimple(path: Path) -> bool:
+    """Whether ``stamlane-eval video`` reads ``path`` as TuSimple records (`read_tusimple_frames`): a file, or a
+    folder with ``.json`` / ``.jsonl`` files directly in it and neither a VIL-100 ``Json/`` folder nor any
+    ``.lines.txt`` under it."""
+    if path.is_file():
+        return True
+    if not path.is_dir() or (path / "Json").is_dir():
+        return False
+    try:
+        if not any(q.name.endswith(TUSIMPLE_SUFFIXES) for q in path.iterdir()):
+            return False
+    except OSError:
+        return False
+    return not any(any(f.endswith(".lines.txt") for f in files) for _, _, files in os.walk(path))
+
+
 def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[video.Frame]]:
-    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing file: no lanes)."""
-    if not args.pred.is_dir():
-        raise LaneFileError(f"{args.pred}: not a directory")
+    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing one: no lanes)."""
+    pred_tusimple = _is_tusimple(args.pred)
+    if not pred_tusimple and not args.pred.is_dir():
+        raise LaneFileError(f"{args.pred}: not a directory, nor a TuSimple json-lines file")
     sizes = _read_sizes(args.sizes)
-    kind, layout = video_frames(args.gt)
+    gt_frames = None
+    if _is_tusimple(args.gt):
+        gt_frames = read_tusimple_frames(args.gt, "gt")
+        kind = "tusimple"
+        layout = {seq: [(stem, args.gt) for stem in stems] for seq, stems in gt_frames.sequences.items()}
+    else:
+        kind, layout = video_frames(args.gt)
     if args.list is not None:
         layout = _listed_frames(args.gt, args.list, kind)
+    pred_frames = None
+    if pred_tusimple:
+        pred_frames = read_tusimple_frames(args.pred, "pred", None if gt_frames is None else gt_frames.rows)
+        if gt_frames is not None and gt_frames.timed and not pred_frames.timed and not args.as_given:
+            raise LaneFileError(
+                f"{args.pred} has no run_time (a label file?) and {args.gt} has one (a prediction file?): the files "
+                f"look swapped; the order is stamlane-eval video PRED GT (--as-given scores them as given)"
+            )
     sequences: dict[str, list[video.Frame]] = {}
+    predicted = 0
     for seq, frames in layout.items():
         out = []
         for stem, path in frames:
-            inside(path, args.gt)  # nothing read outside the folders given, through links either
-            if kind == "vil100":
-                lanes, ids, size = read_vil100_json(path)
+            if gt_frames is not None:
+                lanes, ids, size = gt_frames.lanes.get((seq, stem)), None, None
+                if lanes is None:
+                    raise LaneFileError(f"{args.list}: frame {seq}/{stem} is not in {args.gt}")
             else:
-                lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
+                inside(path, args.gt)  # nothing read outside the folders given, through links either
+                if kind == "vil100":
+                    lanes, ids, size = read_vil100_json(path)
+                else:
+                    lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
             size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
             if size is None and need_size:
-                raise LaneFileError(f"{path}: no image size: give --size WxH (or --sizes FILE)")
-            pred_path = args.pred / seq / f"{stem}.lines.txt"
-            preds = read_culane_lines(
-                inside(pred_path, args.pred) if pred_path.exists() else pred_path, prediction=True
-            )
+                where = path if gt_frames is None else f"{args.gt}: frame {seq}/{stem}"  # TuSimple: no size at all
+                raise LaneFileError(f"{where}: no image size: give --size WxH (or --sizes FILE)")
+            if pred_frames is not None:
+                preds = pred_frames.lanes.get((seq, stem))
+                predicted += preds is not None
+                preds = preds or []
+            else:
+                pred_path = args.pred / seq / f"{stem}.lines.txt"
+                found = pred_path.exists()
+                predicted += found
+                preds = read_culane_lines(inside(pred_path, args.pred) if found else pred_path, prediction=True)
             out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
         sequences[seq] = out
+    if not predicted:  # every frame scored as missed: most likely a wrong folder or layout, not a model
+        where = "a record" if pred_frames is not None else f"a file {args.pred}/<sequence>/<frame>.lines.txt"
+        print(
+            f"stamlane-eval: warning: {args.pred}: no prediction for any of the {sum(map(len, layout.values()))} "
+            f"frames (expected {where} per frame of {args.gt}); every frame scores as without lanes",
+            file=sys.stderr,
+        )
     return sequences
 
 

@@ -2,6 +2,8 @@
 
 - TuSimple: json-lines, one object per line (``raw_file``, ``lanes``, ``h_samples`` / ``run_time``).
 - CULane / ApolloScape: one ``.lines.txt`` per image, one lane per line, ``x1 y1 x2 y2 ...``.
+- Video: VIL-100 json per frame, CULane text per frame, or TuSimple records grouped into sequences by the folder
+  of ``raw_file`` (`read_tusimple_frames`).
 """
 
 from __future__ import annotations
@@ -28,10 +30,12 @@ __all__ = [
     "MAX_LANES",
     "MAX_LANE_POINTS",
     "MAX_LANE_WIDTH",
+    "TUSIMPLE_SUFFIXES",
     "CanvasBudget",
     "Inside",
     "LaneFileError",
     "TuSimpleFile",
+    "TuSimpleFrames",
     "TuSimpleInputError",
     "check_image_size",
     "check_tusimple",
@@ -44,7 +48,9 @@ __all__ = [
     "read_culane_lines",
     "read_text",
     "read_tusimple",
+    "read_tusimple_frames",
     "read_vil100_json",
+    "tusimple_frame_key",
     "tusimple_lanes",
     "tusimple_points",
     "tusimple_record_error",
@@ -200,7 +206,7 @@ def _read(path: str | os.PathLike) -> str:
         raise LaneFileError(f"{path}: cannot read: {e.strerror}") from None
 
 
-def read_tusimple(path: str | os.PathLike) -> list[dict]:
+def read_tusimple(path: str | os.PathLike, *, text: str | None = None) -> list[dict]:
     """Read a TuSimple json-lines file (predictions or ground truth).
 
     As the official ``lane.py`` (``[json.loads(line) for line in readlines()]``), every line must be one JSON
@@ -209,6 +215,7 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
 
     Args:
         path: the file.
+        text: its content when already read.
 
     Returns:
         The records in file order.
@@ -218,7 +225,8 @@ def read_tusimple(path: str | os.PathLike) -> list[dict]:
             JSON ``true``/``false`` where a number belongs, or an empty file.
     """
     p = Path(path)
-    text = _read(p)
+    if text is None:
+        text = _read(p)
     if not text.strip():
         raise LaneFileError(f"{p}: empty file")
     body = text[:-1] if text.endswith("\n") else text
@@ -315,9 +323,9 @@ def iter_tusimple(
         yield i, (LaneFileError(f"{p}: line {i}: {problem}") if problem else rec)
 
 
-def _refuse_booleans(records: list[dict], text: str, path: Path, first_line: int = 1) -> None:
+def _refuse_booleans(records: list[dict], text: str, path: Path, first_line: int = 1, unit: str = "line") -> None:
     """JSON ``true``/``false`` where a number belongs (lane.py would read them as 1 and 0): refused, a type error.
-    Only looked for when the words occur in the text at all."""
+    Only looked for when the words occur in the text at all (``unit``: how the message names a record)."""
     if "true" not in text and "false" not in text:
         return
     for i, rec in enumerate(records, first_line):
@@ -326,7 +334,7 @@ def _refuse_booleans(records: list[dict], text: str, path: Path, first_line: int
         for lane in lanes if isinstance(lanes, list) else []:
             values += _numbers(lane)
         if any(type(v) is bool for v in values):
-            raise LaneFileError(f"{path}: line {i}: a boolean (true/false) where a number belongs")
+            raise LaneFileError(f"{path}: {unit} {i}: a boolean (true/false) where a number belongs")
 
 
 def _numbers(value: object) -> list:
@@ -980,5 +988,176 @@ def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[s
                 )
             seqs.setdefault(seq, []).append((stem, path))
     if not seqs:
-        raise LaneFileError(f"{root}: no annotation found (expected Json/<video>/*.json or <video>/*.lines.txt)")
+        raise LaneFileError(
+            f"{root}: no annotation found (expected Json/<video>/*.json, <video>/*.lines.txt, or TuSimple records: "
+            f"*.json files in the folder, or a json-lines file)"
+        )
     return kind, seqs
+
+
+# ------------------------------------------------------------------------- TuSimple records as video frames
+TUSIMPLE_SUFFIXES = (".json", ".jsonl")
+"""Files of a folder that `read_tusimple_frames` reads (``frame_labels/<clip>.json``, ``predictions.json``)."""
+
+
+@dataclass(frozen=True)
+class TuSimpleFrames:
+    """TuSimple records as the frames of sequences: the sequence of a frame is the folder of its ``raw_file``
+    (``clips/0530/20.jpg``: sequence ``clips/0530``, frame ``20``).
+
+    Attributes:
+        sequences: per sequence (in name order, as the folders of CULane text), its frame names in the order of
+            the records, files of a folder in name order: time order as written (``1 .. 12``, not ``1, 10 ..``).
+        lanes: per ``(sequence, frame)``, the lanes as ``(N, 2)`` float64 ``(x, y)`` points in original pixels,
+            rows with x < 0 dropped (a lane absent on every row: 0 points, as an empty line of a ``.lines.txt``).
+        rows: per ``(sequence, frame)``, its ``h_samples``.
+        timed: records that carry a ``run_time`` (predictions do, labels never: a sign of swapped inputs).
+    """
+
+    sequences: dict[str, list[str]]
+    lanes: dict[tuple[str, str], list[np.ndarray]]
+    rows: dict[tuple[str, str], list]
+    timed: int = 0
+
+
+def tusimple_frame_key(raw_file: str) -> tuple[str, str] | None:
+    """``(sequence, frame)`` of a ``raw_file``: its folder and its name without the extension; None where it names
+    no folder."""
+    seq, _, name = raw_file.replace("\\", "/").rpartition("/")
+    seq = seq.strip("/")
+    stem = name[: name.rfind(".")] if "." in name else name
+    return (seq, stem) if seq and stem else None
+
+
+def _tusimple_file_records(path: Path) -> tuple[list[dict], str]:
+    """The records of one file: json-lines (``predictions.json``, ``challenging-frames.json``) or one JSON list of
+    objects (the generator's ``frame_labels/<clip>.json``), and how a message names a record."""
+    text = _read(path)
+    if not text.lstrip().startswith("["):
+        return read_tusimple(path, text=text), "line"
+    try:
+        with _gc_paused():
+            data = json.loads(text)
+    except ValueError:
+        return read_tusimple(path, text=text), "line"  # a json-lines file of arrays: its own message per line
+    except RecursionError:
+        raise LaneFileError(f"{path}: JSON nested too deeply") from None
+    if not isinstance(data, list) or not data:
+        raise LaneFileError(f"{path}: expected a non-empty JSON list of TuSimple records, or json-lines")
+    for i, rec in enumerate(data, 1):
+        if type(rec) is not dict:
+            raise LaneFileError(f"{path}: record {i}: expected a JSON object, got {type(rec).__name__}")
+    _refuse_booleans(data, text, path, unit="record")
+    return data, "record"
+
+
+def _tusimple_files(path: Path) -> list[Path]:
+    """A file, or the ``TUSIMPLE_SUFFIXES`` files directly in a folder, in name order."""
+    if not path.is_dir():
+        return [path]
+    files = sorted(q for q in path.iterdir() if q.name.endswith(TUSIMPLE_SUFFIXES) and not q.name.startswith("."))
+    if not files:
+        raise LaneFileError(f"{path}: no .json or .jsonl file in the folder (TuSimple records expected)")
+    return files
+
+
+def read_tusimple_frames(
+    path: str | os.PathLike, role: str, rows: dict[tuple[str, str], list] | None = None
+) -> TuSimpleFrames:
+    """THE typed reader of TuSimple records scored as video frames (``stamlane-eval video``): a json-lines file,
+    a file holding one JSON list of records, or a folder of such files (``.json``/``.jsonl`` directly in it, in
+    name order; a file that is a link to outside the folder is refused).
+
+    A ground truth (``role="gt"``) passes `check_tusimple` file by file (types, finite labels, every lane as long
+    as ``h_samples``); a frame is labelled once across all files. A prediction (``role="pred"``) has ``raw_file``
+    and ``lanes``, lanes of JSON numbers (no string, no ``true``/``false``), finite, one per row of its own
+    ``h_samples`` or, without them, of the ground truth's frame (``rows``); a frame is predicted once. A
+    prediction of a frame the ground truth lacks is left out, as a ``.lines.txt`` of such a frame is; so is its
+    checking when it has no ``h_samples`` of its own.
+
+    Args:
+        path: the file or folder.
+        role: ``"gt"`` or ``"pred"``.
+        rows: the ground truth's ``h_samples`` per ``(sequence, frame)`` when it is TuSimple (reading a
+            prediction), or None.
+
+    Returns:
+        The frames, grouped by sequence.
+
+    Raises:
+        LaneFileError: naming the file, the line (or record) and the problem.
+    """
+    if role not in ("gt", "pred"):
+        raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
+    root = Path(path)
+    sequences: dict[str, list[str]] = {}
+    lanes: dict[tuple[str, str], list[np.ndarray]] = {}
+    out_rows: dict[tuple[str, str], list] = {}
+    first: dict[tuple[str, str], str] = {}
+    timed = 0
+    for file in _tusimple_files(root):
+        if file is not root:
+            inside(file, root)
+        records, unit = _tusimple_file_records(file)
+        if role == "gt":
+            try:
+                check_tusimple(records, "gt")
+            except TuSimpleInputError as e:
+                raise LaneFileError(f"{file}: {unit} {e.line}: {e.message}") from None
+        timed += sum("run_time" in rec for rec in records)
+        for i, rec in enumerate(records, 1):
+            where = f"{file}: {unit} {i}"
+            name = rec.get("raw_file")
+            if type(name) is not str or not isinstance(rec.get("lanes"), list):
+                raise LaneFileError(f"{where}: needs raw_file (a string) and lanes (a list), has {sorted(rec)[:6]}")
+            key = tusimple_frame_key(name)
+            if key is None:
+                raise LaneFileError(
+                    f"{where}: raw_file {name!r:.80} names no folder: the folder of raw_file is the sequence "
+                    f"(clips/<clip>/<frame>.jpg)"
+                )
+            h = rec.get("h_samples")
+            if role == "pred":
+                if h is None and rows is not None and key not in rows:
+                    continue  # a frame the ground truth lacks: not scored
+                h = _frame_rows(h, rows, key, where)
+                _check_pred_lanes(rec["lanes"], len(h), where)
+            if key in first:
+                what = "labelled" if role == "gt" else "predicted"
+                raise LaneFileError(f"{where}: frame {key[0]}/{key[1]} is {what} twice (also at {first[key]})")
+            first[key] = where
+            sequences.setdefault(key[0], []).append(key[1])
+            lanes[key] = tusimple_points(rec["lanes"], h)
+            out_rows[key] = h
+    return TuSimpleFrames(dict(sorted(sequences.items())), lanes, out_rows, timed)
+
+
+def _frame_rows(h: object, rows: dict[tuple[str, str], list] | None, key: tuple[str, str], where: str) -> list:
+    """A prediction's rows: its own ``h_samples`` (a list of finite JSON numbers, at most ``MAX_LANE_POINTS``), or
+    the ground truth's frame's."""
+    if h is None:
+        h = None if rows is None else rows.get(key)
+        if h is None:
+            raise LaneFileError(
+                f"{where}: no h_samples, and the ground truth has none for this frame (give predictions with "
+                f"h_samples, as stamlane predict writes them, or TuSimple ground truth)"
+            )
+        return h
+    if not (isinstance(h, list) and len(h) <= MAX_LANE_POINTS and all(map(_is_number, h))):
+        raise LaneFileError(f"{where}: h_samples must be a list of at most {MAX_LANE_POINTS} JSON numbers")
+    if not all(math.isfinite(_to_float(v)) and abs(v) <= MAX_COORDINATE for v in h):
+        raise LaneFileError(f"{where}: h_samples holds a value that is no pixel row (|y| <= {MAX_COORDINATE:g})")
+    return h
+
+
+def _check_pred_lanes(pred_lanes: list, rows: int, where: str) -> None:
+    """A prediction's lanes: at most ``MAX_LANES``, each ``rows`` finite JSON numbers."""
+    if len(pred_lanes) > MAX_LANES:
+        raise LaneFileError(f"{where}: {len(pred_lanes)} lanes, more than the limit of {MAX_LANES}")
+    for k, lane in enumerate(pred_lanes):
+        if not (isinstance(lane, list) and len(lane) == rows and all(map(_is_number, lane))):
+            raise LaneFileError(
+                f"{where}: lane {k} is not {rows} JSON numbers (one per h_sample; no string, no true/false)"
+            )
+        if not all(math.isfinite(_to_float(v)) for v in lane):
+            raise LaneFileError(f"{where}: lane {k} has a non-finite x")

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,6 +43,8 @@ __all__ = [
     "evaluate_batch",
     "evaluate_image",
     "lanes_to_xs",
+    "late_count",
+    "late_message",
     "paper_f1",
     "prf",
 ]
@@ -89,7 +91,8 @@ class TuSimpleResult:
     gt ``raw_file``s). ``f1`` is the paper's F1, the harmonic mean of ``1 - fp`` and ``1 - fn``.
     ``lane_precision``/``lane_recall``/``lane_f1`` are a different, count-based metric: matched gt lanes
     (``lane_tp``) over all predicted lanes / all gt lanes, with the official (not one-to-one) matching;
-    do not confuse them with the paper's F1.
+    do not confuse them with the paper's F1. ``late_images`` counts the images whose ``run_time`` exceeds
+    ``MAX_RUN_TIME_MS``: scored as missed by the benchmark's rule (lane.py), or on their lanes without it.
     """
 
     accuracy: float
@@ -104,6 +107,7 @@ class TuSimpleResult:
     lane_recall: float
     lane_f1: float
     per_image: list[TuSimpleImageResult] = field(default_factory=list, repr=False)
+    late_images: int = 0
 
     def as_dict(self) -> dict[str, float | int]:
         """The flat numbers (no per-image list), as the CLI's ``--json`` prints them."""
@@ -119,6 +123,7 @@ class TuSimpleResult:
             "lane_precision": self.lane_precision,
             "lane_recall": self.lane_recall,
             "lane_f1": self.lane_f1,
+            "late_images": self.late_images,
         }
 
 
@@ -354,7 +359,9 @@ def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool 
 
     Returns:
         Official accuracy/FP/FN (summed in prediction order, divided by the number of images), the paper's F1,
-        lane-count precision/recall/F1 and the per-image results in prediction order.
+        lane-count precision/recall/F1, the per-image results in prediction order and ``late_images``, the
+        images over 200 ms (no warning here: the command line and the torchmetrics class warn, each naming its
+        own switch).
 
     Raises:
         TuSimpleInputError: where lane.py raises, where its numbers would mean nothing (a gt naming an image
@@ -395,7 +402,24 @@ def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool 
             stacklevel=2,
         )
     per_image = _score(pred, gt, take, pred.run_times if time_limit else None)
-    return _result(per_image)
+    return replace(_result(per_image), late_images=late_count(pred.run_times))
+
+
+def late_count(run_times: Sequence[float] | np.ndarray | None) -> int:
+    """How many images the benchmark's time rule scores as missed: ``run_time > MAX_RUN_TIME_MS`` (a NaN is
+    within the limit, as ``NaN > 200`` is false in lane.py)."""
+    if run_times is None:
+        return 0
+    return int(np.count_nonzero(np.asarray(run_times, dtype=np.float64) > MAX_RUN_TIME_MS))
+
+
+def late_message(late: int, images: int, switch: str) -> str:
+    """The one line that says the 200 ms rule scored ``late`` of ``images`` images as missed, and names the
+    ``switch`` that scores them on their lanes (``--no-time-limit``, ``time_limit=False``, ...)."""
+    return (
+        f"{late} of {images} images have a run_time over {MAX_RUN_TIME_MS:g} ms and are scored as missed, as "
+        f"lane.py does; {switch} scores them on their lanes"
+    )
 
 
 def check_rates(result: TuSimpleResult) -> None:

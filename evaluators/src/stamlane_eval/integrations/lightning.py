@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 
 import lightning.pytorch as pl
@@ -13,6 +14,7 @@ from stamlane_eval import temporal as _temporal
 from stamlane_eval import video as _video
 from stamlane_eval.integrations.torchmetrics import CULaneMetric, TemporalStabilityMetric, TuSimpleMetric, VideoMetric
 from stamlane_eval.tusimple import lanes_to_xs
+from stamlane_eval.tusimple import late_message as tusimple_late_message
 
 __all__ = ["LaneEvalCallback"]
 
@@ -37,7 +39,9 @@ class LaneEvalCallback(pl.Callback):
     - ``gt_lanes``: the same for the ground truth;
     - ``h_samples``: ``list[int]`` (TuSimple rows) or ``None``;
     - ``orig_size``: ``(H, W)`` of the original image;
-    - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed);
+    - ``run_time`` (optional): milliseconds per image (TuSimple scores images over 200 ms as missed, unless
+      ``tusimple_time_limit=False``; their count is logged as ``{prefix}/tusimple_late`` and, the first time the
+      rule scores any, one warning says so);
     - ``sequence`` (needed by ``video`` and ``temporal``): per image, the name of the sequence it is a frame of;
       the frames of a sequence must come in time order (within this process: see
       :class:`~stamlane_eval.integrations.torchmetrics.TemporalStabilityMetric` for DDP).
@@ -47,7 +51,8 @@ class LaneEvalCallback(pl.Callback):
     The CULane metric draws each image at ``culane_size`` if given, else at the image's ``orig_size``.
 
     At epoch end it logs ``{prefix}/tusimple_accuracy``, ``{prefix}/tusimple_fp``, ``{prefix}/tusimple_fn``,
-    ``{prefix}/tusimple_f1`` (the paper's F1), ``{prefix}/culane_f1@0.5``, ``{prefix}/culane_precision@0.5``,
+    ``{prefix}/tusimple_f1`` (the paper's F1), ``{prefix}/tusimple_late`` (images over 200 ms),
+    ``{prefix}/culane_f1@0.5``, ``{prefix}/culane_precision@0.5``,
     ``{prefix}/culane_recall@0.5`` (and the same @0.3, ... for every threshold) through ``pl_module.log``;
     the sums are synchronised across processes by the torchmetrics states. With ``video``:
     ``{prefix}/video_miou``, ``{prefix}/video_f1@0.5`` (and precision, recall, at every ``video_iou_thresholds``)
@@ -69,6 +74,7 @@ class LaneEvalCallback(pl.Callback):
         temporal: compute RVLD's Rs / Rj / Rm (needs ``sequence``).
         video_iou_thresholds: thresholds of the video F and of Stable / Jump / Missing.
         temporal_protocol: ``"vil100"`` or ``"openlane-v"``.
+        tusimple_time_limit: apply TuSimple's 200 ms rule (lane.py does); False scores every image on its lanes.
     """
 
     def __init__(
@@ -85,6 +91,7 @@ class LaneEvalCallback(pl.Callback):
         temporal: bool = False,
         video_iou_thresholds: Sequence[float] = _video.VIDEO_IOU_THRESHOLDS,
         temporal_protocol: str = "vil100",
+        tusimple_time_limit: bool = True,
     ) -> None:
         super().__init__()
         if culane_size is not None and (len(culane_size) != 2 or min(culane_size) <= 0):
@@ -94,7 +101,8 @@ class LaneEvalCallback(pl.Callback):
         self.culane_size = None if culane_size is None else (int(culane_size[0]), int(culane_size[1]))
         self.prefix = prefix
         self.test_prefix = test_prefix
-        self.tusimple_metric = TuSimpleMetric()
+        self.tusimple_metric = TuSimpleMetric(time_limit=tusimple_time_limit)
+        self._late_warned = False  # the 200 ms rule is said once per callback, not every validation
         self.culane_metric = CULaneMetric(
             iou_thresholds, width, self.culane_size or _culane.CULANE_SIZE, variant=variant
         )
@@ -182,22 +190,31 @@ class LaneEvalCallback(pl.Callback):
                 self.temporal_metric.update(preds, gts, list(sequences), per_image)
 
     def _log(self, pl_module: pl.LightningModule, prefix: str) -> None:
-        if self.use_tusimple and self._any_images(self.tusimple_metric):
-            vals = self.tusimple_metric.compute()
+        images = self._image_count(self.tusimple_metric) if self.use_tusimple else 0
+        if images:
+            with warnings.catch_warnings():  # the metric's own warning names its switch; this one names ours
+                warnings.simplefilter("ignore", UserWarning)
+                vals = self.tusimple_metric.compute()
             for name in ("accuracy", "fp", "fn", "f1"):
                 pl_module.log(f"{prefix}/tusimple_{name}", float(vals[name]))
-        if self.use_culane and self._any_images(self.culane_metric):
+            late = int(vals["late"])
+            pl_module.log(f"{prefix}/tusimple_late", float(late))
+            if late and self.tusimple_metric.time_limit and not self._late_warned:
+                self._late_warned = True
+                switch = "LaneEvalCallback(tusimple_time_limit=False)"
+                warnings.warn(f"{prefix}: {tusimple_late_message(late, images, switch)}", stacklevel=2)
+        if self.use_culane and self._image_count(self.culane_metric):
             vals = self.culane_metric.compute()
             for t in self.culane_metric.iou_thresholds:
                 for name in ("f1", "precision", "recall"):
                     pl_module.log(f"{prefix}/culane_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
-        if self.use_video and self._any_images(self.video_metric):
+        if self.use_video and self._image_count(self.video_metric):
             vals = self.video_metric.compute()
             pl_module.log(f"{prefix}/video_miou", float(vals["miou"]))
             for t in self.video_metric.iou_thresholds:
                 for name in ("f1", "precision", "recall"):
                     pl_module.log(f"{prefix}/video_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
-        if self.use_temporal and self._any_images(self.temporal_metric):
+        if self.use_temporal and self._image_count(self.temporal_metric):
             vals = self.temporal_metric.compute()  # synchronised: every process takes the same branch below
             for t in self.temporal_metric.iou_thresholds:
                 if not _temporal.StabilityCounts(*(int(vals[f"{k}@{t:g}"]) for k in ("ns", "nj", "nm"))).total:
@@ -208,9 +225,9 @@ class LaneEvalCallback(pl.Callback):
             m.reset()
 
     @staticmethod
-    def _any_images(metric: TuSimpleMetric | CULaneMetric | VideoMetric | TemporalStabilityMetric) -> bool:
-        """Whether any process saw an image (every rank must take the same branch before compute's sync)."""
+    def _image_count(metric: TuSimpleMetric | CULaneMetric | VideoMetric | TemporalStabilityMetric) -> int:
+        """The images every process saw, summed (every rank must take the same branch before compute's sync)."""
         n = metric.images.clone()
         if torch.distributed.is_available() and torch.distributed.is_initialized():
             torch.distributed.all_reduce(n)
-        return int(n) > 0
+        return int(n)

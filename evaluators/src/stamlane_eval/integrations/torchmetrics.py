@@ -10,6 +10,7 @@ differs).
 from __future__ import annotations
 
 import hashlib
+import warnings
 from collections.abc import Hashable, Sequence
 
 import numpy as np
@@ -36,6 +37,13 @@ class TuSimpleMetric(Metric):
     ``update``, which the function refuses to see twice (a gt naming an image twice). As the function, ``compute``
     returns totals outside [0, 1] as lane.py computes them (images with more than 5 gt lanes; FP below 0): a
     training run logs them rather than stopping (``stamlane-eval`` refuses them: ``tusimple.check_rates``).
+
+    Images whose ``run_time`` exceeds 200 ms (``tusimple.MAX_RUN_TIME_MS``) are scored as missed, as lane.py
+    does, unless ``time_limit=False``; ``compute`` returns their count as ``late`` and, when the rule scored any,
+    warns once (a ``UserWarning`` naming the count and ``time_limit=False``).
+
+    Args:
+        time_limit: apply the benchmark's 200 ms rule (``tusimple.evaluate(..., time_limit=...)``).
     """
 
     full_state_update = False
@@ -43,12 +51,14 @@ class TuSimpleMetric(Metric):
     _FLOATS = ("acc", "fp", "fn")
     _INTS = ("images", "lane_tp", "lane_pred", "lane_gt")
 
-    def __init__(self, **kwargs: object) -> None:
+    def __init__(self, time_limit: bool = True, **kwargs: object) -> None:
         super().__init__(**kwargs)
+        self.time_limit = bool(time_limit)
         for name in self._FLOATS:
             self.add_state(f"{name}_sum", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
         for name in self._INTS:
             self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        self.add_state("late", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
 
     def _sums(self) -> TuSimpleSums:
         floats = {name: float(getattr(self, f"{name}_sum")) for name in self._FLOATS}
@@ -68,17 +78,34 @@ class TuSimpleMetric(Metric):
                 with :func:`stamlane_eval.tusimple.lanes_to_xs`.
             target: per image, gt lanes ``(G, R)``.
             h_samples: per image, the ``R`` row y values.
-            run_times: per image, milliseconds (default 0).
+            run_times: per image, milliseconds (default 0); over 200 ms: missed, unless ``time_limit=False``.
         """
-        sums = tusimple_update(self._sums(), tusimple.evaluate_batch(preds, target, h_samples, run_times))
+        per_image = tusimple.evaluate_batch(preds, target, h_samples, run_times if self.time_limit else None)
+        if run_times is not None:
+            if len(run_times) != len(preds):  # evaluate_batch checks it only when the rule applies
+                raise ValueError(f"expected {len(preds)} run_times, got {len(run_times)}")
+            self.late += tusimple.late_count([float(v) for v in run_times])
+        sums = tusimple_update(self._sums(), per_image)
         for name in self._FLOATS:
             getattr(self, f"{name}_sum").fill_(getattr(sums, name))
         for name in self._INTS:
             getattr(self, name).fill_(getattr(sums, name))
 
     def compute(self) -> dict[str, torch.Tensor]:
-        """``accuracy``, ``fp``, ``fn``, ``f1`` (paper), ``lane_precision``, ``lane_recall``, ``lane_f1``."""
-        return {k: torch.tensor(v, dtype=torch.float64) for k, v in tusimple_compute(self._sums()).items()}
+        """``accuracy``, ``fp``, ``fn``, ``f1`` (paper), ``lane_precision``, ``lane_recall``, ``lane_f1`` and
+        ``late`` (int64: images over 200 ms).
+
+        Warns:
+            UserWarning: once per call, when the 200 ms rule scored images as missed.
+        """
+        out = {k: torch.tensor(v, dtype=torch.float64) for k, v in tusimple_compute(self._sums()).items()}
+        late = int(self.late)
+        if late and self.time_limit:
+            warnings.warn(
+                tusimple.late_message(late, int(self.images), "TuSimpleMetric(time_limit=False)"), stacklevel=2
+            )
+        out["late"] = torch.tensor(late, dtype=torch.int64)
+        return out
 
 
 class CULaneMetric(Metric):
