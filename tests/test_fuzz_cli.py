@@ -1,5 +1,5 @@
 """Fuzzing the ``stamlane`` commands (hypothesis): hostile files, links, special files, sizes and argument
-combinations, one harness per command, each checked against the contract of README "Errors and limits":
+combinations, one harness per command, each checked against the contract of docs/safety.md:
 
 - exit status 0, or 2 with exactly one line on stderr and no traceback;
 - nothing among the inputs changed (every input file and folder hashed before and after, links included);

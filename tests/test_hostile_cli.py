@@ -1,5 +1,5 @@
 """Hostile input to the ``stamlane`` commands: one line and exit 2, never a traceback, a hang, a blown memory, code
-run from a checkpoint or a run folder, or an input overwritten (README, "Errors and limits").
+run from a checkpoint or a run folder, or an input overwritten (docs/safety.md).
 
 Each case is what a hostile user would try; the evaluator CLI's cases are in tests/evaluators/test_hostile_eval.py.
 """
