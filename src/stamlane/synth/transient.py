@@ -9,8 +9,8 @@ Kinds (`KEY_OCCLUDERS`), each drawn once per clip (the same pixels in every occl
 
 - ``"spray"``: an opaque textured band over the near road, the full width (spray thrown up by a truck ahead);
   never seen in training in this appearance;
-- ``"blobs"``: 3-6 opaque textured ellipses centred on the lane marks (mud or leaves on the lens); never seen in
-  training in this appearance;
+- ``"blobs"``: 3-6 opaque textured ellipses (10-20 % of the width) centred on the mid and near parts of the lane
+  marks, one mark after the other (mud or leaves on the lens); never seen in training in this appearance;
 - ``"flash"``: the frame overexposed under a bright veil, as the training glare corruption
   (`stamlane.data.corruption`): the in-distribution positive control.
 
@@ -95,14 +95,16 @@ class KeyOccluder:
             rows = np.arange(h, dtype=np.float32)[:, None]
             mask[(rows >= top + edge[None, :]) & (rows <= top + depth - edge[None, :])] = 255
         else:
-            points = np.concatenate([m for m in marks if len(m)], axis=0) if any(len(m) for m in marks) else None
-            for _ in range(int(rng.integers(3, 7))):
-                if points is not None:
-                    cx, cy = points[int(rng.integers(len(points)))]
+            near = [m[m[:, 1] >= horizon + 0.3 * ground] for m in marks if len(m)]  # the marks' mid and near parts
+            near = [m for m in near if len(m)]
+            for k in range(int(rng.integers(3, 7))):
+                if near:  # lane after lane, so that the blobs spread over the marks
+                    mark = near[k % len(near)]
+                    cx, cy = mark[int(rng.integers(len(mark)))]
                 else:
                     cx, cy = rng.uniform(0.2, 0.8) * w, horizon + rng.uniform(0.3, 0.9) * ground
-                axes = (int(rng.uniform(0.05, 0.11) * w), int(rng.uniform(0.05, 0.12) * h))
-                cv2.ellipse(mask, ((int(cx), int(cy)), axes, float(rng.uniform(0, 180))), 255, -1)
+                size = (int(rng.uniform(0.10, 0.20) * w), int(rng.uniform(0.08, 0.16) * h))  # the box's full sides
+                cv2.ellipse(mask, ((int(cx), int(cy)), size, float(rng.uniform(0, 180))), 255, -1)
         base = rng.uniform(70, 170, 3) if kind == "spray" else rng.uniform(20, 110, 3)  # grey-brown; dark, any hue
         texture = _noise(rng, h, w)[..., None] * float(rng.uniform(25, 45))
         grain = rng.standard_normal((h, w, 1)).astype(np.float32) * 6
