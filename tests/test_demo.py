@@ -101,6 +101,8 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
     assert set(stam4.probes) == {"key", "warped_key", "reversed", "other_clip", "exact"} and not single.probes
     assert not (quick / "predictions" / "stam4-s0" / "challenging@reversed").exists()  # the reveal splits only
     assert stam4.runs[0].scores["reveal@warped_key"]["images"] == 2 * len(REVEAL)
+    key_copied = summary.difference("stam4@key", "single", "reveal", "tusimple_f1")  # the training, history aside
+    assert key_copied is not None and key_copied.kind == "key_copied"
     for source in ("key", "other_clip"):
         pred = quick / "predictions" / "stam4-s0" / f"challenging@{source}"
         assert (pred / "per_image.jsonl").is_file() and not list(pred.rglob("*.jpg"))  # no overlays for probes

@@ -547,6 +547,9 @@ class Experiment:
             for probe in REVEAL_PROBES:  # real minus probe; exact alignment minus ORB's: exact - real
                 pair = (f"{name}@exact", name) if probe == "exact" else (name, f"{name}@{probe}")
                 differences += scores.differences(f"history_{probe.replace('other_clip', 'other')}", [pair], all_views)
+            singles = [r.name for r in self.rows if r.name not in multi and records[r.name]]
+            # the same weights without their history against a single frame trained alike: what the training did
+            differences += scores.differences("key_copied", [(f"{name}@key", one) for one in singles], all_views)
         for subject in oracles:
             if subject.startswith("oracle:history-"):
                 differences += scores.differences("headroom", [(subject, "oracle:key")], all_views)
