@@ -296,7 +296,8 @@ def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> li
         "in the key frame or its aligned history minus to those visible in the key frame (what perfect use of the "
         "history can add):"
     )
-    return [text, "", *_md(header, rows)]
+    tested = len(factors) * (bool(frames) + len(multi) + len(pairs))
+    return [text, "", *_md(header, rows), _multiple_note(tested), ""]
 
 
 def _recall(summary: Summary, models: list) -> list[str]:
