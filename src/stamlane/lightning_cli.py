@@ -27,10 +27,13 @@ from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
 
-__all__ = ["CONFIG_KEY", "CONFIG_MODE", "ConfigInCheckpoint", "StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "CONFIG_MODE", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
+START_DIR_KEY = "stamlane_start_dir"
+"""Checkpoint entry holding the folder ``stamlane fit`` was started in (relative paths of the config are relative to
+it): ``stamlane validate|test|predict --ckpt_path`` finds the run's data from any folder."""
 CONFIG_MODE = "stamlane-yaml"
 """jsonargparse parser mode of `StamLaneCLI`: YAML, where a config whose ``data`` section has the flat keys of
 before the data options were grouped (a run folder's ``config.yaml``, the config inside a checkpoint, an old
@@ -45,14 +48,17 @@ set_loader(CONFIG_MODE, _load_yaml, exceptions=(yaml.YAMLError,))
 
 
 class ConfigInCheckpoint(Callback):
-    """Store the run's YAML config in every checkpoint (``CONFIG_KEY``), so that ``stamlane predict``,
-    ``validate`` and ``test`` work from a checkpoint alone."""
+    """Store the run's YAML config (``CONFIG_KEY``) and the folder it was started in (``START_DIR_KEY``) in every
+    checkpoint, so that ``stamlane predict``, ``validate`` and ``test`` work from a checkpoint alone, from any
+    folder."""
 
     def __init__(self, config: str) -> None:
         self.config = config
+        self.start_dir = str(Path.cwd())
 
     def on_save_checkpoint(self, trainer: Trainer, pl_module: Any, checkpoint: dict[str, Any]) -> None:
         checkpoint[CONFIG_KEY] = self.config
+        checkpoint[START_DIR_KEY] = self.start_dir
 
 
 class StamLaneCLI(LightningCLI):
