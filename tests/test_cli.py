@@ -301,7 +301,7 @@ def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: 
     [
         ("--trainer.max_stepz=3", "unrecognized arguments: --trainer.max_stepz=3"),
         ("--data.clip.num_frames=abc", 'Parser key "data.clip.num_frames": Expected'),
-        ("--config=/nonexistent/x.yaml", "File does not exist"),
+        ("--config=/nonexistent/x.yaml", "config /nonexistent/x.yaml does not exist"),
     ],
 )
 def test_bad_options_are_one_line_not_the_usage(
