@@ -79,3 +79,25 @@ def test_help_is_not_taken_for_a_missing_argument():
     assert cli._missing_input("predict", ["--help"]) is None
     assert cli._missing_input("validate", ["--config", "configs/demo.yaml"]) is None
     assert cli._missing_input("fit", ["--ckpt_path=last", "--config", "configs/demo.yaml"]) is None
+
+
+def test_a_relative_data_root_is_found_from_the_start_folder_then_the_run_folder(tmp_path, monkeypatch):
+    from stamlane.data.labels import DataError
+
+    start, elsewhere = tmp_path / "start", tmp_path / "elsewhere"
+    (start / "data" / "set").mkdir(parents=True)
+    elsewhere.mkdir()
+    ckpt = str(start / "runs" / "stam4" / "version_0" / "checkpoints" / "last.ckpt")
+    config = {"data": {"root": "data/set"}}
+    monkeypatch.chdir(elsewhere)
+    found = ["--data.root", str(start / "data" / "set")]
+    assert cli._data_root_args(config, ckpt, str(start), []) == found  # the recorded start folder
+    assert cli._data_root_args(config, ckpt, None, []) == found  # an ancestor of the run folder
+    assert cli._data_root_args(config, ckpt, None, ["--data.root", "x"]) == []  # given: kept
+    assert cli._data_root_args({"data": {"root": str(tmp_path)}}, ckpt, None, []) == []  # absolute: as it is
+    far = str(tmp_path / "far" / "last.ckpt")
+    with pytest.raises(DataError, match=r"data root data/set .* give --data.root DIR$"):
+        cli._data_root_args(config, far, None, [])
+    assert cli._data_root_args({"data": {"root": None}}, far, None, []) == []  # the default synthetic set: made
+    monkeypatch.chdir(start)
+    assert cli._data_root_args(config, far, None, []) == []  # here, as before
