@@ -289,7 +289,10 @@ class StamLaneCLI(LightningCLI):
             folder = Path(logger.save_dir) / (logger.name or "")
         found = sorted(folder.rglob("last*.ckpt"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
         if not found:
-            raise CheckpointError(f"--ckpt_path last: no last.ckpt under {folder} (nothing to resume)")
+            raise CheckpointError(
+                f"--ckpt_path last: no last.ckpt under {folder} (nothing to resume): leave --ckpt_path out to start "
+                f"the run, or give a checkpoint's path"
+            )
         return found[-1]
 
     def before_predict(self) -> None:
