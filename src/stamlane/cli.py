@@ -210,7 +210,7 @@ def _check_input_files(rest: list[str]) -> None:
         if not value or (option == "--ckpt_path" and value in ("last", "best", "hpc", "registry")):
             continue
         if not Path(value).exists() or (option == "--source" and Path(value).is_dir()):
-            continue  # a missing file is said later, in jsonargparse's or the checkpoint reader's words
+            continue  # a missing file was said by _missing_input; a --source by the data module
         check_input_file(value, option[2:])
         if option == "--config" and Path(value).stat().st_size > _MAX_CONFIG_BYTES:
             raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
