@@ -108,7 +108,12 @@ class FitReport(pl.Callback):
             best = self.best
             assert best is not None
             at = f" (step {best.step})" if best.step is not None else ""
-            print(f"stamlane fit: step {step}  {monitor} {score:.4f}  best {best.score:.4f}{at}", flush=True)
+            line = f"stamlane fit: step {step}  {monitor} {score:.4f}  best {best.score:.4f}{at}"
+            bar = getattr(trainer, "progress_bar_callback", None)  # a line of its own above a progress bar
+            if bar is not None:
+                bar.print(line)
+            else:
+                print(line, flush=True)
 
     def best_checkpoint(self, trainer: pl.Trainer) -> Best | None:
         """The best score of the fit (the run resumed included) with its checkpoint's path, when one was kept."""
