@@ -78,6 +78,8 @@ def test_what_is_missing_is_said_before_torch_is_imported(argv, message):
 def test_help_is_not_taken_for_a_missing_argument():
     assert cli._missing_input("predict", ["--help"]) is None
     assert cli._missing_input("validate", ["--config", "configs/demo.yaml"]) is None
+    assert cli._missing_input("predict", ["-c", "configs/demo.yaml"]) is None  # LightningCLI's short --config
+    assert "config nowhere.yaml does not exist" in cli._missing_input("predict", ["-c", "nowhere.yaml"])
     assert cli._missing_input("fit", ["--ckpt_path=last", "--config", "configs/demo.yaml"]) is None
 
 

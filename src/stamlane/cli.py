@@ -118,7 +118,7 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     ``checkpoints/``; with it, the run's data root when it was recorded relative to the folder the run was started
     in (`_data_root_args`). Yields the arguments to put in front (none when a config is given or nothing is
     needed)."""
-    given = any(a == "--config" or a.startswith("--config=") for a in rest)
+    given = any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
     ckpt = _option(rest, "--ckpt_path")
     if command == "fit" or given or ckpt in (None, "last", "best"):
         yield []
@@ -204,6 +204,7 @@ def _check_input_files(rest: list[str]) -> None:
 
     for i, arg in enumerate(rest):
         option, eq, value = arg.partition("=")
+        option = "--config" if option == "-c" else option  # LightningCLI's short form
         if option not in _FILE_OPTIONS:
             continue
         value = value if eq else (rest[i + 1] if i + 1 < len(rest) else "")
@@ -228,8 +229,8 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
     if any(arg.split("=", 1)[0] in _NO_RUN for arg in rest):
         return None
     ckpt = _option(rest, "--ckpt_path")
-    configs = [a.split("=", 1)[1] for a in rest if a.startswith("--config=")]
-    configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a == "--config"]
+    configs = [a.split("=", 1)[1] for a in rest if a.startswith(("--config=", "-c="))]
+    configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a in ("--config", "-c")]
     if ckpt is not None and ckpt not in _NAMED_CHECKPOINTS and not Path(ckpt).exists():
         what = "the run to resume" if command == "fit" else "a trained run"
         return (
