@@ -223,9 +223,9 @@ _NO_RUN = ("-h", "--help", "--print_config", "--print-config")
 
 
 def _missing_input(command: str, rest: list[str]) -> str | None:
-    """What is missing from a LightningCLI command line, said before torch and Lightning are imported (seconds):
-    a ``--ckpt_path`` or ``--config`` file that does not exist, or neither of them where one is needed. None when
-    nothing is missing; the message says what to give."""
+    """What is missing from a LightningCLI command line, said before torch and Lightning are imported (hundredths of
+    a second, not the 5-13 s of those imports): a ``--ckpt_path`` or ``--config`` file that does not exist, or
+    neither of them where one is needed. None when nothing is missing; the message says what to give."""
     if any(arg.split("=", 1)[0] in _NO_RUN for arg in rest):
         return None
     ckpt = _option(rest, "--ckpt_path")
