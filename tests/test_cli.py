@@ -301,7 +301,7 @@ def test_bad_values_are_one_line(tiny_set: Path, tmp_path: Path, capsys, extra: 
     [
         ("--trainer.max_stepz=3", "unrecognized arguments: --trainer.max_stepz=3"),
         ("--data.clip.num_frames=abc", 'Parser key "data.clip.num_frames": Expected'),
-        ("--config=/nonexistent/x.yaml", "File does not exist"),
+        ("--config=/nonexistent/x.yaml", "config /nonexistent/x.yaml does not exist"),
     ],
 )
 def test_bad_options_are_one_line_not_the_usage(
@@ -327,3 +327,63 @@ def test_a_data_error_in_a_dataloader_worker_is_one_line(tiny_set: Path, tmp_pat
     err = [line for line in capsys.readouterr().err.strip().splitlines() if line.startswith("stamlane")]
     assert len(err) == 1 and "cannot read image" in err[0] and key in err[0]
     assert "Original Traceback" not in err[0] and "DataLoader worker" not in err[0]
+
+
+QUIETED = ("LightningCLI's args parameter", "The dirpath has changed", "dataloader is not resumable")
+"""The Lightning warnings the quiet front end drops where stamlane expects them (`stamlane.quiet.WARNINGS`)."""
+
+
+def test_a_run_is_quiet_keeps_its_best_and_works_from_any_folder(
+    tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch, recwarn
+) -> None:
+    """A run started with a relative data root: a line per validation, a resume that says the true best, then
+    validate / test / predict from another folder that find the data and add no ``version_N`` to the run."""
+    start, elsewhere = tmp_path / "start", tmp_path / "elsewhere"
+    (start / "data").mkdir(parents=True)
+    elsewhere.mkdir()
+    (start / "data" / "tiny").symlink_to(tiny_set)
+    monkeypatch.chdir(start)
+    # 2 steps an epoch: last.ckpt at step 3 is mid-epoch
+    assert (
+        main(
+            ["fit", *_args(Path("data/tiny"), Path("runs"), "--trainer.max_steps=3", "--trainer.val_check_interval=2")]
+        )
+        == 0
+    )
+    said = capsys.readouterr().out
+    assert "stamlane fit: step 2  val/tusimple_f1 " in said and "best " in said.splitlines()[0]
+    best = next(line for line in said.splitlines() if line.startswith("  best val/tusimple_f1 "))
+    score = best.split()[2]
+    run = start / "runs" / "stam4"
+    ckpt = run / "version_0" / "checkpoints" / "last.ckpt"
+    assert torch.load(ckpt, weights_only=True)["stamlane_start_dir"] == str(start)
+
+    # resumed without validating: the closing line says the best of the run it went on from, not nan
+    resume = _args(Path("data/tiny"), Path("runs"), "--trainer.max_steps=4", "--trainer.val_check_interval=2")
+    resume.append("--trainer.limit_val_batches=0")
+    assert main(["fit", *resume, "--ckpt_path=last"]) == 0
+    said = capsys.readouterr().out
+    assert f"  best val/tusimple_f1 {score} at step 2: " in said and "nan" not in said, said
+    assert str(Path("runs/stam4/version_0/checkpoints/best-step=2.ckpt")) in said
+
+    monkeypatch.chdir(elsewhere)  # the run recorded data/tiny relative to start/
+    for command in ("validate", "test"):
+        monkeypatch.setattr(sys, "argv", ["stamlane", command, "--ckpt_path", str(ckpt)])
+        assert main() == 0, capsys.readouterr().err
+        assert f"stamlane {command}: metrics logged under {Path('runs') / f'stam4-{command}' / 'version_0'}" in (
+            capsys.readouterr().out
+        )
+    out = tmp_path / "pred"
+    assert main(["predict", f"--ckpt_path={ckpt}", f"--predictions.output_dir={out}"]) == 0
+    assert (out / "predictions.json").is_file()
+    assert sorted(p.name for p in run.iterdir()) == ["version_0", "version_1"]  # nothing added to the run
+    assert not (elsewhere / "runs" / "stam4").exists()  # predict logs nothing
+    said = [str(w.message) for w in recwarn]
+    assert not [m for m in said if any(q in m for q in QUIETED)], said
+
+    # found nowhere: the message names the flag to give
+    (start / "data" / "tiny").unlink()
+    capsys.readouterr()
+    assert main(["validate", f"--ckpt_path={ckpt}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "data root data/tiny" in err and err.endswith("give --data.root DIR"), err

@@ -46,3 +46,60 @@ def test_versions_come_from_the_package_metadata(capsys):
     assert capsys.readouterr().out.strip() == f"stamlane {version('stamlane')}"
     assert eval_cli.main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"stamlane-eval {version('stamlane-eval')}"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["predict"], "stamlane predict: give --ckpt_path CKPT (a trained run's checkpoint"),
+        (["validate", "--trainer.devices=1"], "stamlane validate: give --ckpt_path CKPT"),
+        (["fit"], "stamlane fit: give --config CONFIG"),
+        (["predict", "--ckpt_path", "nowhere/last.ckpt"], "checkpoint nowhere/last.ckpt does not exist: give the path"),
+        (["fit", "--config=nowhere.yaml"], "stamlane fit: config nowhere.yaml does not exist"),
+    ],
+)
+def test_what_is_missing_is_said_before_torch_is_imported(argv, message):
+    """A missing file or argument is answered in well under a second: torch and Lightning are never imported."""
+    import subprocess
+    import sys
+    import time
+
+    code = (
+        "import sys; from stamlane.cli import main; rc = main(sys.argv[1:]);"
+        "assert 'torch' not in sys.modules and 'lightning' not in sys.modules; sys.exit(rc)"
+    )
+    began = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60)
+    took = time.perf_counter() - began
+    assert proc.returncode == 2 and message in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert took < 1.0, took
+
+
+def test_help_is_not_taken_for_a_missing_argument():
+    assert cli._missing_input("predict", ["--help"]) is None
+    assert cli._missing_input("validate", ["--config", "configs/demo.yaml"]) is None
+    assert cli._missing_input("predict", ["-c", "configs/demo.yaml"]) is None  # LightningCLI's short --config
+    assert "config nowhere.yaml does not exist" in cli._missing_input("predict", ["-c", "nowhere.yaml"])
+    assert cli._missing_input("fit", ["--ckpt_path=last", "--config", "configs/demo.yaml"]) is None
+
+
+def test_a_relative_data_root_is_found_from_the_start_folder_then_the_run_folder(tmp_path, monkeypatch):
+    from stamlane.data.labels import DataError
+
+    start, elsewhere = tmp_path / "start", tmp_path / "elsewhere"
+    (start / "data" / "set").mkdir(parents=True)
+    elsewhere.mkdir()
+    ckpt = str(start / "runs" / "stam4" / "version_0" / "checkpoints" / "last.ckpt")
+    config = {"data": {"root": "data/set"}}
+    monkeypatch.chdir(elsewhere)
+    found = ["--data.root", str(start / "data" / "set")]
+    assert cli._data_root_args(config, ckpt, str(start), []) == found  # the recorded start folder
+    assert cli._data_root_args(config, ckpt, None, []) == found  # an ancestor of the run folder
+    assert cli._data_root_args(config, ckpt, None, ["--data.root", "x"]) == []  # given: kept
+    assert cli._data_root_args({"data": {"root": str(tmp_path)}}, ckpt, None, []) == []  # absolute: as it is
+    far = str(tmp_path / "far" / "last.ckpt")
+    with pytest.raises(DataError, match=r"data root data/set .* give --data.root DIR$"):
+        cli._data_root_args(config, far, None, [])
+    assert cli._data_root_args({"data": {"root": None}}, far, None, []) == []  # the default synthetic set: made
+    monkeypatch.chdir(start)
+    assert cli._data_root_args(config, far, None, []) == []  # here, as before

@@ -56,7 +56,9 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
     """
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"checkpoint {path} does not exist")
+        raise CheckpointError(
+            f"checkpoint {path} does not exist: give the path of a trained run's checkpoint (RUN/checkpoints/last.ckpt)"
+        )
     try:
         content = torch.load(path, map_location="cpu", weights_only=True)
     except _UNREADABLE as err:

@@ -115,11 +115,11 @@ def _stream_args(rest: list[str]) -> list[str]:
 def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]]:
     """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the config stored in the
     checkpoint (written to a temporary file while the command runs), else the run's ``config.yaml`` beside
-    ``checkpoints/``. Yields the arguments to put in front (none when a config is given or nothing is needed)."""
-    given = any(a == "--config" or a.startswith("--config=") for a in rest)
-    ckpt = next((a.split("=", 1)[1] for a in rest if a.startswith("--ckpt_path=")), None)
-    if ckpt is None and "--ckpt_path" in rest[:-1]:
-        ckpt = rest[rest.index("--ckpt_path") + 1]
+    ``checkpoints/``; with it, the run's data root when it was recorded relative to the folder the run was started
+    in (`_data_root_args`). Yields the arguments to put in front (none when a config is given or nothing is
+    needed)."""
+    given = any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
+    ckpt = _option(rest, "--ckpt_path")
     if command == "fit" or given or ckpt in (None, "last", "best"):
         yield []
         return
@@ -127,21 +127,68 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     from stamlane_eval.io import read_text
 
     from stamlane.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.lightning_cli import CONFIG_KEY
-    from stamlane.registry import safe_config_file
+    from stamlane.lightning_cli import CONFIG_KEY, START_DIR_KEY
+    from stamlane.registry import check_run_config, safe_config_file
 
-    config = read_checkpoint(ckpt).get(CONFIG_KEY)
-    if isinstance(config, str):  # data, not the user's code: checked against the closed registry, then a copy read
-        with safe_config_file(config, ckpt) as path:
-            yield ["--config", str(path)]
-        return
-    beside = Path(ckpt).resolve().parent.parent / "config.yaml"
-    if beside.is_file():
+    content = read_checkpoint(ckpt)
+    config = content.get(CONFIG_KEY)
+    start = content.get(START_DIR_KEY)
+    source: str | Path = ckpt
+    if not isinstance(config, str):
+        beside = Path(ckpt).resolve().parent.parent / "config.yaml"
+        if not beside.is_file():
+            raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
         check_input_file(beside, "run config")
-        with safe_config_file(read_text(beside, limit=_MAX_CONFIG_BYTES), beside) as path:
-            yield ["--config", str(path)]
-        return
-    raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
+        config, source = read_text(beside, limit=_MAX_CONFIG_BYTES), beside
+    # data, not the user's code: checked against the closed registry, then a copy read
+    root = _data_root_args(check_run_config(config, source), ckpt, start if isinstance(start, str) else None, rest)
+    with safe_config_file(config, source) as path:
+        yield ["--config", str(path), *root]
+
+
+def _option(rest: list[str], name: str) -> str | None:
+    """The value of ``name`` (``--name VALUE`` or ``--name=VALUE``) in ``rest``, the last one given; None if absent."""
+    value = None
+    for i, arg in enumerate(rest):
+        if arg.startswith(f"{name}="):
+            value = arg.split("=", 1)[1]
+        elif arg == name and i + 1 < len(rest):
+            value = rest[i + 1]
+    return value
+
+
+def _data_root_args(config: dict[str, Any], ckpt: str, start: str | None, rest: list[str]) -> list[str]:
+    """``["--data.root", DIR]`` for a run whose config records its data root relative to the folder it was started
+    in (``data/synthetic-v6``), so that its checkpoint works from any folder: the root is looked for under the
+    folder the run was started in (recorded in the checkpoints of ``stamlane fit``), then under the run folder's
+    ancestors, then here. ``[]`` when ``--data.root`` is given, the root is absolute or found nowhere but here; a
+    default synthetic set (``data.root: null``) found nowhere is generated here, as ``fit`` would.
+
+    Raises:
+        DataError: a relative root found nowhere, naming the flag to give.
+    """
+    from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.data.labels import DataError
+
+    if _option(rest, "--data.root") is not None:
+        return []
+    data = config.get("data")
+    recorded = data.get("root") if isinstance(data, dict) else None
+    root = Path(recorded) if isinstance(recorded, str) else Path(DEFAULT_SYNTHETIC_ROOT)
+    if root.is_absolute():
+        return []
+    bases = [Path(start)] if start else []
+    bases += list(Path(ckpt).resolve().parent.parents)
+    for base in bases:
+        if base.is_absolute() and (base / root).is_dir():
+            return [] if (base / root).resolve() == root.resolve() else ["--data.root", str(base / root)]
+    if root.is_dir() or recorded is None:
+        return []
+    where = f" (the run was started in {start})" if start else ""
+    raise DataError(
+        f"data root {root} of the run is relative to the folder it was started in{where} and found neither there "
+        f"nor beside the run nor here: give --data.root DIR"
+    )
 
 
 _MAX_CONFIG_BYTES = 16 << 20
@@ -157,16 +204,50 @@ def _check_input_files(rest: list[str]) -> None:
 
     for i, arg in enumerate(rest):
         option, eq, value = arg.partition("=")
+        option = "--config" if option == "-c" else option  # LightningCLI's short form
         if option not in _FILE_OPTIONS:
             continue
         value = value if eq else (rest[i + 1] if i + 1 < len(rest) else "")
         if not value or (option == "--ckpt_path" and value in ("last", "best", "hpc", "registry")):
             continue
         if not Path(value).exists() or (option == "--source" and Path(value).is_dir()):
-            continue  # a missing file is said later, in jsonargparse's or the checkpoint reader's words
+            continue  # a missing file was said by _missing_input; a --source by the data module
         check_input_file(value, option[2:])
         if option == "--config" and Path(value).stat().st_size > _MAX_CONFIG_BYTES:
             raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
+
+
+_NAMED_CHECKPOINTS = ("last", "best", "hpc", "registry", "null", "None")
+"""``--ckpt_path`` values that are no file (Lightning's names, and "none")."""
+_NO_RUN = ("-h", "--help", "--print_config", "--print-config")
+
+
+def _missing_input(command: str, rest: list[str]) -> str | None:
+    """What is missing from a LightningCLI command line, said before torch and Lightning are imported (hundredths of
+    a second, not the 5-13 s of those imports): a ``--ckpt_path`` or ``--config`` file that does not exist, or
+    neither of them where one is needed. None when nothing is missing; the message says what to give."""
+    if any(arg.split("=", 1)[0] in _NO_RUN for arg in rest):
+        return None
+    ckpt = _option(rest, "--ckpt_path")
+    configs = [a.split("=", 1)[1] for a in rest if a.startswith(("--config=", "-c="))]
+    configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a in ("--config", "-c")]
+    if ckpt is not None and ckpt not in _NAMED_CHECKPOINTS and not Path(ckpt).exists():
+        what = "the run to resume" if command == "fit" else "a trained run"
+        return (
+            f"checkpoint {ckpt} does not exist: give the path of {what}'s checkpoint (RUN/checkpoints/last.ckpt, or "
+            f"the best one `stamlane fit` printed)" + (" or --ckpt_path last" if command == "fit" else "")
+        )
+    for config in configs:
+        if not Path(config).exists():
+            return f"config {config} does not exist (see stamlane {command} --help)"
+    if configs or ckpt is not None or any(a.startswith("--model.") for a in rest):
+        return None
+    if command == "fit":
+        return "give --config CONFIG (configs/demo.yaml trains the demo's model on CPU; see stamlane fit --help)"
+    return (
+        "give --ckpt_path CKPT (a trained run's checkpoint; its config travels inside it) or --config CONFIG "
+        f"(see stamlane {command} --help)"
+    )
 
 
 def one_line(err: BaseException) -> str:
@@ -203,6 +284,10 @@ def main(argv: list[str] | None = None) -> int:
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
+        missing = _missing_input(command, rest)
+        if missing is not None:  # said in a fraction of a second, before torch and Lightning are imported
+            print(f"stamlane {command}: {missing}", file=sys.stderr)
+            return 2
         from jsonargparse import ArgumentError
         from lightning.fabric.utilities.exceptions import MisconfigurationException
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import re
 import sys
 import typing
 from dataclasses import replace
@@ -13,7 +12,7 @@ from typing import Any
 import yaml
 from jsonargparse import Namespace, get_loader, set_loader
 from lightning.pytorch import Callback, Trainer
-from lightning.pytorch.callbacks import ModelCheckpoint
+from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
@@ -21,16 +20,20 @@ from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.data.flat_options import check_flags, group_config
 from stamlane.final_checkpoint import FinalCheckpoint
+from stamlane.fit_report import FitReport, step_of
 from stamlane.guard import check_outputs
 from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
 
-__all__ = ["CONFIG_KEY", "CONFIG_MODE", "ConfigInCheckpoint", "StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "CONFIG_MODE", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
+START_DIR_KEY = "stamlane_start_dir"
+"""Checkpoint entry holding the folder ``stamlane fit`` was started in (relative paths of the config are relative to
+it): ``stamlane validate|test|predict --ckpt_path`` finds the run's data from any folder."""
 CONFIG_MODE = "stamlane-yaml"
 """jsonargparse parser mode of `StamLaneCLI`: YAML, where a config whose ``data`` section has the flat keys of
 before the data options were grouped (a run folder's ``config.yaml``, the config inside a checkpoint, an old
@@ -45,20 +48,17 @@ set_loader(CONFIG_MODE, _load_yaml, exceptions=(yaml.YAMLError,))
 
 
 class ConfigInCheckpoint(Callback):
-    """Store the run's YAML config in every checkpoint (``CONFIG_KEY``), so that ``stamlane predict``,
-    ``validate`` and ``test`` work from a checkpoint alone."""
+    """Store the run's YAML config (``CONFIG_KEY``) and the folder it was started in (``START_DIR_KEY``) in every
+    checkpoint, so that ``stamlane predict``, ``validate`` and ``test`` work from a checkpoint alone, from any
+    folder."""
 
     def __init__(self, config: str) -> None:
         self.config = config
+        self.start_dir = str(Path.cwd())
 
     def on_save_checkpoint(self, trainer: Trainer, pl_module: Any, checkpoint: dict[str, Any]) -> None:
         checkpoint[CONFIG_KEY] = self.config
-
-
-def _step_of(path: str) -> int | None:
-    """The step in a checkpoint name such as ``best-step=1199.ckpt`` (None when it has none)."""
-    match = re.search(r"step=(\d+)", Path(path).name)
-    return int(match.group(1)) if match else None
+        checkpoint[START_DIR_KEY] = self.start_dir
 
 
 class StamLaneCLI(LightningCLI):
@@ -101,6 +101,7 @@ class StamLaneCLI(LightningCLI):
         super().parse_arguments(parser, args)
         self._check_option_groups()
         self._logs_follow_root(given)
+        self._logs_outside_run(given)
 
     def _check_option_groups(self) -> None:
         """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
@@ -132,6 +133,31 @@ class StamLaneCLI(LightningCLI):
             if init is not None and "save_dir" in init:
                 init["save_dir"] = trainer["default_root_dir"]
 
+    def _logs_outside_run(self, given: list[str]) -> None:
+        """Keep ``validate``, ``test`` and ``predict`` out of the training run's log folder (``save_dir/name``,
+        where each used to add an empty ``version_N``): ``predict`` logs nothing (no logger), ``validate`` and
+        ``test`` log their metrics under ``save_dir/<name>-validate`` / ``<name>-test``. A logger or a logger name
+        given on the command line is kept as given."""
+        subcommand = self.config.get("subcommand")
+        if subcommand not in ("validate", "test", "predict"):
+            return
+        flags = [a.split("=", 1)[0] for a in given if a.startswith("--")]
+        if "--trainer.logger" in flags:
+            return
+        trainer = self.config[subcommand].get("trainer")
+        if trainer is None or not trainer.get("logger"):
+            return
+        if subcommand == "predict":
+            trainer["logger"] = False
+            return
+        if "--trainer.logger.name" in flags:
+            return
+        loggers = trainer["logger"] if isinstance(trainer["logger"], list) else [trainer["logger"]]
+        for one in loggers:
+            init = getattr(one, "init_args", None)
+            if init is not None and str(getattr(one, "class_path", "")).endswith(("CSVLogger", "TensorBoardLogger")):
+                init["name"] = f"{init.get('name') or 'lightning_logs'}-{subcommand}"
+
     # the command line stays in charge of the model's settings (see stamlane.lightning_compat)
     _parse_ckpt_path = keep_command_line_hparams
 
@@ -142,6 +168,11 @@ class StamLaneCLI(LightningCLI):
         if self.subcommand == "fit":  # the run's config travels inside its checkpoints (predict from one alone)
             config = self._parser(self.subcommand).dump(self.config[self.subcommand], skip_none=False)
             trainer.callbacks.append(ConfigInCheckpoint(config))
+            trainer.callbacks.append(FitReport(verbose=self.report))  # a line per validation, the true best
+        elif self.subcommand is not None:  # checkpoints and learning rates are fit's: nothing to save or restore
+            trainer.callbacks = [
+                cb for cb in trainer.callbacks if not isinstance(cb, (ModelCheckpoint, LearningRateMonitor))
+            ]
         return trainer
 
     def before_fit(self) -> None:
@@ -152,13 +183,15 @@ class StamLaneCLI(LightningCLI):
         if self.trainer.global_rank != 0 or not self.report:
             return
         lines = [f"stamlane fit: done after {self.trainer.global_step} steps"]
-        for cb in self.trainer.checkpoint_callbacks:
-            if isinstance(cb, ModelCheckpoint) and cb.monitor and cb.best_model_path:
-                score = float(cb.best_model_score) if cb.best_model_score is not None else float("nan")
-                step = _step_of(cb.best_model_path)
-                lines.append(
-                    f"  best {cb.monitor} {score:.4f}{f' at step {step}' if step else ''}: {cb.best_model_path}"
-                )
+        report = next((cb for cb in self.trainer.callbacks if isinstance(cb, FitReport)), None)
+        keeper = next(
+            (cb for cb in self.trainer.checkpoint_callbacks if isinstance(cb, ModelCheckpoint) and cb.monitor), None
+        )
+        best = report.best_checkpoint(self.trainer) if report is not None else None
+        if keeper is not None and best is not None:  # the run resumed from included
+            step = best.step if best.step is not None else step_of(best.path)
+            where = f": {best.path}" if best.path else ""
+            lines.append(f"  best {keeper.monitor} {best.score:.4f}{f' at step {step}' if step else ''}{where}")
         last = next((cb.last_model_path for cb in self.trainer.checkpoint_callbacks if cb.last_model_path), None)
         if last:
             lines.append(f"  last (final weights): {last}")
@@ -171,6 +204,17 @@ class StamLaneCLI(LightningCLI):
 
     def before_test(self) -> None:
         self._check("test")
+
+    def after_validate(self) -> None:
+        self._say_logs("validate")
+
+    def after_test(self) -> None:
+        self._say_logs("test")
+
+    def _say_logs(self, subcommand: str) -> None:
+        logger = self.trainer.logger
+        if self.report and self.trainer.is_global_zero and logger is not None and logger.log_dir:
+            print(f"stamlane {subcommand}: metrics logged under {logger.log_dir}", flush=True)
 
     def _check(self, subcommand: str) -> None:
         if self.config[subcommand].get("source"):
@@ -245,7 +289,10 @@ class StamLaneCLI(LightningCLI):
             folder = Path(logger.save_dir) / (logger.name or "")
         found = sorted(folder.rglob("last*.ckpt"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
         if not found:
-            raise CheckpointError(f"--ckpt_path last: no last.ckpt under {folder} (nothing to resume)")
+            raise CheckpointError(
+                f"--ckpt_path last: no last.ckpt under {folder} (nothing to resume): leave --ckpt_path out to start "
+                f"the run, or give a checkpoint's path"
+            )
         return found[-1]
 
     def before_predict(self) -> None:
