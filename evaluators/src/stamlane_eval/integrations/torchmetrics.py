@@ -20,6 +20,7 @@ from torchmetrics.utilities import dim_zero_cat
 
 from stamlane_eval import culane, temporal, tusimple, video
 from stamlane_eval.aggregate import TuSimpleSums, culane_update, prf, tusimple_compute, tusimple_update
+from stamlane_eval.names import metric_key
 
 __all__ = ["CULaneMetric", "TemporalStabilityMetric", "TuSimpleMetric", "VideoMetric"]
 
@@ -182,9 +183,9 @@ class CULaneMetric(Metric):
         for i, t in enumerate(self.iou_thresholds):
             counts = (int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
             for name, v in zip(("precision", "recall", "f1"), prf(*counts), strict=True):
-                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.float64)
             for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
-                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.int64)
         return out
 
 
@@ -300,9 +301,9 @@ class VideoMetric(Metric):
         for i, t in enumerate(self.iou_thresholds):
             c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
             for name in ("precision", "recall", "f1"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.float64)
             for name in ("tp", "fp", "fn"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.int64)
         return out
 
 
@@ -394,7 +395,7 @@ class TemporalStabilityMetric(Metric):
         for i, t in enumerate(self.iou_thresholds):
             c = temporal.StabilityCounts(int(self.ns[i]), int(self.nj[i]), int(self.nm[i]))
             for name in ("rs", "rj", "rm"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.float64)
             for name in ("ns", "nj", "nm"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.int64)
         return out
