@@ -28,7 +28,7 @@ import numpy as np
 
 from stamlane_eval._long_runs import progress_bar
 from stamlane_eval.aggregate import count_update, prf
-from stamlane_eval.io import CanvasBudget, check_image_size
+from stamlane_eval.io.limits import CanvasBudget, check_image_size
 
 __all__ = [
     "APOLLO_SIZE",

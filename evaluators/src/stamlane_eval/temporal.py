@@ -36,7 +36,7 @@ import numpy as np
 
 from stamlane_eval._long_runs import map_sequences
 from stamlane_eval.aggregate import count_update, stability_rates
-from stamlane_eval.io import MAX_COORDINATE, CanvasBudget, check_image_size
+from stamlane_eval.io.limits import MAX_COORDINATE, CanvasBudget, check_image_size
 from stamlane_eval.video import Frame
 
 __all__ = [

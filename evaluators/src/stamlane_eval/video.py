@@ -30,11 +30,10 @@ import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from stamlane_eval import culane
 from stamlane_eval._long_runs import map_sequences
 from stamlane_eval.aggregate import MMA_NET_DIGITS, count_update, dataset_miou, sequence_miou
+from stamlane_eval.io.video import Frame  # one annotated frame, as the readers give it
 
 __all__ = [
     "MMA_NET_DIGITS",
@@ -50,25 +49,6 @@ __all__ = [
 
 VIDEO_IOU_THRESHOLDS = (0.5, 0.8)  # the thresholds VIL-100 / MMA-Net report F at
 MATCH_IOU = 0.5  # a pair counts as "matched" for identity switches and flicker above this IoU
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One annotated frame.
-
-    Attributes:
-        preds: predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels.
-        target: annotated lanes, same form.
-        pred_ids: identity of each predicted lane (default: its position).
-        target_ids: identity of each annotated lane (default: its position; VIL-100: ``lane_id``).
-        size: image ``(H, W)``; None for the size given to :func:`evaluate_sequence`.
-    """
-
-    preds: Sequence[np.ndarray]
-    target: Sequence[np.ndarray]
-    pred_ids: Sequence[int] | None = None
-    target_ids: Sequence[int] | None = None
-    size: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
