@@ -1,14 +1,15 @@
 """`stamlane_eval.io`, one module per format: every name it exported as one module is still exported, each format
-has its module."""
+has its module, and the package's one atomic writer and one path-inside-root check."""
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
 from stamlane_eval import io, video
-from stamlane_eval.io import limits
+from stamlane_eval.io import files, limits
 from stamlane_eval.io import tusimple as tusimple_io
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -45,6 +46,7 @@ def test_every_name_the_single_module_exported_is_still_exported() -> None:
         ("Frame", "video"),
         ("read_text", "files"),
         ("inside", "files"),
+        ("write_atomic", "files"),
         ("CanvasBudget", "limits"),
         ("check_image_size", "limits"),
     ],
@@ -70,6 +72,54 @@ def test_what_lane_py_prints(shared_dir: Path) -> None:
     want = json.loads((shared_dir / "fixtures" / "evaluators" / "tusimple" / "expected.json").read_text())
     t = want["totals"]
     assert io.lane_py_line(t["accuracy"], t["fp"], t["fn"]) == want["official_output"]  # byte for byte
+
+
+# -------------------------------------------------------------------------------- the atomic writer
+def test_write_atomic_replaces_the_whole_file_or_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "per.jsonl"
+    out.write_text("old\n")
+    files.write_jsonl(out, [{"a": 1}, {"b": [2, 3]}])
+    assert out.read_text() == '{"a": 1}\n{"b": [2, 3]}\n'
+    assert [p.name for p in tmp_path.iterdir()] == ["per.jsonl"]  # no temporary left
+
+    def fail(src: object, dst: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(io.LaneFileError, match=r"per\.jsonl: cannot write: .*No space left"):
+        files.write_atomic(out, "new\n")
+    assert out.read_text() == '{"a": 1}\n{"b": [2, 3]}\n'  # the old file, whole
+    assert [p.name for p in tmp_path.iterdir()] == ["per.jsonl"]
+    monkeypatch.undo()
+    with pytest.raises(io.LaneFileError, match="cannot write"):
+        files.write_atomic(tmp_path / "missing" / "out.txt", "x")
+
+
+def test_write_atomic_never_writes_into_an_input(tmp_path: Path) -> None:
+    from stamlane_eval.cli_tools import OutputError
+
+    with pytest.raises(OutputError, match="would overwrite or write into the input"):
+        files.write_atomic(tmp_path / "out.txt", "x", inputs=[tmp_path])  # its temporary would lie in the input
+    assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------------ the path-inside-root check
+def test_inside_is_the_one_check_of_a_path_in_its_root(tmp_path: Path) -> None:
+    root, elsewhere = tmp_path / "pred", tmp_path / "secret.txt"
+    (root / "v").mkdir(parents=True)
+    elsewhere.write_text("1 2 3 4\n")
+    (root / "v" / "ok.lines.txt").write_text("1 2 3 4\n")
+    (root / "v" / "bad.lines.txt").symlink_to(elsewhere)
+    (root / "link").symlink_to(tmp_path)
+    check = files.Inside(root)
+    for path in (root / "v" / "ok.lines.txt", root / "v" / "missing.lines.txt", root / "link" / "pred" / "v"):
+        assert files.inside(path, root) == check(path) == path
+    for path in (root / "v" / "bad.lines.txt", root / "link" / "secret.txt", root / "v" / ".." / ".."):
+        with pytest.raises(io.LaneFileError) as one:
+            files.inside(path, root)
+        with pytest.raises(io.LaneFileError) as many:
+            check(path)
+        assert str(one.value) == str(many.value) == f"{path}: a link to {path.resolve()}, outside the folder {root}"
 
 
 # ------------------------------------------------------------------------------ formats into frames

@@ -18,9 +18,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
-import os
 import sys
-import tempfile
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import BrokenExecutor
@@ -48,6 +46,7 @@ from stamlane_eval.io import (
     read_tusimple,
     read_video,
     tusimple_lanes_by_image,
+    write_jsonl,
 )
 
 __all__ = ["main"]
@@ -236,29 +235,6 @@ def _outputs(args: argparse.Namespace) -> list[Path | None]:
     return [getattr(args, "per_image", None), getattr(args, "per_sequence", None)]
 
 
-def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | None]) -> None:
-    """Write json-lines atomically: a temporary file of a unique name beside ``path`` (created, never an
-    existing file; checked against the inputs as the output was), then renamed over it."""
-    try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as e:
-        raise LaneFileError(f"{path}: cannot write: {e.strerror}") from None
-    tmp = Path(name)
-    try:
-        check_outputs([tmp], inputs, files=True)
-        with open(fd, "w", encoding="utf-8") as f:
-            for rec in records:
-                f.write(json.dumps(rec) + "\n")
-        os.replace(tmp, path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)  # the file this call created, nothing else
-        raise LaneFileError(f"{path}: cannot write: {e}") from None
-    except OutputError:
-        os.close(fd)
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _timed(records: Sequence[dict]) -> bool:
     """Whether any record carries ``run_time``: every prediction does (lane.py requires it), a label never."""
     return any("run_time" in r for r in records)
@@ -296,7 +272,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
     if said:  # at most one warning line, whatever there is to say
         print(f"stamlane-eval: warning: {args.pred}: {'; '.join(said)}", file=sys.stderr)
     if args.per_image:
-        _write_jsonl(
+        write_jsonl(
             args.per_image,
             [
                 {
@@ -367,7 +343,7 @@ def _run_culane(args: argparse.Namespace) -> int:
             rec.update({str(t): list(r.counts[t]) for t in thresholds})
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)
-        _write_jsonl(args.per_image, recs, _inputs(args))
+        write_jsonl(args.per_image, recs, _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     elif args.format == "official":
@@ -458,7 +434,7 @@ def _run_video(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
+        write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -496,7 +472,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
             f"Rs, Rj, Rm are 0/0 (RVLD's script fails here with ZeroDivisionError)"
         )
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
+        write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:

@@ -8,8 +8,8 @@ the problem.
 - `stamlane_eval.io.vil100`: VIL-100 json, one file per frame;
 - `stamlane_eval.io.video`: sequences of frames in any of the three (VIL-100, CULane text per frame, TuSimple
   records grouped by the folder of ``raw_file``), ``--sizes`` files, `Frame`;
-- `stamlane_eval.io.files`: what they share: bounded reading (`read_text`), the check of a path inside a root
-  folder (`inside`, `Inside`);
+- `stamlane_eval.io.files`: what they share: bounded reading (`read_text`), THE check of a path inside a root
+  folder (`inside`, `Inside`), THE atomic writer (`write_atomic`, `write_jsonl`);
 - `stamlane_eval.io.limits`: the memory limits (``MAX_*``, `check_image_size`, `CanvasBudget`).
 
 Every public name is importable from ``stamlane_eval.io`` itself.
@@ -25,7 +25,7 @@ from stamlane_eval.io.culane import (
     read_culane_folders,
     read_culane_lines,
 )
-from stamlane_eval.io.files import Inside, LaneFileError, inside, read_text
+from stamlane_eval.io.files import Inside, LaneFileError, inside, read_text, write_atomic, write_jsonl
 from stamlane_eval.io.limits import (
     MAX_COORDINATE,
     MAX_DRAWN_PIXELS,
@@ -112,4 +112,6 @@ __all__ = [
     "tusimple_points",
     "tusimple_record_error",
     "video_frames",
+    "write_atomic",
+    "write_jsonl",
 ]

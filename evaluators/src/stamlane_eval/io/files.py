@@ -1,25 +1,30 @@
-"""Files, read safely: what every reader of `stamlane_eval.io` shares.
+"""Files in and out, safely: what every reader and writer of `stamlane_eval.io` shares.
 
 - `read_text` reads a regular file of bounded size (a FIFO, a device or a folder is refused unread); `read_file`
   the same, with a missing file as a `LaneFileError`;
-- `inside` / `Inside`: the check that a path, links resolved, lies in a root folder (a link in a prediction or
+- `inside` / `Inside`: THE check that a path, links resolved, lies in a root folder (a link in a prediction or
   annotation folder never makes the evaluator read a file elsewhere);
+- `write_atomic` / `write_jsonl`: THE atomic writer (a temporary file of a unique name beside the output, renamed
+  over it);
 - the JSON values of every format: `is_json_number`, `json_float`, and `gc_paused` for parsing fast.
 """
 
 from __future__ import annotations
 
 import gc
+import json
 import math
 import os
 import stat
-from collections.abc import Iterator
+import tempfile
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+from stamlane_eval.cli_tools import OutputError, check_outputs
 from stamlane_eval.io.limits import MAX_FILE_BYTES
 
-__all__ = ["Inside", "LaneFileError", "inside", "read_text"]
+__all__ = ["Inside", "LaneFileError", "inside", "read_text", "write_atomic", "write_jsonl"]
 # read_file, is_json_number, json_float and gc_paused serve the readers of this package
 
 
@@ -85,20 +90,22 @@ def read_file(path: str | os.PathLike) -> str:
 
 def inside(path: Path, root: Path) -> Path:
     """``path`` after checking that, symlinks resolved, it lies in ``root``: a link in a prediction or annotation
-    folder never makes the evaluator read (and quote in an error) a file elsewhere.
+    folder never makes the evaluator read (and quote in an error) a file elsewhere (`Inside`, for one file).
 
     Raises:
         LaneFileError: naming the link and where it leads.
     """
-    real = path.resolve()
-    if not real.is_relative_to(root.resolve()):
-        raise LaneFileError(f"{path}: a link to {real}, outside the folder {root}")
-    return path
+    return Inside(root)(path)
 
 
 class Inside:
-    """:func:`inside` for many files under one ``root``: the root and each folder resolved once (a file that is not
-    a link resolves to its resolved folder + its name), the file itself checked with one ``lstat``."""
+    """THE check of a path inside a root folder, for many files under one ``root``: the root and each folder
+    resolved once (a file that is not a link resolves to its resolved folder + its name), the file itself checked
+    with one ``lstat``.
+
+    Raises:
+        LaneFileError: (when called) naming the link and where it leads.
+    """
 
     def __init__(self, root: Path) -> None:
         self.root = root
@@ -117,6 +124,39 @@ class Inside:
         if not real.is_relative_to(self.real_root):
             raise LaneFileError(f"{path}: a link to {real}, outside the folder {self.root}")
         return path
+
+
+def write_atomic(path: Path, text: str, inputs: Iterable[str | Path | None] = ()) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically: a temporary file of a unique name beside ``path`` (created,
+    so never an existing file; checked against ``inputs`` as the output was), then renamed over it. A reader sees
+    the old file or the whole new one; a failed write leaves no temporary file.
+
+    Raises:
+        LaneFileError: the file cannot be written (naming it and why).
+        OutputError: the temporary file would be one of ``inputs``.
+    """
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        raise LaneFileError(f"{path}: cannot write: {e.strerror}") from None
+    tmp = Path(name)
+    try:
+        check_outputs([tmp], inputs, files=True)
+        with open(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)  # the file this call created, nothing else
+        raise LaneFileError(f"{path}: cannot write: {e}") from None
+    except OutputError:
+        os.close(fd)
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_jsonl(path: Path, records: Sequence[object], inputs: Iterable[str | Path | None] = ()) -> None:
+    """Write json-lines (one ``json.dumps`` per record) atomically (`write_atomic`)."""
+    write_atomic(path, "".join(json.dumps(rec) + "\n" for rec in records), inputs)
 
 
 # ---------------------------------------------------------------------------------------------- JSON values
