@@ -18,9 +18,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
-import os
 import sys
-import tempfile
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import BrokenExecutor
@@ -39,19 +37,16 @@ from stamlane_eval.cli_tools import (
 from stamlane_eval.io import (
     MAX_IMAGE_SIDE,
     MAX_LANE_WIDTH,
-    TUSIMPLE_SUFFIXES,
-    Inside,
     LaneFileError,
+    cpp_tool_text,
     culane_entries,
-    culane_lines_path,
-    inside,
-    read_culane_lines,
-    read_text,
+    images_beside,
+    lane_py_line,
+    read_culane_folders,
     read_tusimple,
-    read_tusimple_frames,
-    read_vil100_json,
-    tusimple_lanes,
-    video_frames,
+    read_video,
+    tusimple_lanes_by_image,
+    write_jsonl,
 )
 
 __all__ = ["main"]
@@ -60,7 +55,6 @@ EXIT_BAD_INPUT = 2
 MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
 MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
 PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")  # an image beside a .lines.txt: a CULane dataset root, not predictions
 SWAP_SAMPLE = 16  # list entries looked at (evenly spread) for images beside their .lines.txt: 2 x 16 stat calls
 
 
@@ -115,36 +109,6 @@ def _output_format(parser: argparse.ArgumentParser, official: str | None) -> Non
         "--format", choices=choices, default="table", help=f"table: percent, as papers report; json: one object{what}"
     )
     parser.add_argument("--json", dest="format", action="store_const", const="json", help="the same as --format json")
-
-
-def _lane_py_line(res: tusimple.TuSimpleResult) -> str:
-    """Exactly what the official ``lane.py`` prints: ujson's compact dump of its three-entry list."""
-    entries = [
-        {"name": "Accuracy", "value": res.accuracy, "order": "desc"},
-        {"name": "FP", "value": res.fp, "order": "asc"},
-        {"name": "FN", "value": res.fn, "order": "asc"},
-    ]
-    return json.dumps(entries, separators=(",", ":"))
-
-
-def _cpp_tool_text(counts: culane.CULaneCounts) -> str:
-    """What the official C++ tool writes per threshold (its -o file without the ``file:`` line; iostream's default
-    6 significant digits), 0/0 cases included.
-
-    ``Counter::get_precision`` / ``get_recall`` return -1 where tp + fp (tp + fn) is 0, and evaluate.cpp computes
-    ``F = 2 * precision * recall / (precision + recall)`` from those: -1 when both are -1, 0 when one is -1 and
-    the other 0 (-0.0 / -1.0), and 0.0 / 0.0 when tp = 0 with fp and fn > 0: x86's default NaN, sign bit set,
-    which glibc prints "-nan" (the fixtures' README: "F is then -1 or NaN"; this -nan is glibc's spelling, the
-    C++ tool was not run on such a case here).
-    """
-    tp, fp, fn = counts.tp, counts.fp, counts.fn
-    precision = -1.0 if tp + fp == 0 else tp / (tp + fp)  # tp/double(tp + fp)
-    recall = -1.0 if tp + fn == 0 else tp / (tp + fn)
-    if precision + recall == 0.0:
-        fmeasure = "-nan"  # 0.0 / 0.0 on x86-64 (SSE): the "default NaN", negative
-    else:
-        fmeasure = f"{2 * precision * recall / (precision + recall):.6g}"
-    return f"tp: {tp} fp: {fp} fn: {fn}\nprecision: {precision:.6g}\nrecall: {recall:.6g}\nFmeasure: {fmeasure}\n"
 
 
 class _Version(argparse.Action):
@@ -271,29 +235,6 @@ def _outputs(args: argparse.Namespace) -> list[Path | None]:
     return [getattr(args, "per_image", None), getattr(args, "per_sequence", None)]
 
 
-def _write_jsonl(path: Path, records: Sequence[dict], inputs: Sequence[Path | None]) -> None:
-    """Write json-lines atomically: a temporary file of a unique name beside ``path`` (created, never an
-    existing file; checked against the inputs as the output was), then renamed over it."""
-    try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as e:
-        raise LaneFileError(f"{path}: cannot write: {e.strerror}") from None
-    tmp = Path(name)
-    try:
-        check_outputs([tmp], inputs, files=True)
-        with open(fd, "w", encoding="utf-8") as f:
-            for rec in records:
-                f.write(json.dumps(rec) + "\n")
-        os.replace(tmp, path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)  # the file this call created, nothing else
-        raise LaneFileError(f"{path}: cannot write: {e}") from None
-    except OutputError:
-        os.close(fd)
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _timed(records: Sequence[dict]) -> bool:
     """Whether any record carries ``run_time``: every prediction does (lane.py requires it), a label never."""
     return any("run_time" in r for r in records)
@@ -331,7 +272,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
     if said:  # at most one warning line, whatever there is to say
         print(f"stamlane-eval: warning: {args.pred}: {'; '.join(said)}", file=sys.stderr)
     if args.per_image:
-        _write_jsonl(
+        write_jsonl(
             args.per_image,
             [
                 {
@@ -350,7 +291,7 @@ def _run_tusimple(args: argparse.Namespace) -> int:
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     elif args.format == "official":
-        print(_lane_py_line(res))
+        print(lane_py_line(res.accuracy, res.fp, res.fn))
     else:
         pct = [f"{100 * v:.2f}" for v in (res.accuracy, res.fp, res.fn, res.f1)]
         print(_table([["images", "accuracy %", "FP %", "FN %", "F1 % (paper)"], [res.images, *pct]]))
@@ -371,21 +312,14 @@ def _run_culane(args: argparse.Namespace) -> int:
         swapped = None if args.as_given else _swapped_tusimple(args, pred_records, gt_records)
         if swapped:
             raise LaneFileError(f"{swapped} (--as-given scores them as given)")
-        gt_map, rows = tusimple_lanes(gt_records, args.gt)
-        pred_map, _ = tusimple_lanes(pred_records, args.pred, rows)
-        entries = list(gt_map)
-        preds = [pred_map.get(e, []) for e in entries]
-        gts = [gt_map[e] for e in entries]
+        entries, preds, gts = tusimple_lanes_by_image(pred_records, gt_records, args.pred, args.gt)
     else:
         if not args.pred.is_dir():
             raise LaneFileError(f"{args.pred}: not a directory")
         entries = culane_entries(args.gt, args.list)
         if not args.as_given:
             _refuse_swapped_folders(args, entries)
-        gt_root, pred_root = args.gt.resolve(), args.pred.resolve()  # nothing read outside the folders given
-        in_gt, in_pred = Inside(gt_root), Inside(pred_root)
-        gts = [read_culane_lines(in_gt(culane_lines_path(gt_root, e)), missing_ok=False) for e in entries]
-        preds = [read_culane_lines(in_pred(culane_lines_path(pred_root, e)), prediction=True) for e in entries]
+        preds, gts = read_culane_folders(args.pred, args.gt, entries)  # nothing read outside the folders given
     thresholds = sorted(set(args.iou))
     try:
         res = culane.evaluate(
@@ -400,7 +334,7 @@ def _run_culane(args: argparse.Namespace) -> int:
         )
     except ValueError as e:
         raise LaneFileError(f"{args.pred}: {e}") from None
-    if args.format != "official":  # the C++ tool's own text writes its -1 and -nan (see _cpp_tool_text)
+    if args.format != "official":  # the C++ tool's own text writes its -1 and -nan (see io.cpp_tool_text)
         _refuse_zero_denominators(res, args)
     if args.per_image:
         recs = []
@@ -409,11 +343,11 @@ def _run_culane(args: argparse.Namespace) -> int:
             rec.update({str(t): list(r.counts[t]) for t in thresholds})
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)
-        _write_jsonl(args.per_image, recs, _inputs(args))
+        write_jsonl(args.per_image, recs, _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     elif args.format == "official":
-        print("\n".join(_cpp_tool_text(c) for c in res.totals.values()), end="")
+        print("\n".join(cpp_tool_text(c.tp, c.fp, c.fn) for c in res.totals.values()), end="")
     else:
         rows: list[list[object]] = [["IoU", "TP", "FP", "FN", "precision %", "recall %", "F1 %"]]
         for t, c in res.totals.items():
@@ -421,17 +355,6 @@ def _run_culane(args: argparse.Namespace) -> int:
         print(f"{args.command} ({args.variant}), {res.images} images, {format_wxh(size)}, width {args.width}")
         print(_table(rows))
     return 0
-
-
-def _images_beside(root: Path, entries: Sequence[str]) -> int:
-    """How many of ``entries`` have an image (``IMAGE_SUFFIXES``) beside their ``.lines.txt`` under ``root``
-    (looked up, never read)."""
-    found = 0
-    for entry in entries:
-        lines = culane_lines_path(root, entry)
-        stem = lines.name[: -len(".lines.txt")]
-        found += any(os.path.isfile(lines.parent / (stem + suffix)) for suffix in IMAGE_SUFFIXES)  # no OSError
-    return found
 
 
 def _refuse_swapped_folders(args: argparse.Namespace, entries: Sequence[str]) -> None:
@@ -444,8 +367,8 @@ def _refuse_swapped_folders(args: argparse.Namespace, entries: Sequence[str]) ->
         LaneFileError: naming both folders, the order and ``--as-given``.
     """
     sample = list(entries[:: max(1, len(entries) // SWAP_SAMPLE)][:SWAP_SAMPLE])
-    in_pred = _images_beside(args.pred, sample)
-    if 2 * in_pred < len(sample) or _images_beside(args.gt, sample):
+    in_pred = images_beside(args.pred, sample)
+    if 2 * in_pred < len(sample) or images_beside(args.gt, sample):
         return
     raise LaneFileError(
         f"{args.pred} holds the images beside its .lines.txt ({in_pred} of {len(sample)} looked at), as a dataset "
@@ -470,138 +393,26 @@ def _refuse_zero_denominators(res: culane.CULaneResult, args: argparse.Namespace
         )
 
 
-def _listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple[str, Path]]]:
-    """The frames a list names, in its order: ``{sequence: [(frame_stem, annotation_path), ...]}``.
-
-    An entry is ``<sequence>/<frame>`` (an extension and a leading ``/`` or ``/JPEGImages/``, as in VIL-100's
-    ``data/test.txt``, are allowed); the sequence is everything before the last ``/``. A sequence's frames must
-    be listed together: RVLD's script pairs list neighbours by position.
-    """
-    seqs: dict[str, list[tuple[str, Path]]] = {}
-    first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
-    last = None
-    for i, entry in enumerate(culane_entries(gt if gt.is_dir() else gt.parent, list_file), 1):
-        rel = entry.strip().lstrip("/")
-        rel = rel[len("JPEGImages/") :] if rel.startswith("JPEGImages/") else rel  # evaluate_iou.py drops it too
-        if "/" not in rel:
-            raise LaneFileError(f"{list_file}: line {i}: {entry!r} names no sequence (expected <sequence>/<frame>)")
-        seq, name = rel.rsplit("/", 1)
-        stem = name[: name.rfind(".")] if "." in name else name
-        if first.setdefault((seq, stem), i) != i:  # "/JPEGImages/v/1.jpg" and "v/1.png" name one frame
-            raise LaneFileError(
-                f"{list_file}: lines {first[seq, stem]} and {i} name the same frame {seq}/{stem}: it would be "
-                f"scored twice"
-            )
-        if seq in seqs and seq != last:
-            raise LaneFileError(
-                f"{list_file}: line {i}: sequence {seq!r} resumes after other sequences; list each sequence's "
-                f"frames together, in time order"
-            )
-        path = gt / "Json" / seq / f"{stem}.jpg.json" if kind == "vil100" else culane_lines_path(gt, rel)
-        seqs.setdefault(seq, []).append((stem, path))
-        last = seq
-    return seqs
-
-
-def _read_sizes(path: Path | None) -> dict[str, tuple[int, int]]:
-    """``--sizes FILE``: ``{"<sequence>" or "<sequence>/<frame>": "WxH"}`` as ``(H, W)``."""
-    if path is None:
-        return {}
-    text = read_text(path)  # a FIFO or a device: refused unread
-    try:
-        data = json.loads(text)
-    except ValueError as e:
-        raise LaneFileError(f"{path}: cannot read a JSON object: {e}") from None
-    except RecursionError:
-        raise LaneFileError(f"{path}: JSON nested too deeply") from None
-    if not isinstance(data, dict):
-        raise LaneFileError(f'{path}: expected a JSON object {{sequence: "WxH"}}, got {type(data).__name__}')
-    out = {}
-    for key, text in data.items():
-        try:
-            out[key] = _size(text if isinstance(text, str) else repr(text))
-        except argparse.ArgumentTypeError as e:
-            raise LaneFileError(f"{path}: {key!r}: {e}") from None
-    return out
-
-
-def _is_tusimple(path: Path) -> bool:
-    """Whether ``stamlane-eval video`` reads ``path`` as TuSimple records (`read_tusimple_frames`): a file, or a
-    folder with ``.json`` / ``.jsonl`` files directly in it and neither a VIL-100 ``Json/`` folder nor any
-    ``.lines.txt`` under it."""
-    if path.is_file():
-        return True
-    if not path.is_dir() or (path / "Json").is_dir():
-        return False
-    try:
-        if not any(q.name.endswith(TUSIMPLE_SUFFIXES) for q in path.iterdir()):
-            return False
-    except OSError:
-        return False
-    return not any(any(f.endswith(".lines.txt") for f in files) for _, _, files in os.walk(path))
-
-
 def _read_video(args: argparse.Namespace, need_size: bool) -> dict[str, list[video.Frame]]:
-    """The frames of ``args.gt`` (or of ``--list``) with their predictions (a missing one: no lanes)."""
-    pred_tusimple = _is_tusimple(args.pred)
-    if not pred_tusimple and not args.pred.is_dir():
-        raise LaneFileError(f"{args.pred}: not a directory, nor a TuSimple json-lines file")
-    sizes = _read_sizes(args.sizes)
-    gt_frames = None
-    if _is_tusimple(args.gt):
-        gt_frames = read_tusimple_frames(args.gt, "gt")
-        kind = "tusimple"
-        layout = {seq: [(stem, args.gt) for stem in stems] for seq, stems in gt_frames.sequences.items()}
-    else:
-        kind, layout = video_frames(args.gt)
-    if args.list is not None:
-        layout = _listed_frames(args.gt, args.list, kind)
-    pred_frames = None
-    if pred_tusimple:
-        pred_frames = read_tusimple_frames(args.pred, "pred", None if gt_frames is None else gt_frames.rows)
-        if gt_frames is not None and gt_frames.timed and not pred_frames.timed and not args.as_given:
-            raise LaneFileError(
-                f"{args.pred} has no run_time (a label file?) and {args.gt} has one (a prediction file?): the files "
-                f"look swapped; the order is stamlane-eval video PRED GT (--as-given scores them as given)"
-            )
-    sequences: dict[str, list[video.Frame]] = {}
-    predicted = 0
-    for seq, frames in layout.items():
-        out = []
-        for stem, path in frames:
-            if gt_frames is not None:
-                lanes, ids, size = gt_frames.lanes.get((seq, stem)), None, None
-                if lanes is None:
-                    raise LaneFileError(f"{args.list}: frame {seq}/{stem} is not in {args.gt}")
-            else:
-                inside(path, args.gt)  # nothing read outside the folders given, through links either
-                if kind == "vil100":
-                    lanes, ids, size = read_vil100_json(path)
-                else:
-                    lanes, ids, size = read_culane_lines(path, missing_ok=False), None, None
-            size = sizes.get(f"{seq}/{stem}") or sizes.get(seq) or args.size or size
-            if size is None and need_size:
-                where = path if gt_frames is None else f"{args.gt}: frame {seq}/{stem}"  # TuSimple: no size at all
-                raise LaneFileError(f"{where}: no image size: give --size WxH (or --sizes FILE)")
-            if pred_frames is not None:
-                preds = pred_frames.lanes.get((seq, stem))
-                predicted += preds is not None
-                preds = preds or []
-            else:
-                pred_path = args.pred / seq / f"{stem}.lines.txt"
-                found = pred_path.exists()
-                predicted += found
-                preds = read_culane_lines(inside(pred_path, args.pred) if found else pred_path, prediction=True)
-            out.append(video.Frame(preds, lanes, target_ids=ids, size=size))
-        sequences[seq] = out
-    if not predicted:  # every frame scored as missed: most likely a wrong folder or layout, not a model
-        where = "a record" if pred_frames is not None else f"a file {args.pred}/<sequence>/<frame>.lines.txt"
+    """The frames of ``args.gt`` (or of ``--list``) with their predictions (`stamlane_eval.io.read_video`); one
+    warning line when no frame has a prediction at all."""
+    found = read_video(
+        args.pred,
+        args.gt,
+        list_file=args.list,
+        sizes=args.sizes,
+        size=args.size,
+        need_size=need_size,
+        as_given=args.as_given,
+    )
+    if not found.predicted:  # every frame scored as missed: most likely a wrong folder or layout, not a model
+        where = "a record" if found.tusimple_pred else f"a file {args.pred}/<sequence>/<frame>.lines.txt"
         print(
-            f"stamlane-eval: warning: {args.pred}: no prediction for any of the {sum(map(len, layout.values()))} "
+            f"stamlane-eval: warning: {args.pred}: no prediction for any of the {found.frames} "
             f"frames (expected {where} per frame of {args.gt}); every frame scores as without lanes",
             file=sys.stderr,
         )
-    return sequences
+    return found.sequences
 
 
 def _show_progress(sequences: dict[str, list[video.Frame]]) -> bool:
@@ -623,7 +434,7 @@ def _run_video(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise LaneFileError(f"{args.gt}: {e}") from None
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
+        write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:
@@ -661,7 +472,7 @@ def _run_temporal(args: argparse.Namespace) -> int:
             f"Rs, Rj, Rm are 0/0 (RVLD's script fails here with ZeroDivisionError)"
         )
     if args.per_sequence:
-        _write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
+        write_jsonl(args.per_sequence, [s.as_dict() for s in res.per_sequence], _inputs(args))
     if args.format == "json":
         print(json.dumps(res.as_dict()))
     else:

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stamlane_eval._long_runs import progress_bar
-from stamlane_eval.aggregate import culane_update, prf
-from stamlane_eval.io import CanvasBudget, check_image_size
+from stamlane_eval.aggregate import count_update, prf
+from stamlane_eval.io.limits import CanvasBudget, check_image_size
 
 __all__ = [
     "APOLLO_SIZE",
@@ -484,7 +484,7 @@ def aggregate(per_image: Sequence[CULaneImageResult], iou_thresholds: Sequence[f
     """Sum TP/FP/FN over images and derive P, R, F1 per threshold (0 where a denominator is 0), with the helpers
     the torchmetrics class uses (``stamlane_eval.aggregate``)."""
     thresholds = [float(t) for t in iou_thresholds]
-    sums = culane_update([(0, 0, 0)] * len(thresholds), per_image, thresholds)
+    sums = count_update([(0, 0, 0)] * len(thresholds), (r.counts for r in per_image), thresholds)
     totals = {t: counts_to_prf(*c) for t, c in zip(thresholds, sums, strict=True)}
     return CULaneResult(totals, len(per_image), list(per_image))
 

@@ -30,15 +30,15 @@ The CULane / ApolloScape F1 is a function of the summed lane counts: ``culane_co
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from stamlane_eval.aggregate import paper_f1, prf, stability_rates
 from stamlane_eval.culane import CULaneImageResult
 from stamlane_eval.temporal import TemporalSequenceResult
-from stamlane_eval.tusimple import TuSimpleImageResult, paper_f1
+from stamlane_eval.tusimple import TuSimpleImageResult
 
 __all__ = [
     "Estimate",
@@ -116,10 +116,10 @@ def culane_counts(per_image: Sequence[CULaneImageResult], iou_threshold: float) 
 
 
 def f1_of_counts(means: np.ndarray) -> float:
-    """The CULane F1 from the mean ``(tp, fp, fn)`` counts (what `culane_counts` gives per image): 2TP / (2TP + FP
-    + FN), which the means give as the sums do; 0 where there is no lane at all (as the official tool)."""
+    """The CULane F1 from the mean ``(tp, fp, fn)`` counts (what `culane_counts` gives per image): the evaluator's
+    own F1 (`stamlane_eval.aggregate.prf`), which the means give as the sums do; 0 where no lane is matched."""
     tp, fp, fn = (float(v) for v in means[:3])
-    return 2 * tp / (2 * tp + fp + fn) if tp > 0 else 0.0
+    return float(prf(tp, fp, fn)[2])
 
 
 def temporal_counts(per_sequence: Sequence[TemporalSequenceResult], iou_threshold: float) -> np.ndarray:
@@ -129,25 +129,20 @@ def temporal_counts(per_sequence: Sequence[TemporalSequenceResult], iou_threshol
     ).reshape(-1, 3)
 
 
-def _share(means: np.ndarray, k: int) -> float:
-    """Share k of the mean ``(Ns, Nj, Nm)``: the ratio of the sums (NaN where nothing was counted)."""
-    total = float(means[0] + means[1] + means[2])
-    return float(means[k]) / total if total else math.nan
-
-
 def rs_of_counts(means: np.ndarray) -> float:
-    """RVLD's Rs from the mean ``(Ns, Nj, Nm)`` per sequence (what `temporal_counts` gives)."""
-    return _share(means, 0)
+    """RVLD's Rs from the mean ``(Ns, Nj, Nm)`` per sequence (what `temporal_counts` gives): the evaluator's own
+    shares (`stamlane_eval.aggregate.stability_rates`), NaN where nothing was counted."""
+    return stability_rates(means[0], means[1], means[2])[0]
 
 
 def rj_of_counts(means: np.ndarray) -> float:
     """RVLD's Rj from the mean ``(Ns, Nj, Nm)`` per sequence."""
-    return _share(means, 1)
+    return stability_rates(means[0], means[1], means[2])[1]
 
 
 def rm_of_counts(means: np.ndarray) -> float:
     """RVLD's Rm from the mean ``(Ns, Nj, Nm)`` per sequence."""
-    return _share(means, 2)
+    return stability_rates(means[0], means[1], means[2])[2]
 
 
 def _weights(n: int, groups: Sequence | None, resamples: int, seed: int) -> tuple[np.ndarray, int]:

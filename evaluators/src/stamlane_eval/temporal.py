@@ -35,7 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stamlane_eval._long_runs import map_sequences
-from stamlane_eval.io import MAX_COORDINATE, CanvasBudget, check_image_size
+from stamlane_eval.aggregate import count_update, stability_rates
+from stamlane_eval.io.limits import MAX_COORDINATE, CanvasBudget, check_image_size
 from stamlane_eval.video import Frame
 
 __all__ = [
@@ -85,21 +86,17 @@ class StabilityCounts:
     def total(self) -> int:
         return self.ns + self.nj + self.nm
 
-    def _ratio(self, n: int) -> float:
-        total = self.total
-        return float(n) / total if total else math.nan  # evaluate_temporal.py: float(total_ns) / (...)
-
     @property
     def rs(self) -> float:
-        return self._ratio(self.ns)
+        return stability_rates(self.ns, self.nj, self.nm)[0]
 
     @property
     def rj(self) -> float:
-        return self._ratio(self.nj)
+        return stability_rates(self.ns, self.nj, self.nm)[1]
 
     @property
     def rm(self) -> float:
-        return self._ratio(self.nm)
+        return stability_rates(self.ns, self.nj, self.nm)[2]
 
     def __add__(self, other: StabilityCounts) -> StabilityCounts:
         return StabilityCounts(self.ns + other.ns, self.nj + other.nj, self.nm + other.nm)
@@ -465,7 +462,6 @@ def evaluate_sequence(
         Counts per threshold and per pair.
     """
     thresholds = tuple(float(t) for t in iou_thresholds)
-    totals = {t: StabilityCounts(0, 0, 0) for t in thresholds}
     per_pair = []
     prev = None
     for i, fr in enumerate(frames):
@@ -476,9 +472,8 @@ def evaluate_sequence(
             raise ValueError(f"{name} frame {i}: {e}" if name else f"frame {i}: {e}") from None
         if counts is not None:
             per_pair.append(counts)
-            totals = {t: totals[t] + StabilityCounts(*counts[t]) for t in thresholds}
         prev = cur
-    return TemporalSequenceResult(name, len(frames), totals, per_pair)
+    return TemporalSequenceResult(name, len(frames), _totals(per_pair, thresholds), per_pair)
 
 
 def evaluate(
@@ -507,7 +502,13 @@ def evaluate(
     thresholds = tuple(float(t) for t in iou_thresholds)
     score = functools.partial(evaluate_sequence, iou_thresholds=thresholds, size=size, protocol=protocol)
     per = map_sequences(score, sequences, jobs, progress, "temporal")
-    totals = {t: StabilityCounts(0, 0, 0) for t in thresholds}
-    for s in per:
-        totals = {t: totals[t] + s.counts[t] for t in thresholds}
-    return TemporalResult(totals, len(per), sum(s.frames for s in per), protocol, per)
+    pairs = [c for s in per for c in s.per_pair]  # the script's total_ns, ...: every pair of every sequence
+    return TemporalResult(_totals(pairs, thresholds), len(per), sum(s.frames for s in per), protocol, per)
+
+
+def _totals(
+    per_pair: Sequence[dict[float, tuple[int, int, int]]], thresholds: Sequence[float]
+) -> dict[float, StabilityCounts]:
+    """Ns, Nj, Nm per threshold, summed over pairs of frames (`stamlane_eval.aggregate.count_update`)."""
+    sums = count_update([(0, 0, 0)] * len(thresholds), per_pair, thresholds)
+    return {t: StabilityCounts(*c) for t, c in zip(thresholds, sums, strict=True)}

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from stamlane_eval.aggregate import TuSimpleSums, paper_f1, prf, tusimple_compute, tusimple_update
-from stamlane_eval.io import TuSimpleFile, TuSimpleInputError, check_tusimple
+from stamlane_eval.io.tusimple import TuSimpleFile, TuSimpleInputError, check_tusimple
 
 __all__ = [
     "ABSENT",

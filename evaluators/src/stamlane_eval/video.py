@@ -30,10 +30,10 @@ import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from stamlane_eval import culane
 from stamlane_eval._long_runs import map_sequences
+from stamlane_eval.aggregate import MMA_NET_DIGITS, count_update, dataset_miou, sequence_miou
+from stamlane_eval.io.video import Frame  # one annotated frame, as the readers give it
 
 __all__ = [
     "MMA_NET_DIGITS",
@@ -49,27 +49,6 @@ __all__ = [
 
 VIDEO_IOU_THRESHOLDS = (0.5, 0.8)  # the thresholds VIL-100 / MMA-Net report F at
 MATCH_IOU = 0.5  # a pair counts as "matched" for identity switches and flicker above this IoU
-MMA_NET_DIGITS = 6  # evaluate.cpp writes each video's mIoU with iostream's default 6 significant digits, and
-# evaluate_iou.py averages those printed values over the videos
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One annotated frame.
-
-    Attributes:
-        preds: predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels.
-        target: annotated lanes, same form.
-        pred_ids: identity of each predicted lane (default: its position).
-        target_ids: identity of each annotated lane (default: its position; VIL-100: ``lane_id``).
-        size: image ``(H, W)``; None for the size given to :func:`evaluate_sequence`.
-    """
-
-    preds: Sequence[np.ndarray]
-    target: Sequence[np.ndarray]
-    pred_ids: Sequence[int] | None = None
-    target_ids: Sequence[int] | None = None
-    size: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -160,18 +139,6 @@ def frame_miou(r: culane.CULaneImageResult) -> float:
     return total / r.n_pred  # curr_iou / detect_lanes.size(): over the PREDICTED lanes
 
 
-def dataset_miou(sequence_mious: Sequence[float]) -> float:
-    """MMA-Net's "all scenes miou": each sequence's mIoU as its C++ tool prints it, averaged over sequences.
-
-    Returns:
-        0.0 for no sequence (MMA-Net divides by zero there).
-    """
-    if not sequence_mious:
-        return 0.0
-    printed = [float(f"{m:.{MMA_NET_DIGITS}g}") for m in sequence_mious]  # read_helper parses the printed text
-    return sum(printed) / len(printed)  # MIOU += float(v['miou']); MIOU / len(res.items())
-
-
 def evaluate_sequence(
     frames: Sequence[Frame],
     name: str = "",
@@ -194,7 +161,7 @@ def evaluate_sequence(
         The sequence's mIoU (None when no frame was scored), counts and stability counts.
     """
     thresholds = tuple(float(t) for t in iou_thresholds)
-    counts = {t: [0, 0, 0] for t in thresholds}
+    frame_counts: list[dict[float, tuple[int, int, int]]] = []
     frame_mious: list[float] = []
     matched: list[dict[int, int]] = []  # per frame: target id -> pred id (matched above match_iou)
     present: list[set[int]] = []  # per frame: target ids
@@ -207,9 +174,7 @@ def evaluate_sequence(
             raise ValueError(f"{name} frame {i}: {e}") from None
         p_ids = _ids(fr.pred_ids, r.n_pred, "predicted", i)
         t_ids = _ids(fr.target_ids, r.n_gt, "annotated", i)
-        for t in thresholds:
-            for k in range(3):
-                counts[t][k] += r.counts[t][k]
+        frame_counts.append(r.counts)
         frame_mious.append(frame_miou(r))
         m = {}
         for p, g in enumerate(r.pred_to_gt.tolist()):
@@ -228,12 +193,12 @@ def evaluate_sequence(
             if g in matched[t - 1] and g in matched[t + 1] and g in present[t - 1] and g in present[t + 1]:
                 flicker_chances += 1
                 flickers += g not in matched[t]
+    sums = count_update([(0, 0, 0)] * len(thresholds), frame_counts, thresholds)
     return SequenceResult(
         name=name,
         frames=len(frames),
-        # evaluate.cpp: iou += get<5>(result) in list order, then / filelists.size()
-        miou=sum(frame_mious) / len(frame_mious) if frame_mious else None,
-        counts={t: (c[0], c[1], c[2]) for t, c in counts.items()},
+        miou=sequence_miou(frame_mious),
+        counts=dict(zip(thresholds, sums, strict=True)),
         id_switches=switches,
         switch_chances=switch_chances,
         flickers=flickers,
@@ -270,7 +235,8 @@ def evaluate(
     )
     per = map_sequences(score, sequences, jobs, progress, "video")
     thresholds = tuple(float(t) for t in iou_thresholds)
-    totals = {t: culane.counts_to_prf(*(sum(s.counts[t][k] for s in per) for k in range(3))) for t in thresholds}
+    sums = count_update([(0, 0, 0)] * len(thresholds), (s.counts for s in per), thresholds)
+    totals = {t: culane.counts_to_prf(*c) for t, c in zip(thresholds, sums, strict=True)}
     mious = [s.miou for s in per if s.miou is not None]
     switches, chances = sum(s.id_switches for s in per), sum(s.switch_chances for s in per)
     flickers, f_chances = sum(s.flickers for s in per), sum(s.flicker_chances for s in per)

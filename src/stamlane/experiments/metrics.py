@@ -1,9 +1,10 @@
 """The numbers an experiment reports, each made of per-image quantities, each under one name.
 
 A metric's name is the one `stamlane_eval.integrations.lightning.LaneEvalCallback` logs (after ``val/`` or
-``test/``): ``tusimple_f1`` (the paper's TuSimple F1), ``culane_f1@0.5`` and ``culane_f1@0.3`` (the CULane-style
-IoU F1 of the paper's ApolloScape tables), ``temporal_rs@0.5`` ... (RVLD's temporal stability). The same names key the summaries, the tables and the docs. Recall per
-paint-visibility class (``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.history`)
+``test/``), built by `stamlane_eval.names.metric_name`: ``tusimple_f1`` (the paper's TuSimple F1), ``culane_f1@0.5``
+and ``culane_f1@0.3`` (the CULane-style IoU F1 of the paper's ApolloScape tables), ``temporal_rs@0.5`` ... (RVLD's
+temporal stability). The same names key the summaries, the tables and the docs. Recall per paint-visibility class
+(``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.history`), stamlane's own,
 is reported where the data has visibility masks.
 
 Every metric is a statistic of the column means of per-image quantities (a row of ``per_image.jsonl``), so one
@@ -16,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from stamlane_eval import names
 from stamlane_eval.culane import IOU_THRESHOLDS
 from stamlane_eval.stats import f1_of_counts, f1_of_rates, rj_of_counts, rm_of_counts, rs_of_counts
 from stamlane_eval.temporal import TEMPORAL_IOU_THRESHOLDS
@@ -74,17 +76,25 @@ def _temporal_counts(threshold: float) -> Callable[[dict], list[float] | None]:
 
 
 TUSIMPLE = Metric(
-    "tusimple_f1", "TuSimple F1", lambda row: [row["fp"], row["fn"]] if "fp" in row else None, f1_of_rates
+    names.metric_name(names.TUSIMPLE, "f1"),
+    "TuSimple F1",
+    lambda row: [row["fp"], row["fn"]] if "fp" in row else None,
+    f1_of_rates,
 )
 CULANE = tuple(
-    Metric(f"culane_f1@{t:g}", f"IoU F1 @{t:g}", _culane_counts(t), f1_of_counts)
+    Metric(names.metric_name(names.CULANE, "f1", t), f"IoU F1 @{t:g}", _culane_counts(t), f1_of_counts)
     for t in sorted(IOU_THRESHOLDS, reverse=True)
 )
 CLASS_RECALL = tuple(
     Metric(f"recall_{c}", f"recall, {c} points", _class_counts(c), _recall) for c in VISIBILITY_CLASSES
 )
 TEMPORAL = tuple(
-    Metric(f"temporal_{name}@{t:g}", f"{name.capitalize()} @{t:g}", _temporal_counts(t), statistic)
+    Metric(
+        names.metric_name(names.TEMPORAL, name, t),
+        f"{name.capitalize()} @{t:g}",
+        _temporal_counts(t),
+        statistic,
+    )
     for t in TEMPORAL_IOU_THRESHOLDS
     for name, statistic in (("rs", rs_of_counts), ("rj", rj_of_counts), ("rm", rm_of_counts))
 )

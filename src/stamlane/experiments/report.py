@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from stamlane_eval.names import metric_name, parse_metric_name
 
 from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TEMPORAL, TUSIMPLE
 from stamlane.experiments.summary import Difference, Summary, Value
@@ -380,7 +381,7 @@ def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> l
         lines += ["`M − M@key`: the same weights with the key frame copied into every history slot (history use).", ""]
         pairs = [*pairs, *((name, f"{name}@key") for name in probed)]
     if pairs:
-        keys = [t.key for t in TEMPORAL if t.key.startswith(("temporal_rs", "temporal_rj"))]
+        keys = [t.key for t in TEMPORAL if parse_metric_name(t.key).quantity in ("rs", "rj")]
         diff_rows = [[f"{a} − {b}", *(diff_text(summary.difference(a, b, frames, k)) for k in keys)] for a, b in pairs]
         lines += _md(["models", *keys], diff_rows)
     factors = [v for v in summary.views() if v.startswith(f"{frames}:")]
@@ -426,7 +427,7 @@ def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str) -
             if any(summaries[i].value(name, metric, s) for s in SPLITS):
                 where.setdefault(row, i)
     several = len(summaries) > 1
-    what = "F1" if metric == TUSIMPLE.key else f"IoU F1 @{metric.split('@')[1]}"
+    what = "F1" if metric == TUSIMPLE.key else f"IoU F1 @{parse_metric_name(metric).threshold:g}"
 
     def versus(i: int, row: str, other: str | None) -> str:
         a, b = rows_in[i].get(row), rows_in[i].get(other) if other else None
@@ -598,6 +599,7 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
     from stamlane.budget import MAX_RECORD_BYTES
     from stamlane.guard import read_inside
 
+    f1 = metric_name("tusimple", "f1", stage="val")  # as the callback logs it
     fig, ax = plt.subplots(figsize=(7, 4))
     for colour, (name, label, first) in enumerate(runs):
         labelled = False
@@ -606,9 +608,7 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
             # a record of the run folder: read only inside it, bounded (a link out of it or a FIFO is refused)
             text = read_inside(metrics, metrics.parent, MAX_RECORD_BYTES, "metrics") if metrics.is_file() else ""
             rows = list(csv.DictReader(text.splitlines()))
-            points = [
-                (int(r["step"]) + 1 + first, float(r["val/tusimple_f1"])) for r in rows if r.get("val/tusimple_f1")
-            ]
+            points = [(int(r["step"]) + 1 + first, float(r[f1])) for r in rows if r.get(f1)]
             if points:
                 seeds_label = f"{label} ({len(seeds)} seeds)" if len(seeds) > 1 else label
                 ax.plot(

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
+from stamlane_eval import names
 
 __all__ = [
     "METRIC_KINDS",
@@ -27,15 +28,20 @@ METRIC_KINDS = ("tusimple", "iou")
 """``tusimple``: accuracy / FP / FN / F1 (TuSimple protocol); ``iou``: precision / recall / F1 at IoU
 thresholds (CULane area metric, the paper's ApolloScape tables)."""
 
-_PREFIX = {"tusimple": "tusimple_", "iou": "culane_"}
+_METRIC = {"tusimple": names.TUSIMPLE, "iou": names.CULANE}
+"""The evaluator metric of each kind (the index's ``iou`` is the CULane area metric)."""
 
 
 def metric_key(kind: str, short: str) -> str:
-    """The name `LaneEvalCallback` logs (after ``test/``) for a paper column: ``("iou", "f1@0.5")`` ->
-    ``"culane_f1@0.5"``, ``("tusimple", "fp")`` -> ``"tusimple_fp"``."""
-    if kind not in _PREFIX:
+    """The name `LaneEvalCallback` logs (after ``test/``) for a paper column (`stamlane_eval.names`):
+    ``("iou", "f1@0.5")`` -> ``"culane_f1@0.5"``, ``("tusimple", "fp")`` -> ``"tusimple_fp"``.
+
+    Raises:
+        ValueError: an unknown kind, or a column its metric does not give.
+    """
+    if kind not in _METRIC:
         raise ValueError(f"metric kind must be one of {METRIC_KINDS}, got {kind!r}")
-    return _PREFIX[kind] + short
+    return names.metric_name(_METRIC[kind], *names.parse_metric_key(short))
 
 
 @dataclass(frozen=True)
@@ -168,7 +174,10 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
             given = r.get("paper") or {}
             if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in given.values()):
                 raise ValueError(f"{path}: table {name}: row {r['id']!r}: paper values must be numbers")
-            paper = {metric_key(kind, k): float(v) for k, v in given.items()}
+            try:
+                paper = {metric_key(kind, str(k)): float(v) for k, v in given.items()}
+            except ValueError as err:
+                raise ValueError(f"{path}: table {name}: row {r['id']!r}: paper column: {err}") from None
             rows.append(PaperRow(str(r["id"]), str(r.get("label", r["id"])), existing(f"rows/{r['id']}.yaml"), paper))
         ids = [r.id for r in rows]
         if len(set(ids)) != len(ids) or not ids:

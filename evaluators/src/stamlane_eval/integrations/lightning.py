@@ -13,6 +13,7 @@ from stamlane_eval import culane as _culane
 from stamlane_eval import temporal as _temporal
 from stamlane_eval import video as _video
 from stamlane_eval.integrations.torchmetrics import CULaneMetric, TemporalStabilityMetric, TuSimpleMetric, VideoMetric
+from stamlane_eval.names import CULANE, TEMPORAL, TUSIMPLE, VIDEO, metric_key, metric_name
 from stamlane_eval.tusimple import lanes_to_xs
 from stamlane_eval.tusimple import late_message as tusimple_late_message
 
@@ -82,8 +83,8 @@ class LaneEvalCallback(pl.Callback):
         tusimple: bool = True,
         culane: bool = True,
         culane_size: tuple[int, int] | None = None,
-        iou_thresholds: Sequence[float] = (0.3, 0.5),
-        width: int = 30,
+        iou_thresholds: Sequence[float] = _culane.IOU_THRESHOLDS,
+        width: int = _culane.LANE_WIDTH,
         prefix: str = "val",
         test_prefix: str = "test",
         variant: str = "official",
@@ -190,15 +191,18 @@ class LaneEvalCallback(pl.Callback):
                 self.temporal_metric.update(preds, gts, list(sequences), per_image)
 
     def _log(self, pl_module: pl.LightningModule, prefix: str) -> None:
+        def log(metric: str, quantity: str, vals: Mapping[str, torch.Tensor], threshold: float | None = None) -> None:
+            name = metric_name(metric, quantity, threshold, stage=prefix)
+            pl_module.log(name, float(vals[metric_key(quantity, threshold)]))
+
         images = self._image_count(self.tusimple_metric) if self.use_tusimple else 0
         if images:
             with warnings.catch_warnings():  # the metric's own warning names its switch; this one names ours
                 warnings.simplefilter("ignore", UserWarning)
                 vals = self.tusimple_metric.compute()
-            for name in ("accuracy", "fp", "fn", "f1"):
-                pl_module.log(f"{prefix}/tusimple_{name}", float(vals[name]))
+            for name in ("accuracy", "fp", "fn", "f1", "late"):
+                log(TUSIMPLE, name, vals)
             late = int(vals["late"])
-            pl_module.log(f"{prefix}/tusimple_late", float(late))
             if late and self.tusimple_metric.time_limit and not self._late_warned:
                 self._late_warned = True
                 switch = "LaneEvalCallback(tusimple_time_limit=False)"
@@ -207,20 +211,20 @@ class LaneEvalCallback(pl.Callback):
             vals = self.culane_metric.compute()
             for t in self.culane_metric.iou_thresholds:
                 for name in ("f1", "precision", "recall"):
-                    pl_module.log(f"{prefix}/culane_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+                    log(CULANE, name, vals, t)
         if self.use_video and self._image_count(self.video_metric):
             vals = self.video_metric.compute()
-            pl_module.log(f"{prefix}/video_miou", float(vals["miou"]))
+            log(VIDEO, "miou", vals)
             for t in self.video_metric.iou_thresholds:
                 for name in ("f1", "precision", "recall"):
-                    pl_module.log(f"{prefix}/video_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+                    log(VIDEO, name, vals, t)
         if self.use_temporal and self._image_count(self.temporal_metric):
             vals = self.temporal_metric.compute()  # synchronised: every process takes the same branch below
             for t in self.temporal_metric.iou_thresholds:
-                if not _temporal.StabilityCounts(*(int(vals[f"{k}@{t:g}"]) for k in ("ns", "nj", "nm"))).total:
-                    continue
+                if not _temporal.StabilityCounts(*(int(vals[metric_key(k, t)]) for k in ("ns", "nj", "nm"))).total:
+                    continue  # no lane matched across a pair: Rs, Rj, Rm are 0/0
                 for name in ("rs", "rj", "rm"):
-                    pl_module.log(f"{prefix}/temporal_{name}@{t:g}", float(vals[f"{name}@{t:g}"]))
+                    log(TEMPORAL, name, vals, t)
         for m in self._metrics():
             m.reset()
 

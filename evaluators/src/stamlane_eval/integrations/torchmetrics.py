@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import warnings
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -19,7 +19,16 @@ from torchmetrics import Metric
 from torchmetrics.utilities import dim_zero_cat
 
 from stamlane_eval import culane, temporal, tusimple, video
-from stamlane_eval.aggregate import TuSimpleSums, culane_update, prf, tusimple_compute, tusimple_update
+from stamlane_eval.aggregate import (
+    TuSimpleSums,
+    count_update,
+    dataset_miou,
+    prf,
+    sequence_miou,
+    tusimple_compute,
+    tusimple_update,
+)
+from stamlane_eval.names import metric_key
 
 __all__ = ["CULaneMetric", "TemporalStabilityMetric", "TuSimpleMetric", "VideoMetric"]
 
@@ -28,6 +37,19 @@ def _to_numpy(lane: object) -> np.ndarray:
     if isinstance(lane, torch.Tensor):
         return lane.detach().cpu().double().numpy()
     return np.asarray(lane, dtype=np.float64)
+
+
+def _add_counts(
+    states: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    counts: Iterable[Mapping[float, Sequence[int]]],
+    thresholds: Sequence[float],
+) -> None:
+    """Add count triples to three ``(k,)`` int64 states, one value per threshold, in place
+    (`stamlane_eval.aggregate.count_update`, the functions' own sums)."""
+    sums = count_update(torch.stack(states, 1).tolist(), counts, thresholds)
+    new = torch.tensor(sums, dtype=torch.int64, device=states[0].device)
+    for k, state in enumerate(states):
+        state.copy_(new[:, k])
 
 
 class TuSimpleMetric(Metric):
@@ -169,11 +191,7 @@ class CULaneMetric(Metric):
             )
             for i, (p, g) in enumerate(zip(preds, target, strict=True))
         ]
-        sums = culane_update(torch.stack([self.tp, self.fp, self.fn], 1).tolist(), per_image, self.iou_thresholds)
-        counts = torch.tensor(sums, dtype=torch.int64, device=self.tp.device)
-        self.tp.copy_(counts[:, 0])
-        self.fp.copy_(counts[:, 1])
-        self.fn.copy_(counts[:, 2])
+        _add_counts((self.tp, self.fp, self.fn), (r.counts for r in per_image), self.iou_thresholds)
         self.images += len(per_image)
 
     def compute(self) -> dict[str, torch.Tensor]:
@@ -182,9 +200,9 @@ class CULaneMetric(Metric):
         for i, t in enumerate(self.iou_thresholds):
             counts = (int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
             for name, v in zip(("precision", "recall", "f1"), prf(*counts), strict=True):
-                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.float64)
             for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
-                out[f"{name}@{t:g}"] = torch.tensor(v, dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.int64)
         return out
 
 
@@ -269,20 +287,16 @@ class VideoMetric(Metric):
             sequences: per frame, the name of its sequence (default: one sequence).
             sizes: per frame ``(H, W)``; default ``size``.
         """
-        mious, keys = [], []
-        counts = torch.zeros(len(self.iou_thresholds), 3, dtype=torch.int64)
+        per_frame, mious, keys = [], [], []
         for i, (seq, p, g, size) in enumerate(_frames(preds, target, sequences, sizes)):
             try:
                 r = culane.evaluate_image(p, g, self.iou_thresholds, culane.LANE_WIDTH, size or self.size, "official")
             except ValueError as e:
                 raise ValueError(f"sequence {seq!r}, frame {i} of this update: {e}") from None
-            counts += torch.tensor([r.counts[t] for t in self.iou_thresholds], dtype=torch.int64)
+            per_frame.append(r.counts)
             mious.append(video.frame_miou(r))
             keys.append(_sequence_key(seq))
-        counts = counts.to(self.tp.device)
-        self.tp += counts[:, 0]
-        self.fp += counts[:, 1]
-        self.fn += counts[:, 2]
+        _add_counts((self.tp, self.fp, self.fn), per_frame, self.iou_thresholds)
         self.images += len(mious)
         if mious:
             self.frame_miou.append(torch.tensor(mious, dtype=torch.float64, device=self.tp.device))
@@ -295,14 +309,14 @@ class VideoMetric(Metric):
             keys = dim_zero_cat(self.frame_sequence).tolist()
             for key, value in zip(keys, dim_zero_cat(self.frame_miou).tolist(), strict=True):
                 per_sequence.setdefault(key, []).append(value)
-        mious = [sum(v) / len(v) for v in per_sequence.values()]  # evaluate.cpp: sum in order, / frames
-        out = {"miou": torch.tensor(video.dataset_miou(mious), dtype=torch.float64)}
+        mious = [sequence_miou(v) for v in per_sequence.values()]  # frames of a sequence in the order they came
+        out = {"miou": torch.tensor(dataset_miou(mious), dtype=torch.float64)}
         for i, t in enumerate(self.iou_thresholds):
             c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
             for name in ("precision", "recall", "f1"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.float64)
             for name in ("tp", "fp", "fn"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.int64)
         return out
 
 
@@ -359,8 +373,7 @@ class TemporalStabilityMetric(Metric):
             sequences: per frame, the name of its sequence (default: one sequence).
             sizes: per frame ``(H, W)``; default ``size``.
         """
-        counts = torch.zeros(len(self.iou_thresholds), 3, dtype=torch.int64)
-        pairs = 0
+        per_pair = []
         frames = _frames(preds, target, sequences, sizes)
         for i, (seq, p, g, size) in enumerate(frames):
             prev = self._last.get(seq)
@@ -370,15 +383,11 @@ class TemporalStabilityMetric(Metric):
             except ValueError as e:
                 raise ValueError(f"sequence {seq!r}, frame {i} of this update: {e}") from None
             if c is not None:
-                counts += torch.tensor([c[t] for t in self.iou_thresholds], dtype=torch.int64)
-                pairs += 1
+                per_pair.append(c)
             self._last[seq] = frame
-        counts = counts.to(self.ns.device)
-        self.ns += counts[:, 0]
-        self.nj += counts[:, 1]
-        self.nm += counts[:, 2]
+        _add_counts((self.ns, self.nj, self.nm), per_pair, self.iou_thresholds)
         self.images += len(frames)
-        self.pairs += pairs
+        self.pairs += len(per_pair)
 
     def forward(self, *args: object, **kwargs: object) -> None:
         self.update(*args, **kwargs)
@@ -394,7 +403,7 @@ class TemporalStabilityMetric(Metric):
         for i, t in enumerate(self.iou_thresholds):
             c = temporal.StabilityCounts(int(self.ns[i]), int(self.nj[i]), int(self.nm[i]))
             for name in ("rs", "rj", "rm"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.float64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.float64)
             for name in ("ns", "nj", "nm"):
-                out[f"{name}@{t:g}"] = torch.tensor(getattr(c, name), dtype=torch.int64)
+                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.int64)
         return out
