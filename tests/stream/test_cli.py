@@ -160,6 +160,8 @@ def test_export_writes_onnx_and_prints_the_parity(checkpoint: Path, tmp_path: Pa
         (["--opset", "9"], "--opset must be in 16..21"),
         (["--output", "{ckpt}"], "would overwrite or write into the input"),
         (["--output", "{tmp}/model.txt"], "must end in .onnx"),
+        (["--ckpt_path", "{tmp}/nowhere.ckpt"], "nowhere.ckpt: No such file or directory"),
+        (["--streaming", "{ckpt}"], "is a file, not a folder"),
     ],
 )
 def test_export_bad_input_is_one_line(checkpoint: Path, tmp_path: Path, capsys, extra: list[str], match: str) -> None:
