@@ -30,13 +30,14 @@ def doc_example() -> str:
     return match.group(1)
 
 
-@pytest.fixture(scope="module")
-def workdir(tmp_path_factory: pytest.TempPathFactory, save_checkpoint) -> Path:
-    """What the example reads: ``stam4.onnx`` exported from a tiny checkpoint and ``data/synth``, a synthetic set
-    of one 20-frame test clip at 160x96 (so that the resize does not shrink below 0.6, where stamlane area-averages
-    first and the example does not)."""
+@pytest.fixture(scope="module", params=[(160, 96), (320, 192)], ids=["resized", "area-averaged-first"])
+def workdir(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory, save_checkpoint) -> Path:
+    """What the example reads: ``stam4.onnx`` exported from a tiny checkpoint (64x128 input, the top quarter cut)
+    and ``data/synth``, a synthetic set of one 20-frame test clip: at 160x96 the frames are only resized, at 320x192
+    they shrink below 0.6 and are area-averaged first."""
     folder = tmp_path_factory.mktemp("example")
-    config = SynthConfig(width=160, height=96, num_frames=20)
+    width, height = request.param
+    config = SynthConfig(width=width, height=height, num_frames=20)
     generate_dataset(folder / "data/synth", train=0, val=0, test=1, challenging=0, config=config, progress=False)
     ckpt = save_checkpoint(folder / "last.ckpt")
     assert stamlane(["export", "--ckpt_path", str(ckpt), "--output", str(folder / "stam4.onnx")]) == 0
@@ -54,8 +55,10 @@ def test_the_example_runs_and_feeds_what_stamlane_feeds(workdir: Path, monkeypat
     assert "lanes; the first points of each" in capsys.readouterr().out
     lanes = namespace["lanes"]
     assert isinstance(lanes, list) and all(lane.ndim == 2 and lane.shape[1] == 2 for lane in lanes)
+    height, width = namespace["frames"][-1].shape[:2]
     for lane in lanes:  # in frame pixels, below the rows the network never saw
-        assert (lane[:, 0] >= 0).all() and (lane[:, 0] <= 159).all() and (lane[:, 1] >= 24).all()
+        assert (lane[:, 0] >= 0).all() and (lane[:, 0] <= width - 1).all() and (lane[:, 1] >= height / 4).all()
+    assert (namespace["scale"] < 0.6) == (width == 320)  # both branches of the resize are run
 
     # stamlane's own path on the same frames: its alignment settings, ClipTransform, the PyTorch network
     module = StamLaneModule.from_checkpoint(workdir / "last.ckpt")

@@ -64,8 +64,9 @@ LANE_CHANNEL = 1
 
 RESIZE = (
     "bilinear (OpenCV INTER_LINEAR), pixel centres aligned: x_net = (x + 0.5) * W / W0 - 0.5, "
-    "y_net = (y - top + 0.5) * H / (H0 - top) - 0.5 with top = crop_top * H0, for a frame of H0 x W0; "
-    "stamlane first area-averages a frame shrunk below 0.6 of its size (to half the shrink)"
+    "y_net = (y - top + 0.5) * H / (H0 - top) - 0.5 with top = crop_top * H0, for a frame of H0 x W0; where "
+    "s = sqrt(W / W0 * H / (H0 - top)) < 0.6, the frame is first resized by min(1, 2 s) with OpenCV INTER_AREA "
+    "(to about twice the input size, against aliasing) and the map composed with that resize"
 )
 """How a frame becomes the network input (`stamlane.data.transforms.ClipTransform`, without augmentation)."""
 
@@ -114,11 +115,11 @@ def file_sha256(path: str | Path) -> str:
 
 
 def trained_crop_top(module: Any, clip: ClipOptions | None) -> float:
-    """The fraction of rows the network was trained without: the module's ``crop_top`` (linked from the data), else
-    the data options' (a checkpoint written before the link), else 0."""
-    if "crop_top" in getattr(module, "hparams", {}):
-        return float(module.hparams["crop_top"])
-    return float(clip.crop_top) if clip is not None else 0.0
+    """The fraction of rows the network was trained without: the data options' (what cut the frames it saw), else
+    the module's record of them (``model.crop_top``, linked from the data), else 0."""
+    if clip is not None:
+        return float(clip.crop_top)
+    return float(getattr(module, "hparams", {}).get("crop_top") or 0.0)
 
 
 def _alignment(clip: ClipOptions | None) -> dict[str, Any] | None:
