@@ -140,3 +140,29 @@ def test_the_default_names_of_a_videos_frames_are_predicts(streamed: dict[str, P
     names = [json.loads(line)["raw_file"] for line in (tmp_path / "predictions.json").read_text().splitlines()]
     assert names == ["test-0000/000000.jpg", "test-0000/000001.jpg"]  # stamlane predict --source VIDEO's names
     assert np.isfinite([json.loads(line)["run_time"] for line in (tmp_path / "predictions.json").open()]).all()
+
+
+def test_a_failed_run_keeps_the_previous_lines(streamed: dict[str, Path], tmp_path: Path, capsys) -> None:
+    clip, ckpt = streamed["tmp"] / "synth" / "clips" / "test-0000", streamed["tmp"] / "last.ckpt"
+    broken = tmp_path / "test-0000"  # the same names, the third frame unreadable
+    broken.mkdir()
+    for i in (1, 2, 4):
+        (broken / f"{i}.jpg").write_bytes((clip / f"{i}.jpg").read_bytes())
+    (broken / "3.jpg").write_bytes(b"not an image")
+    out = tmp_path / "out"
+    argv = ["--ckpt", str(ckpt), "--out", str(out), "--no-video", "--tusimple", "--culane"]
+    assert stamlane(["stream", str(clip), *argv, "--max-frames", "4"]) == 0
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert stamlane(["stream", str(broken), *argv]) == 2
+    assert "cannot read image" in capsys.readouterr().err
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert sorted(p.name for p in out.iterdir()) == ["lanes.jsonl", "lines", "predictions.json"]  # no temporary
+
+
+def test_a_videos_frames_are_counted_on_from_the_first_name() -> None:
+    from stamlane.stream.eval_outputs import check_h_samples, frame_namer
+
+    assert [frame_namer("1.jpg")(i) for i in (0, 8, 19)] == ["1.jpg", "9.jpg", "20.jpg"]
+    assert frame_namer("00000.jpg")(30) == "00030.jpg" and frame_namer("000000.jpg")(0) == "000000.jpg"
+    assert frame_namer("frame_0009.png")(1) == "frame_0010.png" and frame_namer("9.jpg")(1) == "10.jpg"
+    assert check_h_samples([160, 720, 10]) == list(range(160, 720, 10))  # TuSimple's rows

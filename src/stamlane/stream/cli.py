@@ -48,6 +48,7 @@ from stamlane.stream.eval_outputs import (
     atomic_folder,
     check_h_samples,
     check_sequence,
+    folder_temporaries,
     frame_namer,
 )
 
@@ -273,12 +274,9 @@ def run(args: argparse.Namespace) -> int:
         "culane": out_dir / "lines" if args.culane else None,
     }
     files = [p for key, p in paths.items() if p is not None and key != "culane"]
-    lines = temporary_name(paths["culane"]) if paths["culane"] else None
+    folders = [out_dir, *([paths["culane"], *folder_temporaries(paths["culane"])] if paths["culane"] else [])]
     check_outputs(  # no output replaces the video, the checkpoint or the config, nor lands among the frames
-        [*files, *map(temporary_name, files)],
-        [source, args.ckpt, args.config],
-        folders=[out_dir, paths["culane"], lines, lines and lines.with_name(lines.name + ".old")],
-        protected=[source],
+        [*files, *map(temporary_name, files)], [source, args.ckpt, args.config], folders=folders, protected=[source]
     )
     frames, count, fps = iter_frames(source, args.max_frames, args.first_frame or DEFAULT_FIRST_FRAME)
     predictor = load_predictor(args)

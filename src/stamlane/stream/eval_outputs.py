@@ -17,6 +17,8 @@ TuSimple clips and the generator's ``clips/<id>/1.jpg``). Then:
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import shutil
 from collections.abc import Callable, Iterator, Sequence
@@ -35,6 +37,7 @@ __all__ = [
     "atomic_folder",
     "check_h_samples",
     "check_sequence",
+    "folder_temporaries",
     "frame_namer",
 ]
 
@@ -93,18 +96,24 @@ def check_h_samples(rows: Sequence[int]) -> list[int]:
     return list(range(start, stop, step))
 
 
+def folder_temporaries(path: Path) -> tuple[Path, Path]:
+    """The names `atomic_folder` uses beside ``path``: the new folder while it is written, the old one while it
+    is swapped out (for `stamlane.guard.check_outputs`)."""
+    tmp = temporary_name(path)
+    return tmp, tmp.with_name(tmp.name + ".old")
+
+
 @contextmanager
 def atomic_folder(path: Path) -> Iterator[Path]:
-    """A temporary folder beside ``path`` (`stamlane.guard.temporary_name`) that replaces ``path`` when the block
-    ends without an error, and is removed when it fails: a failed run leaves the previous folder whole.
+    """A temporary folder beside ``path`` (`folder_temporaries`) that replaces ``path`` when the block ends without
+    an error, and is removed when it fails: a failed run leaves the previous folder whole.
     (`stamlane.guard.atomic_path` does this for files; a folder is swapped in two renames.)"""
-    tmp = temporary_name(path)
-    old = tmp.with_name(tmp.name + ".old")
+    tmp, old = folder_temporaries(path)
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     try:
         yield tmp
-        if path.exists():
+        if os.path.lexists(path):
             path.rename(old)
         tmp.rename(path)
         shutil.rmtree(old, ignore_errors=True)
@@ -137,8 +146,6 @@ class EvalOutputs:
 
     def write(self, frame: str, lanes: list[np.ndarray], run_time: float, height: int) -> None:
         """One frame: its name, its lanes ``(N, 2)`` ``(x, y)`` in frame pixels, milliseconds, the frame's rows."""
-        import json
-
         from stamlane.writers import tusimple_record, write_culane_lines
 
         raw_file = f"{self.sequence}/{frame}"
