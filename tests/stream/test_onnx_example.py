@@ -67,7 +67,7 @@ def test_the_example_runs_and_feeds_what_stamlane_feeds(workdir: Path, monkeypat
     params = transform.draw(frames[-1].shape[:2])
     assert np.allclose(namespace["net_from_orig"], params.net_from_orig)
     alignments = estimate_clip(frames, horizon_row=40, strategy="chain")  # the checkpoint's data.clip
-    assert sum(a.ok for a in alignments[:-1]) == len(frames) - 1  # the history really is warped
+    assert any(not np.allclose(a.key_from_hist, np.eye(3)) for a in alignments[:-1])  # the history is warped
     clip = transform.apply_frames(frames, np.stack([a.key_from_hist for a in alignments]), params)
     assert np.abs(namespace["clip"][0] - clip).max() < 1e-6
     with torch.no_grad():
