@@ -359,6 +359,62 @@ def test_stream(
             assert code == 0 and (target / "lanes.jsonl").is_file()  # what is valid is done
 
 
+@_settings(40)
+@given(
+    source=st.sampled_from(["frames", "video", "link"]),
+    tusimple=st.booleans(),
+    culane=st.booleans(),
+    sequence=st.sampled_from([None, "seq", "clips/0531", "../up", "/abs", "", "a//b", ".", "a\nb", "a\x00b"]),
+    first=st.sampled_from([None, "1.jpg", "000000.png", "x.jpg", "../1.jpg", "9" * 20 + ".jpg", "1"]),
+    rows=st.sampled_from([None, (0, 72, 10), (10, 5, 1), (0, 10**9, 1), (0, 10, 0), (-5, 10, 1)]),
+    out=st.sampled_from(["fresh", "input", "under-a-file", "inside-input-folder", "lines-is-a-file"]),
+)
+@example(
+    source="video", tusimple=True, culane=True, sequence="clips/0531", first="1.jpg", rows=(0, 72, 10), out="fresh"
+)
+@example(source="frames", tusimple=True, culane=True, sequence=None, first=None, rows=None, out="fresh")  # succeeds
+def test_stream_evaluator_outputs(
+    stream_inputs: dict[str, Path],
+    capsys: pytest.CaptureFixture[str],
+    source: str,
+    tusimple: bool,
+    culane: bool,
+    sequence: str | None,
+    first: str | None,
+    rows: tuple[int, int, int] | None,
+    out: str,
+) -> None:
+    """The flags of ``--tusimple`` / ``--culane`` output: names that would leave the output folder, absurd rows,
+    outputs in the way; each refused in one line, nothing beside an input."""
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        if out == "lines-is-a-file":
+            target = tmp / "run"
+            target.mkdir()
+            (target / "lines").write_text("x")
+        else:
+            target = _place(out, tmp, "stream", stream_inputs["video"], stream_inputs["frames"])
+        argv = ["stream", str(stream_inputs[source]), "--ckpt", str(stream_inputs["good"]), "--out", str(target)]
+        argv += ["--max-frames", "2", "--no-video", *(["--tusimple"] if tusimple else [])]
+        argv += ["--culane"] if culane else []
+        argv += [] if sequence is None else ["--sequence", sequence]
+        argv += [] if first is None else ["--first-frame", first]
+        argv += [] if rows is None else ["--h-samples", *map(str, rows)]
+        inputs = [stream_inputs[k] for k in ("frames", "video", "link", "good")]
+        code = _contract(capsys, argv, inputs)
+        names_ok = sequence in (None, "seq", "clips/0531") and (first is None or (first in ("1.jpg", "000000.png")))
+        named = (tusimple or culane) or (sequence is None and first is None)
+        ok = names_ok and named and (first is None or source == "video") and rows in (None, (0, 72, 10))
+        if ok and out == "fresh":
+            assert code == 0, argv
+            assert (target / "predictions.json").is_file() == tusimple and (target / "lines").is_dir() == culane
+            if culane:  # every file inside the output folder, under the sequence
+                for path in (target / "lines").rglob("*.lines.txt"):
+                    assert path.resolve().is_relative_to((target / "lines").resolve())
+        if code == 0:
+            assert not list(target.glob(".*tmp*")), list(target.iterdir())
+
+
 # ---------------------------------------------------------------------------------------------- synth
 @_settings(60)
 @given(

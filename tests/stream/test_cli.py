@@ -87,6 +87,16 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
     assert not (out / "overlay.mp4").exists()
 
 
+def test_bf16_is_the_models_unless_given(checkpoint: Path, frames_dir: Path) -> None:
+    from stamlane.module import StamLaneModule
+    from stamlane.stream.cli import build_parser, load_predictor
+
+    argv = [str(frames_dir), "--ckpt", str(checkpoint)]
+    assert load_predictor(build_parser().parse_args(argv)).bf16 is StamLaneModule.from_checkpoint(checkpoint).bf16
+    for flag, bf16 in (("true", True), ("false", False)):
+        assert load_predictor(build_parser().parse_args([*argv, "--bf16", flag])).bf16 is bf16
+
+
 @pytest.mark.parametrize(
     ("argv", "match"),
     [
@@ -101,16 +111,45 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
         ),
         (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}"], "would overwrite or write into the input"),
         (["{frames}", "--ckpt", "x.ckpt", "--out", "{frames}/out"], "would overwrite or write into the input"),
+        # the evaluator outputs' flags
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--sequence", "../up"], "--sequence must be a relative path"),
+        (["{frames}", "--ckpt", "x.ckpt", "--culane", "--sequence", "/abs"], "--sequence must be a relative path"),
+        (["{frames}", "--ckpt", "x.ckpt", "--culane", "--sequence", "a//b"], "--sequence must be a relative path"),
+        (["{frames}", "--ckpt", "x.ckpt", "--culane", "--sequence", "a\nb"], "--sequence must be a relative path"),
+        (["{frames}", "--ckpt", "x.ckpt", "--culane", "--sequence", "a\\b"], "--sequence must be a relative path"),
+        (["{frames}", "--ckpt", "x.ckpt", "--sequence", "s"], "give one of them"),
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--first-frame", "x.jpg"], "--first-frame must be a frame"),
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--first-frame", "../1.jpg"], "--first-frame must be a frame"),
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--first-frame", "1.jpg"], "names a video's frames"),
+        (["{frames}", "--ckpt", "x.ckpt", "--h-samples", "10", "5", "1"], "--h-samples START STOP STEP must"),
+        (["{frames}", "--ckpt", "x.ckpt", "--h-samples", "0", "100000", "1"], "--h-samples START STOP STEP must"),
+        (["{frames}", "--ckpt", "x.ckpt", "--h-samples", "0", "10", "0"], "--h-samples START STOP STEP must"),
+        (["{frames}", "--ckpt", "x.ckpt", "--h-samples", "-1", "10", "1"], "--h-samples START STOP STEP must"),
+        (["{frames}", "--ckpt", "x.ckpt", "--h-samples", "a", "b", "c"], "--h-samples: invalid int value"),
+        (["{frames}", "--ckpt", "x.ckpt", "--bf16", "maybe"], "--bf16: invalid choice"),
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--out", "{file}"], "is a file, not a folder"),
+        (["{frames}", "--ckpt", "x.ckpt", "--tusimple", "--out", "{taken}"], "predictions.json is a folder"),
+        (["{frames}", "--ckpt", "x.ckpt", "--culane", "--out", "{taken}"], "lines is a file, not a folder"),
+        (["{odd}", "--ckpt", "x.ckpt", "--tusimple"], "--sequence (default: the folder's name) must be a"),
     ],
 )
 def test_bad_input_is_one_line_and_status_2(
     argv: list[str], match: str, frames_dir: Path, tmp_path: Path, capsys
 ) -> None:
     (tmp_path / "empty").mkdir()
-    argv = [a.format(frames=frames_dir, empty=tmp_path / "empty") for a in argv]
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "taken" / "predictions.json").mkdir(parents=True)  # outputs in the way: a folder, a file
+    (tmp_path / "taken" / "lines").write_text("x")
+    odd = tmp_path / "odd\x01name"  # a frames folder whose name cannot be a sequence name
+    odd.mkdir()
+    (odd / "1.jpg").write_bytes((frames_dir / "0000.jpg").read_bytes())
+    places = {"frames": frames_dir, "empty": tmp_path / "empty", "file": tmp_path / "file"}
+    argv = [a.format(**places, taken=tmp_path / "taken", odd=odd) for a in argv]
+    before = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*")}
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and match in err, err
+    assert {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*")} == before  # nothing written
 
 
 def test_a_folder_of_frames_plays_in_number_order(tmp_path: Path) -> None:
@@ -119,7 +158,9 @@ def test_a_folder_of_frames_plays_in_number_order(tmp_path: Path) -> None:
         cv2.imwrite(str(tmp_path / f"{i}.png"), np.full((8, 8, 3), i, np.uint8))
     frames, count, _ = iter_frames(tmp_path)
     assert count == 12
-    assert [int(image[0, 0, 0]) for image in frames] == list(range(1, 13))
+    frames = list(frames)
+    assert [int(image[0, 0, 0]) for _, image in frames] == list(range(1, 13))
+    assert [name for name, _ in frames] == [f"{i}.png" for i in range(1, 13)]  # the names the frames are scored by
 
 
 def test_a_failed_run_keeps_the_previous_results(checkpoint: Path, frames_dir: Path, tmp_path: Path, capsys) -> None:
@@ -160,6 +201,9 @@ def test_export_writes_onnx_and_prints_the_parity(checkpoint: Path, tmp_path: Pa
         (["--opset", "9"], "--opset must be in 16..21"),
         (["--output", "{ckpt}"], "would overwrite or write into the input"),
         (["--output", "{tmp}/model.txt"], "must end in .onnx"),
+        (["--ckpt_path", "{tmp}/nowhere.ckpt"], "nowhere.ckpt: No such file or directory"),
+        (["--streaming", "{ckpt}"], "would overwrite or write into the input"),
+        (["--streaming", "{ckpt}/s"], "would overwrite or write into the input"),
     ],
 )
 def test_export_bad_input_is_one_line(checkpoint: Path, tmp_path: Path, capsys, extra: list[str], match: str) -> None:

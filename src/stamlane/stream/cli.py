@@ -12,9 +12,14 @@ untrained). Writes under ``--out`` (default ``outputs/stream/<VIDEO name>``):
 
 - ``lanes.jsonl``: one line per frame, ``{"frame": i, "lanes": [[[x, y], ...], ...], "run_time": ms,
   "aligned": [ok per history slot]}``, points in original pixels;
-- ``overlay.mp4`` (mp4v): each frame with its lanes drawn (``--no-video`` to skip).
+- ``overlay.mp4`` (mp4v): each frame with its lanes drawn (``--no-video`` to skip);
+- with ``--tusimple``, ``predictions.json`` (TuSimple json-lines), with ``--culane``, ``lines/<sequence>/<frame>
+  .lines.txt``: what ``stamlane-eval tusimple | culane | video`` score, frames named ``<sequence>/<frame name>``
+  (``--sequence``, ``--first-frame``, ``--h-samples``; `stamlane.stream.eval_outputs`).
 
-A progress bar shows frames per second. Bad input: one line on stderr, exit status 2.
+Every file is written under a temporary name and renamed when the stream ends (`stamlane.guard.atomic_path`): a
+failed run leaves the previous results whole. A progress bar shows frames per second. Bad input: one line on
+stderr, exit status 2.
 """
 
 from __future__ import annotations
@@ -22,10 +27,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -35,8 +40,17 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.boundary import run_command
 from stamlane.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
-from stamlane.guard import check_outputs, temporary_name
+from stamlane.guard import atomic_path, check_outputs, temporary_name
 from stamlane.imageio import open_video, read_image
+from stamlane.stream.eval_outputs import (
+    DEFAULT_FIRST_FRAME,
+    EvalOutputs,
+    atomic_folder,
+    check_h_samples,
+    check_sequence,
+    folder_temporaries,
+    frame_namer,
+)
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
@@ -63,11 +77,39 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-frames", type=int, help="stop after this many frames")
     parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")
     parser.add_argument("--fps", type=float, help="frame rate of overlay.mp4 (default: the video's, else 10)")
+    parser.add_argument(
+        "--bf16",
+        choices=["auto", "true", "false"],
+        help="bfloat16 autocast (default: the model's; auto: where the CPU runs it natively; false: float32, as the "
+        "exported .onnx)",
+    )
+    scored = parser.add_argument_group("outputs the evaluators read (stamlane-eval tusimple | culane | video)")
+    scored.add_argument("--tusimple", action="store_true", help="also write predictions.json, TuSimple json-lines")
+    scored.add_argument("--culane", action="store_true", help="also write lines/<sequence>/<frame>.lines.txt")
+    scored.add_argument(
+        "--sequence", help="the folder frames are named under (default: the frames folder's name or the video's stem)"
+    )
+    scored.add_argument(
+        "--first-frame",
+        help=f"a video's first frame name, the next counted on (default {DEFAULT_FIRST_FRAME}; 1.jpg for TuSimple)",
+    )
+    scored.add_argument(
+        "--h-samples",
+        type=int,
+        nargs=3,
+        metavar=("START", "STOP", "STEP"),
+        help="rows of the lanes, range(START, STOP, STEP): the ground truth's for stamlane-eval tusimple "
+        "(default: every y_step rows)",
+    )
     return parser
 
 
-def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[np.ndarray], int | None, float | None]:
-    """Frames of a video file or an image folder: ``(iterator of BGR uint8 images, count or None, fps or None)``."""
+def iter_frames(
+    source: Path, max_frames: int | None = None, first_frame: str = DEFAULT_FIRST_FRAME
+) -> tuple[Iterator[tuple[str, np.ndarray]], int | None, float | None]:
+    """Frames of a video file or an image folder: ``(iterator of (name, BGR uint8 image), count or None, fps or
+    None)``; a folder's frames keep their file names, a video's are counted on from ``first_frame``
+    (`stamlane.stream.eval_outputs.frame_namer`)."""
     if source.is_dir():
         from stamlane.data.clips import IMAGE_SUFFIXES, frame_order
 
@@ -78,14 +120,15 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
             raise StreamError(f"{source} holds no image ({', '.join(IMAGE_SUFFIXES)})")
         paths = paths[:max_frames] if max_frames else paths
 
-        def read_images() -> Iterator[np.ndarray]:
+        def read_images() -> Iterator[tuple[str, np.ndarray]]:
             for path in paths:
                 image = read_image(path)
                 if image is None:
                     raise StreamError(f"cannot read image {path}")
-                yield image
+                yield path.name, image
 
         return read_images(), len(paths), None
+    name = frame_namer(first_frame)
     capture = open_video(source, StreamError)
     count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
@@ -94,7 +137,7 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
     if max_frames and count:
         count = min(count, max_frames)
 
-    def read_video() -> Iterator[np.ndarray]:
+    def read_video() -> Iterator[tuple[str, np.ndarray]]:
         n = 0
         try:
             while not max_frames or n < max_frames:
@@ -102,7 +145,7 @@ def iter_frames(source: Path, max_frames: int | None = None) -> tuple[Iterator[n
                 if not ok:
                     break
                 n += 1
-                yield frame
+                yield name(n - 1), frame
         finally:
             capture.release()
         if n == 0:
@@ -157,6 +200,7 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
 
 def load_predictor(args: argparse.Namespace) -> Any:
     """The `StreamingPredictor` the command line asks for."""
+    from stamlane.stream.metadata import trained_crop_top
     from stamlane.stream.predictor import StreamingPredictor
 
     if args.ckpt and not Path(args.ckpt).is_file():
@@ -164,13 +208,19 @@ def load_predictor(args: argparse.Namespace) -> Any:
     module, clip = _load_module(args)
     module.eval()
     overrides: dict[str, Any] = {"align": not args.no_align}
+    if args.bf16 is not None:
+        from stamlane.hardware import resolve_bf16
+
+        overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16))
     num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
     image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
     if num_frames is None or image_size is None:
         raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
     check_clip(num_frames, list(image_size), "the streamed clip")  # the network's or the flags' size, one budget
     horizon_row = args.horizon_row if args.horizon_row is not None else getattr(clip, "horizon_row", None)
-    overrides["crop_top"] = float(module.hparams.get("crop_top") or getattr(clip, "crop_top", None) or 0.0)
+    overrides["crop_top"] = trained_crop_top(module, clip)
+    if args.h_samples is not None:  # the lanes sampled at the benchmark's rows, as `stamlane predict` does
+        overrides["y_samples"] = check_h_samples(args.h_samples)
     return StreamingPredictor.from_module(
         module, num_frames=int(num_frames), image_size=tuple(image_size), horizon_row=horizon_row, **overrides
     )
@@ -178,6 +228,27 @@ def load_predictor(args: argparse.Namespace) -> Any:
 
 def _lanes_json(lanes: list[np.ndarray]) -> list[list[list[float]]]:
     return [[[round(float(x), 2), round(float(y), 2)] for x, y in lane] for lane in lanes]
+
+
+def _sequence(args: argparse.Namespace, source: Path) -> str | None:
+    """Check the flags of the evaluator outputs; the sequence their frames are named under (None without them)."""
+    if args.h_samples is not None:
+        check_h_samples(args.h_samples)
+    if args.sequence is not None:
+        check_sequence(args.sequence)
+    if args.first_frame is not None:
+        frame_namer(args.first_frame)
+        if source.is_dir():
+            raise StreamError("--first-frame names a video's frames; the frames of a folder keep their own names")
+    if not (args.tusimple or args.culane):
+        if args.sequence is not None or args.first_frame is not None:
+            raise StreamError("--sequence and --first-frame name the frames of --tusimple / --culane: give one of them")
+        return None
+    if args.sequence is not None:
+        return args.sequence
+    if source.is_dir():
+        return check_sequence(source.resolve().name, "--sequence (default: the folder's name)")
+    return check_sequence(source.stem, "--sequence (default: the video's name)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -194,30 +265,33 @@ def run(args: argparse.Namespace) -> int:
         check_size(args.image_size, "--image-size")
     if args.num_frames is not None and args.image_size is not None:
         check_clip(args.num_frames, args.image_size, "--num-frames x --image-size")
+    sequence = _sequence(args, source)
     out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
-    finals = [out_dir / "lanes.jsonl", *([] if args.no_video else [out_dir / "overlay.mp4"])]
-    lanes_tmp, video_tmp = temporary_name(out_dir / "lanes.jsonl"), temporary_name(out_dir / "overlay.mp4")
+    paths: dict[str, Path | None] = {
+        "lanes": out_dir / "lanes.jsonl",
+        "video": None if args.no_video else out_dir / "overlay.mp4",
+        "tusimple": out_dir / "predictions.json" if args.tusimple else None,
+        "culane": out_dir / "lines" if args.culane else None,
+    }
+    files = [p for key, p in paths.items() if p is not None and key != "culane"]
+    folders = [out_dir, *([paths["culane"], *folder_temporaries(paths["culane"])] if paths["culane"] else [])]
     check_outputs(  # no output replaces the video, the checkpoint or the config, nor lands among the frames
-        [*finals, lanes_tmp, video_tmp], [source, args.ckpt, args.config], folders=[out_dir], protected=[source]
+        [*files, *map(temporary_name, files)], [source, args.ckpt, args.config], folders=folders, protected=[source]
     )
-    frames, count, fps = iter_frames(source, args.max_frames)
+    frames, count, fps = iter_frames(source, args.max_frames, args.first_frame or DEFAULT_FIRST_FRAME)
     predictor = load_predictor(args)
     out_dir.mkdir(parents=True, exist_ok=True)
-    # written under temporary names and renamed at the end: a failed run leaves the previous results whole
-    finished = False
-    try:
-        written, seconds = _stream(args, source, frames, count, fps, predictor, lanes_tmp, video_tmp)
-        os.replace(lanes_tmp, out_dir / "lanes.jsonl")
-        if not args.no_video:
-            os.replace(video_tmp, out_dir / "overlay.mp4")
-        finished = True
-    finally:
-        if not finished:  # interrupted or failed: drop the partial files, keep what was there
-            lanes_tmp.unlink(missing_ok=True)
-            video_tmp.unlink(missing_ok=True)
+    with ExitStack() as stack:  # each under a temporary name, renamed when the stream ends: a failure keeps the old
+        temps = {
+            key: stack.enter_context(atomic_folder(path) if key == "culane" else atomic_path(path))
+            for key, path in paths.items()
+            if path is not None
+        }
+        written, seconds = _stream(args, source, frames, count, fps, predictor, temps, sequence)
+    wrote = [str(path) for path in paths.values() if path is not None]
     print(
         f"stamlane stream: {written} frames in {seconds:.1f} s ({written / max(seconds, 1e-9):.1f} frames/s); "
-        f"wrote {out_dir / 'lanes.jsonl'}" + ("" if args.no_video else f" and {out_dir / 'overlay.mp4'}")
+        f"wrote {', '.join(wrote)}"
     )
     return 0
 
@@ -225,25 +299,33 @@ def run(args: argparse.Namespace) -> int:
 def _stream(
     args: argparse.Namespace,
     source: Path,
-    frames: Iterator[np.ndarray],
+    frames: Iterator[tuple[str, np.ndarray]],
     count: int | None,
     fps: float | None,
     predictor: Any,
-    lanes_path: Path,
-    video_path: Path,
+    paths: dict[str, Path],
+    sequence: str | None,
 ) -> tuple[int, float]:
-    """Run the predictor over the frames, writing lanes (json-lines) and the overlay video; (frames, seconds)."""
+    """Run the predictor over the frames, writing each output of ``paths`` (``lanes``, and ``video``, ``tusimple``,
+    ``culane`` when there); returns (frames, seconds)."""
     import torch
     from tqdm import tqdm
 
     from stamlane.overlay import draw_lanes
 
+    video_path = paths.get("video")
     writer = None
     written = 0
     start = time.perf_counter()
-    with torch.inference_mode(), open(lanes_path, "w") as jsonl:
+    with ExitStack() as files, torch.inference_mode():
+        jsonl = files.enter_context(open(paths["lanes"], "w"))
+        tusimple = files.enter_context(open(paths["tusimple"], "w")) if "tusimple" in paths else None
+        scored = None
+        if sequence is not None:
+            y_step = predictor.postprocess.y_step
+            scored = EvalOutputs(sequence, tusimple, paths.get("culane"), predictor.y_samples, y_step)
         bar = tqdm(frames, total=count, desc=f"stream {source.name}", unit="frame")
-        for image in bar:
+        for name, image in bar:
             t0 = time.perf_counter()
             out = predictor(image)
             ms = (time.perf_counter() - t0) * 1000.0
@@ -254,7 +336,9 @@ def _stream(
                 "aligned": [bool(a.ok) for a in out.alignments],
             }
             jsonl.write(json.dumps(record) + "\n")
-            if not args.no_video:
+            if scored is not None:
+                scored.write(name, out.lanes, ms, image.shape[0])
+            if video_path is not None:
                 if writer is None:
                     frame_wh = (image.shape[1], image.shape[0])  # OpenCV's (W, H)
                     writer = cv2.VideoWriter(
@@ -265,7 +349,7 @@ def _stream(
         bar.close()
     if writer is not None:
         writer.release()
-    if not args.no_video and not video_path.is_file():
+    if video_path is not None and not video_path.is_file():
         raise StreamError(f"the overlay video could not be written ({video_path.suffix} with the mp4v codec)")
     return written, time.perf_counter() - start
 

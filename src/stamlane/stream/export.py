@@ -7,7 +7,7 @@ The streaming split (`stamlane.stream.predictor`) needs two graphs:
     per-stage features shallow first, ``stage{i}`` (N, C_i, H / s_i, W / s_i).
 ``fuse_decode.onnx``
     inputs ``history`` (B, T-1, C, h, w): the cached deepest-stage features, oldest first; ``grid``
-    (B, T-1, h, w, 2): for each, where every key cell samples it (``stamlane.stream.feature_warp.sampling_grid``
+    (B, T-1, h, w, 2): for each, where every key cell samples it (``stamlane.models.feature_warp.sampling_grid``
     in ``grid_sample``'s normalised coordinates; see `identity_grid`); ``key_stage0 .. key_stage{S-1}``: the
     key frame's encoder outputs. The history is warped in the graph (ONNX ``GridSample``, bilinear, zeros,
     ``align_corners=0``), stacked with the key frame's deepest stage, fused and decoded. Outputs ``logits``

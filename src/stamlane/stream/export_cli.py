@@ -1,28 +1,42 @@
-"""``stamlane export``: a checkpoint to ONNX, with the parity against PyTorch measured and printed.
+"""``stamlane export``: a checkpoint to ONNX, its preprocessing in the file, the float32 parity measured and printed.
 
     stamlane export --ckpt_path RUN/checkpoints/last.ckpt [--output model.onnx] [--opset 17] [--streaming DIR]
 
 Writes the whole clip model (input ``clip`` (B, T, 3, H, W) float32 RGB in [0, 1], key frame last, history
 pre-aligned; outputs ``logits`` (B, 2, H, W) and ``embedding`` (B, E, H, W); see `stamlane.stream.export`) to
 ``--output`` (default: the checkpoint's path with ``.onnx``), and with ``--streaming DIR`` also the two graphs of
-the streaming predictor. The network is built from the checkpoint alone, from the closed registry (`stamlane.registry`:
-nothing the file names is imported). Parity: onnxruntime and PyTorch run on the same random clip and the largest absolute differences are
-printed; without onnxruntime (``pip install "stamlane[export]"``) the files are written and parity is skipped.
+the streaming predictor. Each file carries in its ``metadata_props`` how to feed it and read it (crop, size,
+colour order, T, alignment, post-processing, the checkpoint's SHA-256: `stamlane.stream.metadata`), read from the
+checkpoint. The network is built from the checkpoint alone, from the closed registry (`stamlane.registry`: nothing
+the file names is imported). Parity: onnxruntime and PyTorch, both in float32, run on the same random clip and
+the largest absolute differences are printed. Needs the ``export`` extra (onnx, onnxscript, onnxruntime); without
+it, one line with the install command and exit status 2, before anything is read.
 """
 
 from __future__ import annotations
 
-import os
+import importlib.util
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from stamlane_eval.cli_tools import OneLineParser, format_wxh, parse_or_status
+from stamlane_eval.cli_tools import OneLineParser, check_input_file, format_wxh, parse_or_status
 
-from stamlane.boundary import expected_errors, one_line
-from stamlane.guard import check_outputs
+from stamlane.boundary import run_command
+from stamlane.guard import atomic_path, check_outputs, temporary_name
 
-__all__ = ["main", "parity"]
+__all__ = ["EXPORT_PACKAGES", "ONNX_HINT", "main", "parity"]
+
+EXPORT_PACKAGES = ("onnx", "onnxscript", "onnxruntime")
+"""What ``stamlane export`` needs: onnx and onnxscript to write the graph (``torch.onnx.export``), onnxruntime for
+the parity (an export whose parity was not measured is not offered)."""
+
+ONNX_HINT = 'pip install "stamlane[export]"'
+"""How the packages are installed (the ``export`` extra)."""
+
+STREAMING_GRAPHS = ("encoder", "fuse_decode")
+"""The graphs ``--streaming DIR`` writes, as ``DIR/<name>.onnx``."""
 
 
 def _parser() -> OneLineParser:
@@ -34,21 +48,30 @@ def _parser() -> OneLineParser:
     return p
 
 
-def parity(net: object, path: Path, num_frames: int, image_size: tuple[int, int], seed: int = 0) -> dict:
-    """Largest absolute difference between onnxruntime on ``path`` and PyTorch on one random clip.
+def missing_packages() -> list[str]:
+    """The packages of `EXPORT_PACKAGES` that cannot be imported."""
+    missing = []
+    for name in EXPORT_PACKAGES:
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except ValueError:  # in sys.modules as None (blocked), or without a spec
+            found = False
+        missing += [] if found else [name]
+    return missing
+
+
+def parity(net: Any, path: Path, num_frames: int, image_size: tuple[int, int], seed: int = 0) -> dict[str, float]:
+    """Largest absolute difference between onnxruntime on ``path`` and PyTorch on one random clip, both float32.
 
     Returns:
-        ``{"logits": float, "embedding": float}``; empty when onnxruntime is not installed.
+        ``{"logits": float, "embedding": float}``.
     """
+    import onnxruntime as ort
     import torch
 
-    try:
-        import onnxruntime as ort
-    except ImportError:
-        return {}
     clip = torch.rand(1, num_frames, 3, *image_size, generator=torch.Generator().manual_seed(seed))
     with torch.no_grad():
-        logits, embedding = net.eval()(clip)  # type: ignore[operator]
+        logits, embedding = net.eval()(clip)
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     onnx_logits, onnx_embedding = session.run(["logits", "embedding"], {"clip": clip.numpy()})
     return {
@@ -57,61 +80,82 @@ def parity(net: object, path: Path, num_frames: int, image_size: tuple[int, int]
     }
 
 
-ONNX_HINT = 'pip install "stamlane[export]"'
-"""How the ONNX packages are installed (the ``export`` extra)."""
-
-
-def _need_onnx() -> None:
-    """Refuse at once, with the install line, where the packages ``torch.onnx.export`` needs are missing."""
-    import importlib.util
-
-    missing = [name for name in ("onnx", "onnxscript") if importlib.util.find_spec(name) is None]
+def _export(args: Any) -> int:
+    missing = missing_packages()
     if missing:
-        raise ValueError(f"exporting to ONNX needs {' and '.join(missing)}: {ONNX_HINT}")
+        raise ValueError(f"exporting to ONNX needs {', '.join(missing)} (the export extra): {ONNX_HINT}")
+    from stamlane.stream.export import DEFAULT_OPSET
+
+    opset = args.opset if args.opset is not None else DEFAULT_OPSET
+    if not 16 <= opset <= 21:
+        raise ValueError(f"--opset must be in 16..21, got {opset}")
+    output = args.output or args.ckpt_path.with_suffix(".onnx")
+    check_input_file(args.ckpt_path, "checkpoint")  # before torch is imported: a missing file said at once
+    outputs = [output]
+    if args.streaming is not None:
+        outputs += [args.streaming / f"{name}.onnx" for name in STREAMING_GRAPHS]
+    check_outputs(
+        [*outputs, *map(temporary_name, outputs)],
+        [args.ckpt_path],
+        folders=[args.streaming],
+        protected=[args.ckpt_path],
+    )
+    if output.suffix != ".onnx":
+        raise ValueError(f"--output must end in .onnx, got {output}")
+    return _write(args, opset, outputs)
+
+
+def _write(args: Any, opset: int, outputs: list[Path]) -> int:
+    import time
+
+    from stamlane.checkpoints import read_checkpoint
+    from stamlane.data.flat_options import clip_options
+    from stamlane.module import StamLaneModule
+    from stamlane.registry import check_data_hparams
+    from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
+    from stamlane.stream.metadata import annotate, deployment_metadata
+
+    start = time.perf_counter()
+    module = StamLaneModule.from_checkpoint(args.ckpt_path)
+    data = read_checkpoint(args.ckpt_path).get("datamodule_hyper_parameters")
+    if data is not None:
+        check_data_hparams(data, args.ckpt_path)
+    clip = clip_options(data) if isinstance(data, dict) else None
+    common = deployment_metadata(module, clip, args.ckpt_path, opset)
+    num_frames, size = common["num_frames"], tuple(common["image_size"])
+    writers = {
+        "clip": lambda path: export_clip(module.net, path, num_frames, size, opset),
+        "encoder": lambda path: export_encoder(module.net, path, size, opset),
+        "fuse_decode": lambda path: export_fuse_decode(module.net, path, num_frames, size, opset),
+    }
+    for graph, path in zip(("clip", *STREAMING_GRAPHS), outputs):
+        with atomic_path(path) as tmp:  # written whole (graph and metadata), then renamed over the output
+            writers[graph](tmp)
+            annotate(tmp, graph, common)
+    seconds = time.perf_counter() - start
+    size_mb = outputs[0].stat().st_size / 1e6
+    print(
+        f"stamlane export: {', '.join(map(str, outputs))} (T={num_frames}, {format_wxh(size)}, opset {opset}, "
+        f"{size_mb:.1f} MB, {seconds:.1f} s; preprocessing and decoding settings in the metadata)"
+    )
+    diff = parity(module.net, outputs[0], num_frames, size)
+    print(
+        f"  parity with PyTorch, float32 both, on a random clip: max |logits| diff {diff['logits']:.2e}, "
+        f"max |embedding| diff {diff['embedding']:.2e}"
+    )
+    if module.bf16:
+        print(
+            "  note: stamlane predict / stream run this model in bfloat16 autocast on this CPU; their logits differ "
+            "from this float32 graph's by more than the parity above (docs/streaming.md, 'float32 and bfloat16')"
+        )
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.checkpoints import CheckpointError
-    from stamlane.module import StamLaneModule
-    from stamlane.stream.export import DEFAULT_OPSET, export_all, export_clip
-
-    opset = args.opset if args.opset is not None else DEFAULT_OPSET
-    output = args.output or args.ckpt_path.with_suffix(".onnx")
-    try:
-        if not 16 <= opset <= 21:
-            raise ValueError(f"--opset must be in 16..21, got {opset}")
-        tmp = output.with_name(f".{output.stem}.tmp.onnx")  # written whole, then renamed over the output
-        check_outputs([output, tmp], [args.ckpt_path], folders=[args.streaming], protected=[args.ckpt_path])
-        _need_onnx()
-        if output.suffix != ".onnx":
-            raise ValueError(f"--output must end in .onnx, got {output}")
-        module = StamLaneModule.from_checkpoint(args.ckpt_path)
-        num_frames, image_size = module.num_frames, module.hparams.get("image_size")
-        if num_frames is None or image_size is None:
-            raise ValueError(f"checkpoint {args.ckpt_path} records no num_frames / image_size")
-        size = (int(image_size[0]), int(image_size[1]))
-        output.parent.mkdir(parents=True, exist_ok=True)
-        export_clip(module.net, tmp, int(num_frames), size, opset)
-        os.replace(tmp, output)
-        written = [output]
-        if args.streaming is not None:
-            written += list(export_all(module.net, args.streaming, int(num_frames), size, opset).values())
-    except expected_errors(CheckpointError) as err:
-        print(f"stamlane export: {one_line(err)}", file=sys.stderr)
-        return 2
-    print(f"stamlane export: {', '.join(map(str, written))} (T={num_frames}, {format_wxh(size)}, opset {opset})")
-    diff = parity(module.net, output, int(num_frames), size)
-    if diff:
-        print(
-            f"  parity with PyTorch on a random clip: max |logits| diff {diff['logits']:.2e}, "
-            f"max |embedding| diff {diff['embedding']:.2e}"
-        )
-    else:
-        print('  parity not measured: onnxruntime is not installed (pip install "stamlane[export]")')
-    return 0
+    return run_command("stamlane export", lambda: _export(args))  # a CheckpointError is a ValueError
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@ The clip model (`stamlane.models.LaneNet.forward`) encodes all T frames of a cli
 encodes each frame T times (once as key frame, T-1 times as history), after warping the history IMAGES
 onto the key frame. The streaming predictor keeps the deepest-stage encoder features of the last T-1
 frames, warps those FEATURE maps onto each new key frame with the same ground-plane homography
-(`stamlane.stream.feature_warp`) and runs only the fusion and the decoder again:
+(`stamlane.models.feature_warp`) and runs only the fusion and the decoder again:
 
 1. the new frame is resized to the network input (``stamlane.data.transforms.ClipTransform``, as in
    training) and encoded once; its deepest stage is cached, its shallower stages are the decoder's skips;
