@@ -54,6 +54,17 @@ def violations(files: list[Path], forbidden: tuple[str, ...]) -> list[str]:
     return found
 
 
+def _outside(files: list[Path], allowed: tuple[str, ...]) -> list[str]:
+    """``file: module`` for every import of a stamlane module that is not one of ``allowed`` (or inside one)."""
+    found = []
+    for path in files:
+        for name in sorted(imported_modules(path)):
+            inside = any(name == ok or name.startswith(ok + ".") for ok in allowed)
+            if (name == "stamlane" or name.startswith("stamlane.")) and not inside:
+                found.append(f"{path.relative_to(REPO)}: {name}")
+    return found
+
+
 def python_files(folder: Path, *, exclude: tuple[str, ...] = ()) -> list[Path]:
     return [p for p in sorted(folder.rglob("*.py")) if not any(part in exclude for part in p.parts)]
 
@@ -82,7 +93,12 @@ def test_the_generator_makes_clips_without_reading_them_or_torch():
 
 def test_checkpoints_is_a_leaf():
     # the safe loader is stamlane.registry (behind StamLaneModule.from_checkpoint); checkpoints.py reads files only
-    assert violations([SRC / "checkpoints.py"], ("stamlane",)) == []
+    assert violations([SRC / "safety" / "checkpoints.py"], ("stamlane",)) == []
+
+
+def test_the_safety_floor_imports_nothing_above_it():
+    # every floor may check, guard and read through safety/: it stands on the shared types alone
+    assert _outside(python_files(SRC / "safety"), ("stamlane.safety", "stamlane.types")) == []
 
 
 def test_the_experiment_engine_knows_no_model_internals():

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stamlane.cli import main
-from stamlane.imageio import MAX_IMAGE_PIXELS, declared_size, open_video, read_image
+from stamlane.safety.images import MAX_IMAGE_PIXELS, declared_size, open_video, read_image
 
 REPO = Path(__file__).resolve().parents[1]
 

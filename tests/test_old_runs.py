@@ -13,10 +13,10 @@ import pytest
 import torch
 import yaml
 
-from stamlane.checkpoints import INSTANTIATOR
 from stamlane.cli import main
 from stamlane.data.flat_options import group_config
 from stamlane.lightning_cli import CONFIG_KEY
+from stamlane.safety.checkpoints import INSTANTIATOR
 
 torch.set_num_threads(1)
 pytestmark = pytest.mark.usefixtures("plain_argv")

@@ -24,10 +24,10 @@ import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from stamlane.checkpoints import CheckpointError
 from stamlane.cli import main
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
 from stamlane.module import StamLaneModule
+from stamlane.safety.checkpoints import CheckpointError
 
 REPO = Path(__file__).resolve().parents[1]
 torch.set_num_threads(1)

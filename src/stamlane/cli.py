@@ -29,6 +29,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from stamlane.safety.boundary import one_line
+
 __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 
 # subcommand -> module whose ``main(argv) -> int`` runs it; imported only when asked for, so
@@ -126,9 +128,9 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     from stamlane_eval.cli_tools import check_input_file
     from stamlane_eval.io import read_text
 
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
     from stamlane.lightning_cli import CONFIG_KEY, START_DIR_KEY
     from stamlane.registry import check_run_config, safe_config_file
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
     content = read_checkpoint(ckpt)
     config = content.get(CONFIG_KEY)
@@ -248,23 +250,6 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
         "give --ckpt_path CKPT (a trained run's checkpoint; its config travels inside it) or --config CONFIG "
         f"(see stamlane {command} --help)"
     )
-
-
-def one_line(err: BaseException) -> str:
-    """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
-    traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
-    last line is the original message; other multi-line messages are joined."""
-    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
-    if not lines:
-        return type(err).__name__
-    if "Original Traceback" in str(err):
-        last = lines[-1]
-        name, sep, message = last.partition(": ")
-        return message if sep and name.replace(".", "").replace("_", "").isalnum() else last
-    text = lines[0]
-    for line in lines[1:]:  # a line ending in ":" introduces the next one (jsonargparse's nested messages)
-        text += (" " if text.endswith(":") else "; ") + line
-    return text
 
 
 def main(argv: list[str] | None = None) -> int:

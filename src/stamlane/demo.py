@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.boundary import run_command
 from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
-from stamlane.guard import check_outputs, exclusive, temporary_name
+from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import check_outputs, exclusive, temporary_name
 
 __all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "main", "pairs"]
 

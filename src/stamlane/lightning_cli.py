@@ -16,16 +16,16 @@ from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.data.flat_options import check_flags, group_config
 from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.fit_report import FitReport, step_of
-from stamlane.guard import check_outputs
 from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
 from stamlane.predict import LanePredictionWriter
 from stamlane.resume import ExactResume
+from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+from stamlane.safety.guard import check_outputs
 
 __all__ = ["CONFIG_KEY", "CONFIG_MODE", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
 
@@ -227,7 +227,7 @@ class StamLaneCLI(LightningCLI):
         merged ``config.yaml`` the run writes, ``predictions.json``) may be an input or lie inside one (the data
         root, ``--source``, a ``--config`` file), nor replace a file the command reads (the checkpoint), symlinks
         resolved: logs, checkpoints and predictions never land among the frames and labels they are made from
-        (`stamlane.guard.check_outputs`).
+        (`stamlane.safety.guard.check_outputs`).
 
         Raises:
             GuardError: naming the output and the input.

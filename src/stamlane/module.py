@@ -35,13 +35,13 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
-from stamlane.budget import check_clip, check_frames
-from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.hardware import resolve_bf16
 from stamlane.lightning_compat import drop_hyperparameters
 from stamlane.losses import LaneLoss
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.safety.budget import check_clip, check_frames
+from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
@@ -221,7 +221,7 @@ class StamLaneModule(LightningModule):
         and call whatever the file names).
 
         Raises:
-            CheckpointError: see `stamlane.checkpoints.read_checkpoint` and `stamlane.registry.check_hparams`;
+            CheckpointError: see `stamlane.safety.checkpoints.read_checkpoint` and `stamlane.registry.check_hparams`;
                 also for hyperparameters that build no stamlane network and for weights of another network.
         """
         from stamlane.registry import build_module

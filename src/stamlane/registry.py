@@ -15,7 +15,7 @@ Every value is checked against the type the receiving parameter declares:
 - a string where Lightning takes either a name or a class (``trainer.strategy: auto``) must be a lowercase name;
 - at most `MAX_VALUES` values, YAML aliases and shared references counted each time they are used.
 
-Anything else is a `stamlane.checkpoints.CheckpointError` naming the file and the key, in one line. The checked
+Anything else is a `stamlane.safety.checkpoints.CheckpointError` naming the file and the key, in one line. The checked
 config is written out again (`safe_config_file`) so that jsonargparse reads exactly what was checked; a network
 is built from a checkpoint's hyper_parameters by `build_module`, from the table, without jsonargparse.
 
@@ -40,7 +40,7 @@ from functools import cache, partial
 from pathlib import Path, PurePath
 from typing import Any
 
-from stamlane.checkpoints import INSTANTIATOR, CheckpointError
+from stamlane.safety.checkpoints import INSTANTIATOR, CheckpointError
 
 __all__ = [
     "CALLBACKS",

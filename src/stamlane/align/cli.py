@@ -46,9 +46,9 @@ from stamlane.align.homography import (
     resolve_horizon_row,
 )
 from stamlane.align.warp import alignments_to_key
-from stamlane.budget import check_workers
-from stamlane.guard import check_outputs
-from stamlane.imageio import read_image
+from stamlane.safety.budget import check_workers
+from stamlane.safety.guard import check_outputs
+from stamlane.safety.images import read_image
 
 __all__ = ["AlignJob", "ClipResult", "main", "process_clip"]
 

@@ -44,7 +44,7 @@ from stamlane.data.labels import (
 )
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
-from stamlane.imageio import read_image
+from stamlane.safety.images import read_image
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [

@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.labels import DataError
-from stamlane.imageio import open_video
+from stamlane.safety.images import open_video
 
 __all__ = ["VIDEO_SUFFIXES", "FolderClips", "decode_video"]
 

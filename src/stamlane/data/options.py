@@ -24,10 +24,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from stamlane.budget import check_clip, check_size, check_workers
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
+from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
@@ -215,7 +215,7 @@ class SynthOptions:
         if min(self.size) < 1:
             raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
         check_size(self.size, "data.synth.size")
-        self.config()  # the generator's size budget (`stamlane.budget`), checked when the config is read
+        self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
     def splits(self) -> dict[str, int]:
         """Clips per split as ``dataset.json`` records them (the arguments of

@@ -16,12 +16,12 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
-from stamlane.boundary import run_command
 from stamlane.data.alignment import ALIGN_MODES
 from stamlane.data.clips import FORMATS, ClipDataset, make_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
-from stamlane.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 
 __all__ = ["main", "render_grid"]
 

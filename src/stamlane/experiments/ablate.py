@@ -108,13 +108,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.boundary import run_command
+    from stamlane.safety.boundary import run_command
 
     return run_command("stamlane ablate", lambda: _ablate(args, extra), ExperimentError)
 
 
 def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
-    from stamlane.guard import check_outputs, exclusive, temporary_name
+    from stamlane.safety.guard import check_outputs, exclusive, temporary_name
 
     index = load_tables(args.tables)
     if args.list:

@@ -160,8 +160,8 @@ def _cli(args: list[str], **kwargs: Any) -> Any:
 
 def _run_config(run: Path) -> str:
     """The text of a run folder's ``config.yaml``, read only inside the folder (links resolved)."""
-    from stamlane.budget import MAX_RECORD_BYTES
-    from stamlane.guard import GuardError, read_inside
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import GuardError, read_inside
 
     path = run / "config.yaml"
     try:
@@ -173,8 +173,8 @@ def _run_config(run: Path) -> str:
 def _check_run_config(run: Path) -> None:
     """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
     (`stamlane.registry.check_run_config`); a tampered one is refused in one line."""
-    from stamlane.checkpoints import CheckpointError
     from stamlane.registry import check_run_config
+    from stamlane.safety.checkpoints import CheckpointError
 
     try:
         check_run_config(_run_config(run), run / "config.yaml")
@@ -211,7 +211,7 @@ def _frames_of(run: Path) -> int:
 def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
     """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
     checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
     if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
         try:
@@ -326,7 +326,7 @@ class Experiment:
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
         row_args = self.recipe.row_args if row is not self.recipe.pretrain and row.recipe_args else ()
-        from stamlane.checkpoints import CheckpointError
+        from stamlane.safety.checkpoints import CheckpointError
 
         try:
             cli = _cli(
@@ -355,8 +355,8 @@ class Experiment:
         predictions folder."""
         from jsonargparse import ArgumentError
 
-        from stamlane.cli import one_line
         from stamlane.registry import safe_config_file
+        from stamlane.safety.boundary import one_line
 
         pred_dir = self.pred_dir(name, split, source)
         try:  # the run's config is data: a checked copy is what LightningCLI reads

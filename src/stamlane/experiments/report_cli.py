@@ -38,8 +38,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.boundary import run_command
     from stamlane.experiments.summary import SummaryError
+    from stamlane.safety.boundary import run_command
 
     return run_command("stamlane report", lambda: _report(args), SummaryError, KeyError)
 
@@ -48,7 +48,7 @@ def _report(args: argparse.Namespace) -> int:
     from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
     from stamlane.experiments.summary import Summary
     from stamlane.experiments.tables import default_index_path, load_tables
-    from stamlane.guard import atomic_path, check_outputs, temporary_name, write_atomic
+    from stamlane.safety.guard import atomic_path, check_outputs, temporary_name, write_atomic
 
     outputs = [p for p in (args.out, args.csv, args.plot) if p is not None]
     index = args.index if args.index is not None else default_index_path() if args.paper or args.replication else None

@@ -127,8 +127,8 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
     path = Path(path) if path is not None else default_index_path()
     if not path.is_file():
         raise FileNotFoundError(f"table index {path} not found")
-    from stamlane.budget import MAX_RECORD_BYTES
-    from stamlane.guard import read_input
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import read_input
 
     try:  # plain YAML: a !!python tag is refused, never run
         raw = yaml.safe_load(read_input(path, MAX_RECORD_BYTES, "table index"))

@@ -33,10 +33,10 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.boundary import run_command
-from stamlane.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
-from stamlane.guard import check_outputs, temporary_name
-from stamlane.imageio import open_video, read_image
+from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
+from stamlane.safety.guard import check_outputs, temporary_name
+from stamlane.safety.images import open_video, read_image
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
@@ -115,10 +115,10 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     """The LightningModule and how the clips it was trained on were read (`stamlane.data.options.ClipOptions`:
     num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
     of an older checkpoint too); None for a checkpoint without data options."""
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
     from stamlane.data.flat_options import clip_options
     from stamlane.module import StamLaneModule
     from stamlane.registry import check_data_hparams
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
     if args.config:
         from stamlane.cli import build_cli

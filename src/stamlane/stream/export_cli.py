@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, format_wxh, parse_or_status
 
-from stamlane.boundary import expected_errors, one_line
-from stamlane.guard import check_outputs
+from stamlane.safety.boundary import expected_errors, one_line
+from stamlane.safety.guard import check_outputs
 
 __all__ = ["main", "parity"]
 
@@ -74,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.checkpoints import CheckpointError
     from stamlane.module import StamLaneModule
+    from stamlane.safety.checkpoints import CheckpointError
     from stamlane.stream.export import DEFAULT_OPSET, export_all, export_clip
 
     opset = args.opset if args.opset is not None else DEFAULT_OPSET

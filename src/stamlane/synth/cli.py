@@ -9,9 +9,9 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
-from stamlane.boundary import run_command
-from stamlane.budget import check_workers
-from stamlane.guard import check_outputs
+from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import check_workers
+from stamlane.safety.guard import check_outputs
 from stamlane.synth.generator import (
     DEMO_SPLITS,
     EVAL_KEY_STEP,

@@ -325,7 +325,7 @@ class SynthConfig:
     def __post_init__(self) -> None:
         if self.width < 64 or self.height < 48:
             raise ValueError(f"frame size must be at least 64x48, got {self.width}x{self.height}")
-        from stamlane.budget import MAX_SYNTH_FRAMES, check_clip, check_rate
+        from stamlane.safety.budget import MAX_SYNTH_FRAMES, check_clip, check_rate
 
         # one clip is rendered in memory: its frames x height x width within the size budget
         check_clip(self.num_frames, (self.height, self.width), "synthetic", frames_limit=MAX_SYNTH_FRAMES)

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.budget import MAX_CLIP_PIXELS, BudgetError, check_clip, check_rate, check_size
 from stamlane.demo import main as demo_main
 from stamlane.experiments.engine import ExperimentError, _check_run_config, _verify_checkpoint
 from stamlane.experiments.store import StoreError, file_sha256, finished
-from stamlane.guard import GuardError, atomic_path, check_outputs, exclusive, read_inside, temporary_name
+from stamlane.safety.budget import MAX_CLIP_PIXELS, BudgetError, check_clip, check_rate, check_size
+from stamlane.safety.guard import GuardError, atomic_path, check_outputs, exclusive, read_inside, temporary_name
 
 
 def test_an_output_that_is_an_input_or_lies_in_a_protected_one_is_refused(tmp_path: Path) -> None:
@@ -132,7 +132,7 @@ def test_the_budget_fits_the_paper_and_refuses_what_would_not_fit_memory() -> No
             check_rate(fps)
 
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_predict_never_writes_over_a_checkpoint_named_like_its_output(

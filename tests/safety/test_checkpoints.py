@@ -1,4 +1,4 @@
-"""stamlane.checkpoints: weights only, only registered classes built (`stamlane.registry`), one-line errors for bad
+"""stamlane.safety.checkpoints: weights only, only registered classes built (`stamlane.registry`), one-line errors for bad
 files."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.checkpoints import CheckpointError, read_checkpoint
 from stamlane.module import StamLaneModule
 from stamlane.registry import check_hparams
+from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
 NET = {
     "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},

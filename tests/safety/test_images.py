@@ -1,4 +1,4 @@
-"""stamlane.imageio: a truncated frame is unreadable everywhere (datasets, align), never a grey picture."""
+"""stamlane.safety.images: a truncated frame is unreadable everywhere (datasets, align), never a grey picture."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from stamlane.imageio import read_image
+from stamlane.safety.images import read_image
 
 
 def _picture() -> np.ndarray:
