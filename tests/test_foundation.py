@@ -91,6 +91,17 @@ def test_the_generator_makes_clips_without_reading_them_or_torch():
     assert violations(python_files(SRC / "synth"), forbidden) == []
 
 
+def test_the_generator_takes_only_the_camera_from_align():
+    # the camera model lives with the geometry (align/); the generator renders with it and with nothing else of align
+    allowed = ("stamlane.align.camera", "stamlane.safety", "stamlane.synth", "stamlane.types")
+    assert _outside(python_files(SRC / "synth"), allowed) == []
+
+
+def test_align_stands_on_safety_alone():
+    # the geometry floor: homographies, warps and the camera; its command uses the safety floor
+    assert _outside(python_files(SRC / "align"), ("stamlane.align", "stamlane.safety", "stamlane.types")) == []
+
+
 def test_checkpoints_is_a_leaf():
     # the safe loader is stamlane.registry (behind StamLaneModule.from_checkpoint); checkpoints.py reads files only
     assert violations([SRC / "safety" / "checkpoints.py"], ("stamlane",)) == []

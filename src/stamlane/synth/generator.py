@@ -47,7 +47,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stamlane.camera import Camera, Pose
+from stamlane.align.camera import Camera, Pose
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road

@@ -1,4 +1,4 @@
-"""The one camera model (``stamlane.camera``): its pixel convention, and the same model behind the synthetic
+"""The one camera model (``stamlane.align.camera``): its pixel convention, and the same model behind the synthetic
 generator and the ego-motion homographies of the alignment tests."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from stamlane.align.camera import Camera, Pose
 from stamlane.align.egomotion import RoadCamera, image_from_ground, key_from_hist_motion
-from stamlane.camera import Camera, Pose
 from stamlane.synth import SynthConfig, generate_clip
 
 
