@@ -82,7 +82,7 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
     from stamlane.module import StamLaneModule
-    from stamlane.overlay import draw_lanes
+    from stamlane.predict.overlay import draw_lanes
     from stamlane.safety.checkpoints import read_checkpoint
     from stamlane.stream import StreamingPredictor
 

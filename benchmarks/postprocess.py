@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 
 
 def synthetic_heads(

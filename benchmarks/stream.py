@@ -60,7 +60,7 @@ from stamlane.data.collate import collate_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import net_homographies
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder, forward_feature_aligned
-from stamlane.postprocess import decode_lanes
+from stamlane.predict.postprocess import decode_lanes
 from stamlane.stream import StreamingPredictor, feature_homography, sampling_grid
 from stamlane.stream.export import export_all, export_clip
 from stamlane.types import NET_HOMOGRAPHIES

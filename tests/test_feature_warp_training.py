@@ -23,7 +23,7 @@ from stamlane.data.options import ClipOptions, LoaderOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_feature_aligned
 from stamlane.module import StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.stream import StreamingPredictor
 
 torch.set_num_threads(1)

@@ -102,6 +102,24 @@ def test_align_stands_on_safety_alone():
     assert _outside(python_files(SRC / "align"), ("stamlane.align", "stamlane.safety", "stamlane.types")) == []
 
 
+def test_prediction_stands_below_training():
+    # decoding and writing lanes: training's validation, streaming and the experiments use them, not the reverse
+    allowed = ("stamlane.predict", "stamlane.safety", "stamlane.types")
+    assert _outside(python_files(SRC / "predict"), allowed) == []
+
+
+def test_decoding_lanes_needs_no_lightning():
+    # the package __init__ imports nothing: postprocess and the writers load without Lightning (or torch)
+    code = (
+        "import sys\n"
+        "import stamlane.predict.postprocess, stamlane.predict.writers, stamlane.predict.overlay\n"
+        "leaked = sorted(m for m in ('torch', 'lightning', 'torchmetrics') if m in sys.modules)\n"
+        "assert not leaked, leaked\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+
+
 def test_checkpoints_is_a_leaf():
     # the safe loader is stamlane.registry (behind StamLaneModule.from_checkpoint); checkpoints.py reads files only
     assert violations([SRC / "safety" / "checkpoints.py"], ("stamlane",)) == []

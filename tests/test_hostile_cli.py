@@ -301,7 +301,7 @@ def test_the_label_property_saw_both_outcomes() -> None:
 def test_prediction_writers_never_write_through_links(tmp_path: Path) -> None:
     """``stamlane predict`` writes its files as new files: a link planted where one goes is replaced, never written
     through (into the labels it points at), and a linked folder leading out of the output folder is refused."""
-    from stamlane.writers import TusimpleWriter, write_culane_lines
+    from stamlane.predict.writers import TusimpleWriter, write_culane_lines
 
     labels = tmp_path / "data" / "label.json"
     labels.parent.mkdir()

@@ -12,7 +12,7 @@ from torch.utils.data import DataLoader
 
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
 from stamlane.module import PolyLR, StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
 
 torch.set_num_threads(1)
 H, W, T = 32, 64, 2

@@ -22,7 +22,7 @@ from stamlane.final_checkpoint import FinalCheckpoint
 from stamlane.fit_report import FitReport, step_of
 from stamlane.lightning_compat import keep_command_line_hparams
 from stamlane.module import StamLaneModule
-from stamlane.predict import LanePredictionWriter
+from stamlane.predict.prediction_writer import LanePredictionWriter
 from stamlane.resume import ExactResume
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs

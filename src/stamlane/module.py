@@ -2,7 +2,7 @@
 
 Training logs the loss terms separately (``train/loss``, ``train/loss_seg``, ``train/loss_var``,
 ``train/loss_dist``, ``train/loss_reg``). Validation and test decode lanes with
-`stamlane.postprocess.decode_lanes` (numpy, outside any ``forward``) and return the dict that
+`stamlane.predict.postprocess.decode_lanes` (numpy, outside any ``forward``) and return the dict that
 ``stamlane_eval.integrations.lightning.LaneEvalCallback`` reads: ``pred_lanes`` (per image, lanes in
 original pixels), ``gt_lanes``, ``h_samples``, ``orig_size`` and ``run_time`` (ms per image, network
 share of the batch + post-processing). ``predict_step`` returns lanes with each sample's meta.
@@ -39,7 +39,7 @@ from stamlane.hardware import resolve_bf16
 from stamlane.lightning_compat import drop_hyperparameters
 from stamlane.losses import LaneLoss
 from stamlane.models import LaneNet, forward_feature_aligned
-from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.safety.budget import check_clip, check_frames
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.types import NET_HOMOGRAPHIES
@@ -271,7 +271,7 @@ class StamLaneModule(LightningModule):
         return terms["loss"]
 
     def decode(self, logits: Tensor, embedding: Tensor, metas: Sequence[dict]) -> list[list[np.ndarray]]:
-        """Lanes of each image of a batch, in original pixels (see `stamlane.postprocess.decode_lanes`).
+        """Lanes of each image of a batch, in original pixels (see `stamlane.predict.postprocess.decode_lanes`).
 
         Args:
             logits: (B, 2, H, W) lane / background logits.

@@ -440,7 +440,7 @@ def _run_sections() -> dict[str, Any]:
 
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.module import StamLaneModule
-    from stamlane.predict import LanePredictionWriter
+    from stamlane.predict.prediction_writer import LanePredictionWriter
 
     return {
         "seed_everything": bool | int | None,

@@ -469,7 +469,7 @@ class Experiment:
         from stamlane_eval.io import read_tusimple
 
         from stamlane.experiments.history import oracle_predictions, read_visibility
-        from stamlane.postprocess import PostprocessConfig
+        from stamlane.predict.postprocess import PostprocessConfig
         from stamlane.synth.generator import FIRST_KEY
 
         config = PostprocessConfig(**postprocess)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
-from stamlane.postprocess import PostprocessConfig, fit_curve, sample_lanes
+from stamlane.predict.postprocess import PostprocessConfig, fit_curve, sample_lanes
 from stamlane.synth.generator import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
 

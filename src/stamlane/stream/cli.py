@@ -236,7 +236,7 @@ def _stream(
     import torch
     from tqdm import tqdm
 
-    from stamlane.overlay import draw_lanes
+    from stamlane.predict.overlay import draw_lanes
 
     writer = None
     written = 0

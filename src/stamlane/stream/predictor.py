@@ -49,7 +49,7 @@ from stamlane.align.warp import chain_link
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import LaneNet
 from stamlane.models.feature_aligned import fuse_feature_aligned
-from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.types import Lanes
 
 __all__ = ["StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]

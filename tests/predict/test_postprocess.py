@@ -1,11 +1,11 @@
-"""stamlane.postprocess: DBSCAN on embeddings, nearest-centre assignment, robust fit, original pixels."""
+"""stamlane.predict.postprocess: DBSCAN on embeddings, nearest-centre assignment, robust fit, original pixels."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from stamlane.postprocess import PostprocessConfig, cluster_lane_pixels, decode_lanes, fit_lane
+from stamlane.predict.postprocess import PostprocessConfig, cluster_lane_pixels, decode_lanes, fit_lane
 
 H, W = 128, 256
 
@@ -132,7 +132,7 @@ def test_extend_continues_a_lane_hidden_at_its_far_end_to_the_common_top() -> No
 
 
 def test_a_curve_continues_along_its_end_tangents() -> None:
-    from stamlane.postprocess import LaneCurve
+    from stamlane.predict.postprocess import LaneCurve
 
     curve = LaneCurve(np.array([0.01, 0.0, 5.0]), y_lo=10.0, y_hi=20.0)  # x = 0.01 y^2 + 5
     np.testing.assert_allclose(curve.x_at(np.array([15.0])), [0.01 * 225 + 5])

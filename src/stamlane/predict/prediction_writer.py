@@ -25,9 +25,9 @@ import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
 from stamlane_eval.io import culane_lines_path
 
-from stamlane.overlay import draw_lanes
+from stamlane.predict.overlay import draw_lanes
+from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
 from stamlane.safety.images import read_image
-from stamlane.writers import TusimpleWriter, output_path, write_culane_lines
 
 __all__ = ["LanePredictionWriter"]
 

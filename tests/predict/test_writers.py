@@ -1,4 +1,4 @@
-"""stamlane.writers: TuSimple json-lines and CULane .lines.txt, scored by stamlane-eval unconverted."""
+"""stamlane.predict.writers: TuSimple json-lines and CULane .lines.txt, scored by stamlane-eval unconverted."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from stamlane_eval.cli import main as eval_main
 from stamlane_eval.io import culane_lines_path, read_culane_lines, read_tusimple
 
-from stamlane.writers import TusimpleWriter, format_culane_lines, tusimple_record, write_culane_lines
+from stamlane.predict.writers import TusimpleWriter, format_culane_lines, tusimple_record, write_culane_lines
 
 H_SAMPLES = list(range(240, 720, 10))
 
