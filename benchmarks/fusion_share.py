@@ -23,7 +23,7 @@ import yaml
 
 from stamlane.data.clips import make_clips
 from stamlane.data.transforms import ClipTransform
-from stamlane.module import StamLaneModule
+from stamlane.training.module import StamLaneModule
 
 SOURCES = ("real", "key", "other_clip")
 

@@ -153,7 +153,7 @@ VARIANTS = {
 
 def _fit(stage: Stage, folder: Path, root: Path, seed: int, bf16: str, init: Path | None) -> Path:
     """Train ``stage`` into ``folder`` and return its run folder (config.yaml, metrics.csv, checkpoints)."""
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     val_every = max(1, stage.steps // (6 if init is None else 3))
     args = [
@@ -170,7 +170,7 @@ def _fit(stage: Stage, folder: Path, root: Path, seed: int, bf16: str, init: Pat
         f"--trainer.logger.save_dir={folder}",
         "--trainer.logger.name=.",
         "--trainer.logger.version=run",
-        "--trainer.callbacks+=stamlane.history_use.HistoryUseMonitor",
+        "--trainer.callbacks+=stamlane.training.history_use_monitor.HistoryUseMonitor",
         *([f"--model.init_weights={init}"] if init else []),
         *stage.overrides,
     ]

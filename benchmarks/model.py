@@ -33,7 +33,6 @@ from torch import nn
 from torch.utils.flop_counter import FlopCounterMode
 from tqdm import tqdm
 
-from stamlane.losses import LaneLoss
 from stamlane.models import (
     STAM,
     STPSA,
@@ -46,6 +45,7 @@ from stamlane.models import (
     STDANet,
     VGGEncoder,
 )
+from stamlane.training.losses import LaneLoss
 
 
 def _fusions() -> dict[str, Callable[[int], nn.Module]]:

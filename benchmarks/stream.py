@@ -212,9 +212,9 @@ def measure_end_to_end(
 
 def _load(ckpt: Path) -> tuple[torch.nn.Module, ClipOptions]:
     """The StamLaneModule of a checkpoint (eval mode) and how its clips were read (flat older checkpoints too)."""
-    from stamlane.data.flat_options import clip_options
-    from stamlane.module import StamLaneModule
     from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.module import StamLaneModule
 
     module = StamLaneModule.from_checkpoint(ckpt)
     return module, clip_options(read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {})

@@ -12,8 +12,8 @@ from lightning.pytorch import Callback, Trainer, seed_everything
 from stamlane.data.datamodule import ClipDataModule
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import PolyLR, StamLaneModule
 from stamlane.predict.postprocess import PostprocessConfig
+from stamlane.training.module import PolyLR, StamLaneModule
 
 SIZE = (64, 128)  # network input (H, W)
 NO_AUGMENTATION = AugmentOptions(crop_scale=(1.0, 1.0), flip_prob=0.0, brightness=0.0, contrast=0.0, saturation=0.0)

@@ -97,7 +97,7 @@ def _tool_options(program: str, command: str) -> set[str] | None:
 @cache
 def _config_keys() -> frozenset[str]:
     """Every key of the ``stamlane fit`` config (dotted), from the demo config's resolved form."""
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]
     try:

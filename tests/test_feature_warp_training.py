@@ -15,16 +15,16 @@ import pytest
 import torch
 from lightning.pytorch import Trainer
 
-import stamlane.module
+import stamlane.training.module
 from stamlane.cli import main as cli_main
 from stamlane.data import NET_HOMOGRAPHIES, TuSimpleClips, collate_clips, net_homographies
 from stamlane.data.datamodule import ClipDataModule
 from stamlane.data.options import ClipOptions, LoaderOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_feature_aligned
-from stamlane.module import StamLaneModule
 from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.stream import StreamingPredictor
+from stamlane.training.module import StamLaneModule
 
 torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[1]
@@ -174,7 +174,7 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
         calls.append(tuple(key_from_hist.shape))
         return forward_feature_aligned(net, clip, key_from_hist)
 
-    monkeypatch.setattr(stamlane.module, "forward_feature_aligned", spy)
+    monkeypatch.setattr(stamlane.training.module, "forward_feature_aligned", spy)
     clip = ClipOptions(warp="feature", **CLIPS)
     data = ClipDataModule(root=str(root), clip=clip, loader=LoaderOptions(batch_size=2), predict_labels=["test.json"])
     module = _module(bf16=True, channels_last=True, report_run_time=False)
@@ -249,7 +249,7 @@ def test_cli_fit_and_predict_with_data_warp_feature(
 ) -> None:
     calls = []
     monkeypatch.setattr(
-        stamlane.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
+        stamlane.training.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
     )
     common = [
         f"--trainer.default_root_dir={tmp_path}",
@@ -301,7 +301,7 @@ def test_stream_benchmark_finetunes_through_the_library_path(root: Path, monkeyp
     spec.loader.exec_module(bench)
     calls = []
     monkeypatch.setattr(
-        stamlane.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
+        stamlane.training.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
     )
     module = _module()
     before = [p.detach().clone() for p in module.parameters()]

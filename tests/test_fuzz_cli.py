@@ -277,7 +277,7 @@ def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     import lightning
     from lightning.pytorch.cli import instantiate_module
 
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     torch.manual_seed(0)
     module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})

@@ -15,7 +15,7 @@ from lightning.pytorch import Trainer, seed_everything
 from lightning.pytorch.callbacks import ModelCheckpoint
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.final_checkpoint import FinalCheckpoint
+from stamlane.training.final_checkpoint import FinalCheckpoint
 from tests.overfit import overfit, tiny_data, tiny_module
 
 torch.set_num_threads(1)
@@ -67,7 +67,7 @@ def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path
 
 
 def test_the_cli_adds_the_final_checkpoint() -> None:
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     cli = StamLaneCLI(args=["--config", str(Path(__file__).parents[1] / "configs" / "demo.yaml")], run=False)
     assert any(isinstance(cb, FinalCheckpoint) for cb in cli.trainer.callbacks)

@@ -157,7 +157,7 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
 def run(args: argparse.Namespace) -> None:
     import torch
 
-    from stamlane.hardware import resolve_bf16
+    from stamlane.training.hardware import resolve_bf16
 
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
     rows = [m for m in MODELS if not ((args.no_noalign or args.quick) and m.name == "stam4_noalign")]

@@ -140,7 +140,7 @@ def test_datamodule_rejects_bad_options():
 
 
 def test_a_datamodule_made_in_python_stores_plain_hyperparameters(tmp_path: Path):
-    from stamlane.data.flat_options import clip_options
+    from stamlane.training.compat import clip_options
 
     dm = ClipDataModule(clip=ClipOptions(num_frames=2), loader=LoaderOptions(batch_size=3))
     assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == {"batch_size": 3, "num_workers": 0}

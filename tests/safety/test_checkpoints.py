@@ -1,4 +1,4 @@
-"""stamlane.safety.checkpoints: weights only, only registered classes built (`stamlane.registry`), one-line errors for bad
+"""stamlane.safety.checkpoints: weights only, only registered classes built (`stamlane.training.registry`), one-line errors for bad
 files."""
 
 from __future__ import annotations
@@ -10,16 +10,16 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.module import StamLaneModule
-from stamlane.registry import check_hparams
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+from stamlane.training.module import StamLaneModule
+from stamlane.training.registry import check_hparams
 
 NET = {
     "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
     "fusion": {"class_path": "stamlane.models.STAM"},
     "decoder": {"class_path": "stamlane.models.LaneDecoder"},
     "optimizer": {"class_path": "torch.optim.AdamW", "init_args": {"lr": 0.002}},
-    "scheduler": {"class_path": "stamlane.module.PolyLR"},
+    "scheduler": {"class_path": "stamlane.training.module.PolyLR"},
     "num_frames": 2,
     "image_size": [32, 64],
     "_instantiator": "lightning.pytorch.cli.instantiate_module",
@@ -50,12 +50,15 @@ def test_foreign_classes_are_refused_before_any_import(tmp_path: Path, where: st
 def test_a_foreign_instantiator_and_nested_names_are_refused(tmp_path: Path) -> None:
     with pytest.raises(CheckpointError, match=r"_instantiator must be .*, got 'builtins\.exec'"):
         check_hparams({**NET, "_instantiator": "builtins.exec"}, "x.ckpt")
-    nested = {**NET, "loss": {"class_path": "stamlane.losses.LaneLoss", "init_args": {"x": [{"class_path": "os.rm"}]}}}
+    nested = {
+        **NET,
+        "loss": {"class_path": "stamlane.training.losses.LaneLoss", "init_args": {"x": [{"class_path": "os.rm"}]}},
+    }
     with pytest.raises(CheckpointError, match=r"loss\.init_args\.x is not an option of LaneLoss"):
         check_hparams(nested, "x.ckpt")
     inside = {
         **NET,
-        "loss": {"class_path": "stamlane.losses.LaneLoss", "init_args": {"alpha": {"class_path": "os.rm"}}},
+        "loss": {"class_path": "stamlane.training.losses.LaneLoss", "init_args": {"alpha": {"class_path": "os.rm"}}},
     }
     with pytest.raises(CheckpointError, match=r"alpha\.class_path a class where a plain value goes \('os\.rm'\)"):
         check_hparams(inside, "x.ckpt")

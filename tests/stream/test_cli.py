@@ -33,7 +33,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     import lightning
     from lightning.pytorch.cli import instantiate_module
 
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     torch.manual_seed(0)
     module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})

@@ -16,7 +16,7 @@ On the command line a field is ``--data.<group>.<field>`` (``--data.clip.num_fra
 What belongs to one labelled dataset (``root``, ``format``, label files, ``label_dir``, ``thickness``,
 ``on_error``, ``history_source``) stays a plain argument of `ClipDataModule`. Each group is a frozen dataclass
 that checks its values when it is made, so a bad option fails when the config is read, not in the first epoch.
-Configs written before the groups existed (flat ``data.num_frames`` ...) are read by `stamlane.data.flat_options`.
+Configs written before the groups existed (flat ``data.num_frames`` ...) are read by `stamlane.training.compat`.
 """
 
 from __future__ import annotations

@@ -149,7 +149,7 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
     check_outputs(  # the runs never land among the frames and labels, nor replace the base or the index
         [*outputs, *map(temporary_name, outputs)], [base, index.path], folders=[args.out], protected=[root]
     )
-    from stamlane.hardware import resolve_bf16
+    from stamlane.training.hardware import resolve_bf16
 
     bf16 = resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
     experiment = Experiment(

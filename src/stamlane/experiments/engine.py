@@ -39,7 +39,7 @@ from stamlane.experiments.scoring import (
 from stamlane.experiments.stats import Scores, views
 from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
-from stamlane.quiet import quiet_libraries
+from stamlane.training.quiet import quiet_libraries
 
 __all__ = [
     "CONFIG_DIR",
@@ -149,7 +149,7 @@ budget). Steps can be changed per call."""
 
 
 def _cli(args: list[str], **kwargs: Any) -> Any:
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
     try:
@@ -173,8 +173,8 @@ def _run_config(run: Path) -> str:
 def _check_run_config(run: Path) -> None:
     """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
     (`stamlane.registry.check_run_config`); a tampered one is refused in one line."""
-    from stamlane.registry import check_run_config
     from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.training.registry import check_run_config
 
     try:
         check_run_config(_run_config(run), run / "config.yaml")
@@ -200,7 +200,7 @@ def _one_line(err: BaseException) -> str:
 
 
 def _frames_of(run: Path) -> int:
-    from stamlane.data.flat_options import clip_options  # a run of before the data options were grouped too
+    from stamlane.training.compat import clip_options  # a run of before the data options were grouped too
 
     try:
         return clip_options(_run_data(run, "data")).num_frames
@@ -226,7 +226,7 @@ def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
     """A run record with the ``stamlane fit`` arguments it was made with (``row_args``, ``extra``) in today's
     names: a run recorded with ``--data.key_corruption`` before the data options were grouped is the same run as
     one with ``--data.augment.key_corruption``."""
-    from stamlane.data.flat_options import group_flags
+    from stamlane.training.compat import group_flags
 
     return record | {k: group_flags(record[k]) for k in ("row_args", "extra") if isinstance(record.get(k), list)}
 
@@ -355,8 +355,8 @@ class Experiment:
         predictions folder."""
         from jsonargparse import ArgumentError
 
-        from stamlane.registry import safe_config_file
         from stamlane.safety.boundary import one_line
+        from stamlane.training.registry import safe_config_file
 
         pred_dir = self.pred_dir(name, split, source)
         try:  # the run's config is data: a checked copy is what LightningCLI reads

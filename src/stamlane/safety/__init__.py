@@ -9,5 +9,5 @@ Each check lives in one module, and every other floor may use them; they import 
 - `stamlane.safety.checkpoints`: a checkpoint read with weights only, a one-line error for a bad file (a leaf);
 - `stamlane.safety.images`: frames and videos read within limits (a truncated file is unreadable, a bomb refused).
 
-What a stored run may name (the closed registry) is the training shell's: `stamlane.registry`.
+What a stored run may name (the closed registry) is the training shell's: `stamlane.training.registry`.
 """

@@ -3,7 +3,7 @@
 A checkpoint is data, and data must not run code. ``torch.load(weights_only=True)`` never unpickles code, but
 Lightning's ``load_from_checkpoint`` then BUILDS the network from the hyperparameters stored in the file:
 their ``class_path`` entries (and ``_instantiator``) name Python objects that get imported and called. A
-crafted checkpoint could name any module. So the network is never built that way: `stamlane.registry` looks
+crafted checkpoint could name any module. So the network is never built that way: `stamlane.training.registry` looks
 every name up in a closed table, by exact name, and builds from it (this module imports nothing of stamlane's).
 
 Every problem — a missing, empty, truncated or text file, a file without weights, a foreign class, another

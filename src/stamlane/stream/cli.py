@@ -115,13 +115,13 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     """The LightningModule and how the clips it was trained on were read (`stamlane.data.options.ClipOptions`:
     num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
     of an older checkpoint too); None for a checkpoint without data options."""
-    from stamlane.data.flat_options import clip_options
-    from stamlane.module import StamLaneModule
-    from stamlane.registry import check_data_hparams
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.module import StamLaneModule
+    from stamlane.training.registry import check_data_hparams
 
     if args.config:
-        from stamlane.cli import build_cli
+        from stamlane.training.lightning_cli import StamLaneCLI as build_cli
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")

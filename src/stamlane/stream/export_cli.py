@@ -74,9 +74,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.module import StamLaneModule
     from stamlane.safety.checkpoints import CheckpointError
     from stamlane.stream.export import DEFAULT_OPSET, export_all, export_clip
+    from stamlane.training.module import StamLaneModule
 
     opset = args.opset if args.opset is not None else DEFAULT_OPSET
     output = args.output or args.ckpt_path.with_suffix(".onnx")

@@ -8,7 +8,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from stamlane.losses import LaneLoss, class_weights, discriminative_loss
+from stamlane.training.losses import LaneLoss, class_weights, discriminative_loss
 
 
 def _reference(embedding, instance, delta_v=0.5, delta_d=1.5, alpha=1.0, beta=1.0, gamma=0.001):

@@ -1,4 +1,4 @@
-"""stamlane.module: the LightningModule's steps, the poly schedule, the weights-only checkpoint."""
+"""stamlane.training.module: the LightningModule's steps, the poly schedule, the weights-only checkpoint."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from lightning.pytorch import Trainer
 from torch.utils.data import DataLoader
 
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import PolyLR, StamLaneModule
 from stamlane.predict.postprocess import PostprocessConfig
+from stamlane.training.module import PolyLR, StamLaneModule
 
 torch.set_num_threads(1)
 H, W, T = 32, 64, 2

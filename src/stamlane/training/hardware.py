@@ -2,7 +2,7 @@
 
 bf16 autocast is ~3x faster than float32 on CPUs with AMX or AVX512-BF16 and ~10-15x SLOWER on CPUs
 without them (AVX2-only laptops and many cloud cores), where oneDNN emulates it. ``bf16="auto"`` in
-`stamlane.module.StamLaneModule` asks `native_bf16` which one this machine is.
+`stamlane.training.module.StamLaneModule` asks `native_bf16` which one this machine is.
 """
 
 from __future__ import annotations

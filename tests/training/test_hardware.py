@@ -1,4 +1,4 @@
-"""stamlane.hardware: bf16 only where the CPU computes it natively."""
+"""stamlane.training.hardware: bf16 only where the CPU computes it natively."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from stamlane.hardware import native_bf16, resolve_bf16
+from stamlane.training.hardware import native_bf16, resolve_bf16
 
 
 def test_explicit_values_stay_and_auto_asks_the_machine() -> None:
@@ -27,7 +27,7 @@ def test_native_bf16_agrees_with_the_cpu_flags() -> None:
 
 def test_the_module_resolves_auto() -> None:
     from stamlane.models import STAM, LaneDecoder, VGGEncoder
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     module = StamLaneModule(VGGEncoder(width=0.125), STAM, LaneDecoder, bf16="auto")
     assert module.bf16 is native_bf16("cpu") and module.hparams["bf16"] == "auto"

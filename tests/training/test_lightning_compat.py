@@ -1,4 +1,4 @@
-"""The private Lightning parts stamlane uses (``stamlane.lightning_compat``) are still there and still behave as
+"""The private Lightning parts stamlane uses (``stamlane.training.lightning_compat``) are still there and still behave as
 relied on: these tests fail when a Lightning release changes them."""
 
 from __future__ import annotations
@@ -11,15 +11,15 @@ import torch
 from lightning.pytorch.cli import LightningCLI
 from lightning.pytorch.demos.boring_classes import BoringModel
 
-from stamlane.lightning_cli import StamLaneCLI
-from stamlane.lightning_compat import (
+from stamlane.models import STAM, LaneDecoder, VGGEncoder
+from stamlane.training.lightning_cli import StamLaneCLI
+from stamlane.training.lightning_compat import (
     CKPT_HPARAMS_METHOD,
     drop_hyperparameters,
     fit_data_fetcher,
     keep_command_line_hparams,
 )
-from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import StamLaneModule
+from stamlane.training.module import StamLaneModule
 
 
 def test_lightning_cli_still_merges_checkpoint_hparams_in_the_method_we_replace() -> None:

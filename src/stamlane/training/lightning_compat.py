@@ -1,9 +1,9 @@
 """The places where stamlane reaches into Lightning's private parts, kept in this one module.
 
-Each has no public equivalent; ``tests/test_lightning_compat.py`` fails when Lightning changes one of them, and
+Each has no public equivalent; ``tests/training/test_lightning_compat.py`` fails when Lightning changes one of them, and
 ``pyproject.toml`` caps lightning below 3.
 
-- `fit_data_fetcher`: exact resume (``stamlane.resume``) skips the batches an interrupted epoch had trained on
+- `fit_data_fetcher`: exact resume (``stamlane.training.resume``) skips the batches an interrupted epoch had trained on
   by advancing the fit loop's data fetcher; no hook hands out the epoch's iterator before its first batch.
 - `drop_hyperparameters`: a module built in Python from ``nn.Module`` objects must not store them (a
   ``weights_only`` checkpoint cannot hold them), while under LightningCLI the same arguments are stored as
@@ -11,7 +11,7 @@ Each has no public equivalent; ``tests/test_lightning_compat.py`` fails when Lig
 - `plain_hyperparameters`: the same for dataclass values (a DataModule's option groups made in Python), stored as
   the plain dicts LightningCLI stores for them.
 - `keep_command_line_hparams`: LightningCLI's ``_parse_ckpt_path`` re-applies a checkpoint's saved model
-  hyperparameters OVER ``--config`` / ``--model.*``; `stamlane.lightning_cli.StamLaneCLI` replaces it with this
+  hyperparameters OVER ``--config`` / ``--model.*``; `stamlane.training.lightning_cli.StamLaneCLI` replaces it with this
   no-op, so that the command line stays in charge (``--model.postprocess.*`` at predict time).
 """
 

@@ -116,13 +116,17 @@ def registry() -> Mapping[str, Any]:
 
     stamlane's own classes (``stamlane.models.STAM``, ...), the optimisers and schedulers of `OPTIMIZERS` and
     `SCHEDULERS`, Lightning's `CALLBACKS` and `LOGGERS`; each also under its defining module's name
-    (``stamlane.models.stam.STAM``), as jsonargparse may write either.
+    (``stamlane.models.stam.STAM``), as jsonargparse may write either; and under the names of before a move
+    (`stamlane.training.compat.RENAMED_CLASSES`: ``stamlane.losses.LaneLoss``), so that every earlier run and
+    checkpoint still reads.
     """
     import torch.optim
     import torch.optim.lr_scheduler
     from lightning.pytorch import callbacks, loggers
 
-    from stamlane import losses, models, module
+    from stamlane import models
+    from stamlane.training import losses, module
+    from stamlane.training.compat import RENAMED_CLASSES
 
     own = {
         "stamlane.models.VGGEncoder": models.VGGEncoder,
@@ -134,9 +138,9 @@ def registry() -> Mapping[str, Any]:
         "stamlane.models.CosineWeightedSum": models.CosineWeightedSum,
         "stamlane.models.KeyFrameOnly": models.KeyFrameOnly,
         "stamlane.models.SimpleAdd": models.SimpleAdd,
-        "stamlane.losses.LaneLoss": losses.LaneLoss,
-        "stamlane.module.PolyLR": module.PolyLR,
-        "stamlane.module.paper_sgd": module.paper_sgd,
+        "stamlane.training.losses.LaneLoss": losses.LaneLoss,
+        "stamlane.training.module.PolyLR": module.PolyLR,
+        "stamlane.training.module.paper_sgd": module.paper_sgd,
     }
     groups = (
         ("torch.optim", torch.optim, OPTIMIZERS),
@@ -146,7 +150,9 @@ def registry() -> Mapping[str, Any]:
     )
     for prefix, where, names in groups:
         own |= {f"{prefix}.{name}": getattr(where, name) for name in names if hasattr(where, name)}
-    return types.MappingProxyType(own | {f"{obj.__module__}.{obj.__qualname__}": obj for obj in own.values()})
+    own |= {f"{obj.__module__}.{obj.__qualname__}": obj for obj in own.values()}
+    # the names of before a class moved (checkpoints and run folders written then): one table, in compat
+    return types.MappingProxyType(own | {old: own[new] for old, new in RENAMED_CLASSES.items() if new in own})
 
 
 class _Refused(Exception):
@@ -380,7 +386,9 @@ def _check_text(value: str, arms: list[Any], kinds: list[str], key: str) -> None
         raise _Refused(key, f"must be {_describe_arms(arms)}, got {_short(value)}")
     if any(k == "dataclass" for k in kinds) and not any(k in ("class", "callable") for k in kinds):
         raise _Refused(key, f"must be a mapping of options, got {_short(value)} (a sub-config file is never read)")
-    target = _lookup(value, key)  # a class or a function by its exact name (optimizer: stamlane.module.paper_sgd)
+    target = _lookup(
+        value, key
+    )  # a class or a function by its exact name (optimizer: stamlane.training.module.paper_sgd)
     if not _fits(target, arms):
         raise _Refused(key, f"names {value!r}, which is no {_wanted(arms)}")
 
@@ -439,8 +447,8 @@ def _run_sections() -> dict[str, Any]:
     from torch.optim.lr_scheduler import LRScheduler, ReduceLROnPlateau
 
     from stamlane.data.datamodule import ClipDataModule
-    from stamlane.module import StamLaneModule
     from stamlane.predict.prediction_writer import LanePredictionWriter
+    from stamlane.training.module import StamLaneModule
 
     return {
         "seed_everything": bool | int | None,
@@ -495,14 +503,15 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
     """The run config ``text`` (from a checkpoint or a run folder's ``config.yaml``), checked against the registry.
 
     Returns:
-        the config as plain data (old flat ``data`` keys grouped), every name in it a key of `registry`.
+        the config as plain data in today's names (`stamlane.training.compat.upgrade_config`: old flat ``data`` keys
+        grouped, moved classes and renamed options under today's names), every name in it a key of `registry`.
 
     Raises:
         CheckpointError: not YAML, not a mapping, or a refused key (named, with why), in one line.
     """
     import yaml
 
-    from stamlane.data.flat_options import FlatOptionError, group_config
+    from stamlane.training.compat import OldOptionError, upgrade_config
 
     if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
         size = f"{len(text):,} characters" if isinstance(text, str) else type(text).__name__
@@ -510,16 +519,17 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
             f"the config of {source} is not a text of at most {MAX_CONFIG_CHARS:,} characters ({size})"
         )
     try:
-        config = group_config(yaml.safe_load(text))
+        config = yaml.safe_load(text)
+        _check_size(config, f"the config of {source}")  # before anything walks it: aliases expand there
+        config = upgrade_config(config)
     except yaml.YAMLError as err:
         raise CheckpointError(f"the config of {source} is not YAML: {str(err).splitlines()[0]}") from None
-    except FlatOptionError as err:  # a data group that is not a mapping, or a value given flat and grouped twice
+    except OldOptionError as err:  # a data group that is not a mapping, an option given under two names
         raise CheckpointError(f"the config of {source}: {err}") from None
     except RecursionError:
         raise CheckpointError(f"the config of {source} is nested too deeply") from None
     if not isinstance(config, dict):
         raise CheckpointError(f"the config of {source} is not a mapping of options (got {_short(config)})")
-    _check_size(config, f"the config of {source}")
     sections = _run_sections()
     try:
         for name, item in config.items():
@@ -546,28 +556,37 @@ def safe_config_file(text: str, source: str | Path) -> Iterator[Path]:
         yield path
 
 
-def check_hparams(hparams: Any, source: str | Path) -> None:
+def check_hparams(hparams: Any, source: str | Path) -> dict[str, Any]:
     """Refuse a checkpoint's ``hyper_parameters`` that are not `StamLaneModule` options built from the registry.
+
+    Returns:
+        the hyper_parameters in today's names (`stamlane.training.compat.upgrade_hparams`).
 
     Raises:
         CheckpointError: naming the checkpoint and the key, in one line.
     """
-    from stamlane.module import StamLaneModule
+    from stamlane.training.compat import OldOptionError, upgrade_hparams
+    from stamlane.training.module import StamLaneModule
 
-    extra = {"_instantiator": INSTANTIATOR, "_class_path": "stamlane.module.StamLaneModule"}
+    extra = {"_instantiator": INSTANTIATOR, "_class_path": "stamlane.training.module.StamLaneModule"}
     _check_size(hparams, f"checkpoint {source}: hyper_parameters")
     try:
+        hparams = upgrade_hparams(hparams)
         _check_section(hparams, StamLaneModule, "hyper_parameters", extra)
     except _Refused as err:
         raise _refusal(source, "checkpoint", err) from None
+    except OldOptionError as err:
+        raise CheckpointError(f"checkpoint {source}: hyper_parameters.{err}") from None
     except RecursionError:
         raise CheckpointError(f"checkpoint {source}: hyper_parameters nested too deeply") from None
+    return hparams
 
 
 def check_data_hparams(hparams: Any, source: str | Path) -> None:
-    """Refuse a checkpoint's ``datamodule_hyper_parameters`` that are not plain ``ClipDataModule`` options."""
+    """Refuse a checkpoint's ``datamodule_hyper_parameters`` that are not plain ``ClipDataModule`` options (read in
+    today's names: `stamlane.training.compat.group_data`)."""
     from stamlane.data.datamodule import ClipDataModule
-    from stamlane.data.flat_options import group_data
+    from stamlane.training.compat import group_data
 
     _check_size(hparams, f"checkpoint {source}: datamodule_hyper_parameters")
     try:
@@ -612,12 +631,12 @@ def build_module(content: Mapping[str, Any], source: str | Path) -> Any:
         CheckpointError: see `check_hparams`; also for options the classes refuse and for weights of another
             network.
     """
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     hparams = content.get("hyper_parameters")
     if not isinstance(hparams, dict):
         raise CheckpointError(f"checkpoint {source} records no hyper_parameters: build the network from its config")
-    check_hparams(hparams, source)
+    hparams = check_hparams(hparams, source)
     hints, _ = _hints(StamLaneModule)
     options = {k: v for k, v in hparams.items() if not k.startswith("_")}
     try:

@@ -19,7 +19,7 @@ import lightning.pytorch as pl
 import numpy as np
 import torch
 
-from stamlane.lightning_compat import fit_data_fetcher
+from stamlane.training.lightning_compat import fit_data_fetcher
 
 __all__ = ["ExactResume", "get_rng_states", "set_rng_states"]
 

@@ -35,13 +35,13 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
-from stamlane.hardware import resolve_bf16
-from stamlane.lightning_compat import drop_hyperparameters
-from stamlane.losses import LaneLoss
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.safety.budget import check_clip, check_frames
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+from stamlane.training.hardware import resolve_bf16
+from stamlane.training.lightning_compat import drop_hyperparameters
+from stamlane.training.losses import LaneLoss
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
@@ -108,7 +108,7 @@ class StamLaneModule(LightningModule):
             recorded so that streaming and export feed the network as it was trained.
         bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
             ``"auto"`` (default): where the CPU runs bf16 natively (AMX / AVX512-BF16, ~3x faster than
-            float32), float32 elsewhere (emulated bf16 is ~15x slower); see `stamlane.hardware`.
+            float32), float32 elsewhere (emulated bf16 is ~15x slower); see `stamlane.training.hardware`.
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
@@ -216,15 +216,15 @@ class StamLaneModule(LightningModule):
         """The module stored in a checkpoint, built safely, on the CPU, in eval mode.
 
         The file is read with ``weights_only=True``; its hyperparameters are checked against the closed registry
-        and the network is built from it (`stamlane.registry.build_module`): every class is looked up by its
+        and the network is built from it (`stamlane.training.registry.build_module`): every class is looked up by its
         exact name, nothing named in the file is imported (Lightning's own ``load_from_checkpoint`` would import
         and call whatever the file names).
 
         Raises:
-            CheckpointError: see `stamlane.safety.checkpoints.read_checkpoint` and `stamlane.registry.check_hparams`;
+            CheckpointError: see `stamlane.safety.checkpoints.read_checkpoint` and `stamlane.training.registry.check_hparams`;
                 also for hyperparameters that build no stamlane network and for weights of another network.
         """
-        from stamlane.registry import build_module
+        from stamlane.training.registry import build_module
 
         return build_module(read_checkpoint(path), path)
 

@@ -5,7 +5,7 @@ products, "Restoring states from the checkpoint path ..." and, for every predict
 with callbacks the prediction does not need, a warning that those callbacks should be given; torch's ``_pytree``
 warns about an API Lightning still calls. Three warnings are about what stamlane handles itself: LightningCLI's on
 being given arguments (it prints the temporary config path), ModelCheckpoint's "dirpath has changed" on a resume
-into a new version folder, the loop's "dataloader is not resumable" (`stamlane.resume.ExactResume` makes it so). None of it says anything to a stamlane user. `quiet_libraries` drops
+into a new version folder, the loop's "dataloader is not resumable" (`stamlane.training.resume.ExactResume` makes it so). None of it says anything to a stamlane user. `quiet_libraries` drops
 exactly those messages, by logger and text (`CHATTER`) and by warning text (`WARNINGS`): any other message,
 a warning of stamlane's own or a new one of a library, still shows. ``stamlane fit|validate|test|predict
 --verbose`` keeps everything.
@@ -40,10 +40,10 @@ WARNINGS = (
     # stamlane.cli passes the arguments (with the checkpoint's config, a temporary file) while sys.argv holds the
     # user's own; sys.argv stays as typed so that a DDP rank re-launches the command the user gave
     r"LightningCLI's args parameter is intended to run from within Python",
-    # a resumed fit logs and checkpoints into a new version folder; `stamlane.fit_report.FitReport` carries the
+    # a resumed fit logs and checkpoints into a new version folder; `stamlane.training.fit_report.FitReport` carries the
     # best score of the run it resumed over
     r"The dirpath has changed from .* therefore `best_model_score`",
-    # `stamlane.resume.ExactResume` replays the interrupted epoch's data: the resume is exact (tested)
+    # `stamlane.training.resume.ExactResume` replays the interrupted epoch's data: the resume is exact (tested)
     r"You're resuming from a checkpoint that ended before the epoch ended and your dataloader is not resumable",
 )
 """Warnings dropped (regular expressions matched at the start of the message), each where stamlane expects it and

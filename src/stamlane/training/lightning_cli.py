@@ -1,4 +1,8 @@
-"""`StamLaneCLI`: LightningCLI for ``stamlane fit|validate|test|predict`` (see ``stamlane.cli``)."""
+"""`StamLaneCLI`: LightningCLI for ``stamlane fit|validate|test|predict`` (see ``stamlane.cli``).
+
+A ``--config`` is read in the YAML mode of `stamlane.training.compat.yaml_mode`: a config written by an older
+version (the flat data options, a moved class, a renamed option) is read in today's form.
+"""
 
 from __future__ import annotations
 
@@ -9,42 +13,30 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-from jsonargparse import Namespace, get_loader, set_loader
+from jsonargparse import Namespace
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
-from stamlane.data.flat_options import check_flags, group_config
-from stamlane.final_checkpoint import FinalCheckpoint
-from stamlane.fit_report import FitReport, step_of
-from stamlane.lightning_compat import keep_command_line_hparams
-from stamlane.module import StamLaneModule
 from stamlane.predict.prediction_writer import LanePredictionWriter
-from stamlane.resume import ExactResume
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs
+from stamlane.training.compat import check_flags, yaml_mode
+from stamlane.training.final_checkpoint import FinalCheckpoint
+from stamlane.training.fit_report import FitReport, step_of
+from stamlane.training.lightning_compat import keep_command_line_hparams
+from stamlane.training.module import StamLaneModule
+from stamlane.training.resume import ExactResume
 
-__all__ = ["CONFIG_KEY", "CONFIG_MODE", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
 START_DIR_KEY = "stamlane_start_dir"
 """Checkpoint entry holding the folder ``stamlane fit`` was started in (relative paths of the config are relative to
 it): ``stamlane validate|test|predict --ckpt_path`` finds the run's data from any folder."""
-CONFIG_MODE = "stamlane-yaml"
-"""jsonargparse parser mode of `StamLaneCLI`: YAML, where a config whose ``data`` section has the flat keys of
-before the data options were grouped (a run folder's ``config.yaml``, the config inside a checkpoint, an old
-``--config`` file) is read in the grouped form (`stamlane.data.flat_options.group_config`)."""
-
-
-def _load_yaml(text: str) -> Any:
-    return group_config(get_loader("yaml")(text))
-
-
-set_loader(CONFIG_MODE, _load_yaml, exceptions=(yaml.YAMLError,))
 
 
 class ConfigInCheckpoint(Callback):
@@ -79,7 +71,7 @@ class StamLaneCLI(LightningCLI):
         super().__init__(StamLaneModule, ClipDataModule, args=args, run=run, **kwargs)
 
     def init_parser(self, **kwargs: Any) -> LightningArgumentParser:
-        kwargs.setdefault("parser_mode", CONFIG_MODE)  # old configs read grouped (subcommands inherit the mode)
+        kwargs.setdefault("parser_mode", yaml_mode())  # old configs read in today's names (subcommands inherit it)
         return super().init_parser(**kwargs)
 
     def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
@@ -158,7 +150,7 @@ class StamLaneCLI(LightningCLI):
             if init is not None and str(getattr(one, "class_path", "")).endswith(("CSVLogger", "TensorBoardLogger")):
                 init["name"] = f"{init.get('name') or 'lightning_logs'}-{subcommand}"
 
-    # the command line stays in charge of the model's settings (see stamlane.lightning_compat)
+    # the command line stays in charge of the model's settings (see stamlane.training.lightning_compat)
     _parse_ckpt_path = keep_command_line_hparams
 
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:

@@ -1,4 +1,4 @@
-"""The closed registry (`stamlane.registry`): what a file the user did not write may build.
+"""The closed registry (`stamlane.training.registry`): what a file the user did not write may build.
 
 A checkpoint's hyper_parameters, the run config it carries and a run folder's ``config.yaml`` are data: every name
 in them is looked up in a table by its exact string, never imported, and every ``init_args`` value is a plain,
@@ -26,10 +26,10 @@ from hypothesis import strategies as st
 
 from stamlane.cli import main
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import StamLaneModule
 from stamlane.safety.checkpoints import CheckpointError
+from stamlane.training.module import StamLaneModule
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 torch.set_num_threads(1)
 pytestmark = pytest.mark.usefixtures("plain_argv")
 
@@ -37,9 +37,9 @@ NET = {
     "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125, "in_channels": 3}},
     "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
     "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
-    "loss": {"class_path": "stamlane.losses.LaneLoss", "init_args": {"delta_v": 0.5}},
+    "loss": {"class_path": "stamlane.training.losses.LaneLoss", "init_args": {"delta_v": 0.5}},
     "optimizer": {"class_path": "torch.optim.AdamW", "init_args": {"lr": 0.002, "betas": [0.9, 0.999]}},
-    "scheduler": {"class_path": "stamlane.module.PolyLR", "init_args": {"power": 0.9}},
+    "scheduler": {"class_path": "stamlane.training.module.PolyLR", "init_args": {"power": 0.9}},
     "postprocess": {"prob_thresh": 0.5, "y_step": 10},
     "num_frames": 2,
     "image_size": [32, 64],
@@ -140,7 +140,7 @@ def test_a_prefix_that_reaches_os_system_runs_nothing(
         ("encoder", "{canary}"),  # a plain module name where a class goes
         ("optimizer", "{canary}.s"),  # a function named by its dotted path
         ("encoder", {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": "{canary}.s"}}),
-        ("loss", {"class_path": "stamlane.losses.LaneLoss", "init_args": {"x": {"class_path": "{canary}.s"}}}),
+        ("loss", {"class_path": "stamlane.training.losses.LaneLoss", "init_args": {"x": {"class_path": "{canary}.s"}}}),
         ("_instantiator", "{canary}.s"),
     ],
     ids=["import_module", "plain-name", "callable", "typed-arg", "nested", "instantiator"],
@@ -241,7 +241,7 @@ def test_stream_refuses_bad_data_hyper_parameters(
 
 def test_aliases_and_shared_references_cannot_expand_without_bound(weights: dict) -> None:
     """A few hundred bytes of YAML aliases (or pickle references) standing for billions of values: refused at once."""
-    from stamlane.registry import MAX_VALUES, build_module, check_run_config
+    from stamlane.training.registry import MAX_VALUES, build_module, check_run_config
 
     lines = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
     lines += [f"{b}: &{b} [{', '.join([f'*{a}'] * 10)}]" for a, b in zip("abcdefgh", "bcdefghi")]
@@ -396,8 +396,8 @@ def test_a_user_config_stays_code(
 ) -> None:
     """``--config`` is the user's own, like a script: it may name the user's classes. The same text read from a
     checkpoint or a run folder is refused."""
-    from stamlane.lightning_cli import StamLaneCLI
-    from stamlane.registry import check_run_config
+    from stamlane.training.lightning_cli import StamLaneCLI
+    from stamlane.training.registry import check_run_config
 
     name = f"user_fusion_{uuid.uuid4().hex[:8]}"
     (tmp_path / f"{name}.py").write_text(
@@ -428,8 +428,8 @@ def _shipped() -> list[list[str]]:
 
 def test_every_shipped_config_as_fit_stores_it_passes(capsys: pytest.CaptureFixture[str]) -> None:
     """What ``stamlane fit`` writes into its checkpoints and run folders (the config dumped whole) passes."""
-    from stamlane.lightning_cli import StamLaneCLI
-    from stamlane.registry import check_run_config
+    from stamlane.training.lightning_cli import StamLaneCLI
+    from stamlane.training.registry import check_run_config
 
     for configs in _shipped():
         with pytest.raises(SystemExit):
@@ -449,7 +449,7 @@ def _lookalike(name: str, at: int) -> str:
 
 
 def _names(canary: str, enc: Path) -> st.SearchStrategy[str]:
-    from stamlane.registry import registry
+    from stamlane.training.registry import registry
 
     known = st.sampled_from(sorted(registry()))
     return st.one_of(
@@ -481,7 +481,7 @@ def _hostile_values(names: st.SearchStrategy[str]) -> st.SearchStrategy[object]:
         [
             {"class_path": "stamlane.models.SimpleAdd"},
             {"class_path": "torch.optim.SGD", "init_args": {"lr": 0.1}},
-            "stamlane.module.paper_sgd",
+            "stamlane.training.module.paper_sgd",
             [{"class_path": "lightning.pytorch.callbacks.ModelCheckpoint", "init_args": {"monitor": "val/loss"}}],
             {"class_path": "lightning.pytorch.loggers.CSVLogger", "init_args": {"save_dir": "logs"}},
             "auto",
@@ -530,7 +530,7 @@ def test_any_hostile_stored_config_is_refused_in_one_line_or_fully_registered(
     or an option goes (random ``stamlane.x.os.system`` chains, look-alike letters, callables in init_args, sub-config
     paths, YAML tags, wrong types) is refused in one line naming the file and the key, or accepted only when every
     dotted name in it is an exact registry entry; nothing is imported, no file written."""
-    from stamlane.registry import check_run_config, registry
+    from stamlane.training.registry import check_run_config, registry
 
     name, side = canary
     enc = tmp_path / "enc.yaml"
@@ -573,8 +573,8 @@ def _class_paths(value: object) -> Iterator[str]:
 def _parse(text: str) -> None:
     from jsonargparse import ArgumentError
 
-    from stamlane.lightning_cli import StamLaneCLI
-    from stamlane.registry import safe_config_file
+    from stamlane.training.lightning_cli import StamLaneCLI
+    from stamlane.training.registry import safe_config_file
 
     with safe_config_file(text, "evil.ckpt") as path:
         try:
@@ -592,7 +592,7 @@ def test_any_hostile_hyper_parameters_build_nothing_foreign(
 ) -> None:
     """Property: hyper_parameters with a hostile value in any option are refused in one line naming the checkpoint
     and the key, or build a network whose every class is a registry entry; nothing is imported."""
-    from stamlane.registry import build_module, registry
+    from stamlane.training.registry import build_module, registry
 
     name, side = canary
     enc = tmp_path / "enc.yaml"

@@ -9,7 +9,7 @@ import pytest
 import torch
 from lightning.pytorch.callbacks import ModelCheckpoint
 
-from stamlane.fit_report import FitReport, step_of
+from stamlane.training.fit_report import FitReport, step_of
 
 
 def _trainer(keeper: ModelCheckpoint, step: int, score: float | None) -> SimpleNamespace:
