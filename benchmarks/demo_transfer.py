@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import yaml
 
-from stamlane.demo import MODELS
+from stamlane.experiments.demo import MODELS
 from stamlane.training.compat import clip_options
 
 SPLITS = ("test", "challenging")

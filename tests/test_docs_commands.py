@@ -170,7 +170,7 @@ def test_the_checker_catches_a_wrong_flag_and_a_missing_path(tmp_path: Path) -> 
     assert not _lightning_flag_ok("--data.nope") and _lightning_flag_ok("--data.root")
     assert _lightning_flag_ok("--model.postprocess.degree") and not _lightning_flag_ok("--model.nope.degree")
     assert "--ckpt" in _tool_options("stamlane", "stream") and "--ckpt_path" not in _tool_options("stamlane", "stream")
-    assert PATH.findall("see configs/nope.yaml and `src/stamlane/demo.py`") == [
+    assert PATH.findall("see configs/nope.yaml and `src/stamlane/experiments/demo.py`") == [
         "configs/nope.yaml",
-        "src/stamlane/demo.py",
+        "src/stamlane/experiments/demo.py",
     ]

@@ -397,7 +397,7 @@ def test_synth(
 )
 def test_demo_quick(capsys: pytest.CaptureFixture[str], data: str, out: str, seeds: int) -> None:
     """Arguments a careless or hostile user gives ``demo --quick``: every one is refused before anything is
-    trained or written (a valid run is `tests/test_demo.py`'s)."""
+    trained or written (a valid run is `tests/experiments/test_demo.py`'s)."""
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
         tusimple = tmp / "tusimple"

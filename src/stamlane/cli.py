@@ -39,7 +39,7 @@ TOOLS: dict[str, str] = {
     "align": "stamlane.align.cli",
     "synth": "stamlane.synth.cli",
     "show": "stamlane.data.show_cli",
-    "demo": "stamlane.demo",
+    "demo": "stamlane.experiments.demo",
     "ablate": "stamlane.experiments.ablate",
     "report": "stamlane.experiments.report_cli",
     "stream": "stamlane.stream.cli",

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.demo import main as demo_main
+from stamlane.experiments.demo import main as demo_main
 from stamlane.experiments.engine import ExperimentError, _check_run_config, _verify_checkpoint
 from stamlane.experiments.store import StoreError, file_sha256, finished
 from stamlane.safety.budget import MAX_CLIP_PIXELS, BudgetError, check_clip, check_rate, check_size

@@ -106,7 +106,7 @@ def _frames(folder: Path) -> Path:
 
 def _shell(side: Path) -> dict:
     """A 'fusion' whose class_path starts with ``stamlane.`` and reaches ``os.system`` by attributes."""
-    return {"class_path": "stamlane.demo.os.system", "init_args": {"command": f"touch {side}"}}
+    return {"class_path": "stamlane.experiments.demo.os.system", "init_args": {"command": f"touch {side}"}}
 
 
 # ------------------------------------------------------------------ hyper_parameters (stream, export)
@@ -129,7 +129,7 @@ def test_a_prefix_that_reaches_os_system_runs_nothing(
         "export": ["export", "--ckpt_path", str(ckpt), "--output", str(tmp_path / "m.onnx")],
     }[command]
     err = _one_line(capsys, main(argv))
-    assert "'stamlane.demo.os.system'" in err and "fusion" in err and str(ckpt) in err
+    assert "'stamlane.experiments.demo.os.system'" in err and "fusion" in err and str(ckpt) in err
     assert not side.exists()
 
 
@@ -462,7 +462,7 @@ def _names(canary: str, enc: Path) -> st.SearchStrategy[str]:
                 canary,
                 f"{canary}.s",
                 "stamlane.cli.importlib.import_module",
-                "stamlane.demo.os.system",
+                "stamlane.experiments.demo.os.system",
                 "lightning.pytorch.callbacks.LambdaCallback",
                 "torch.optim.lr_scheduler.LambdaLR",
                 "builtins.exec",

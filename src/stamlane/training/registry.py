@@ -2,7 +2,7 @@
 
 A checkpoint's ``hyper_parameters``, the run config it carries, a run folder's ``config.yaml`` are data. A check
 by prefix (``stamlane.``) is not enough: jsonargparse resolves a name by importing its module and walking
-attributes, so ``stamlane.demo.os.system`` reaches the shell. Here every name is looked up in `registry` — a table
+attributes, so ``stamlane.experiments.demo.os.system`` reaches the shell. Here every name is looked up in `registry` — a table
 of exact dotted names to classes, written out below — and nothing is imported or resolved from the file's text.
 Every value is checked against the type the receiving parameter declares:
 

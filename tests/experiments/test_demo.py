@@ -15,7 +15,7 @@ from stamlane_eval.stats import seed_interval
 from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
-from stamlane.demo import pairs
+from stamlane.experiments.demo import pairs
 from stamlane.experiments.engine import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
 from stamlane.experiments.store import file_sha256
@@ -23,7 +23,7 @@ from stamlane.experiments.summary import Summary
 from stamlane.synth.generator import FACTORS, REVEAL, REVEAL_TRAFFIC
 
 torch.set_num_threads(1)
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 VIEWS = ["test", "challenging", *(f"challenging:{f}" for f in FACTORS)]
 VIEWS += [
     "reveal",
@@ -216,11 +216,13 @@ def test_a_tampered_run_folder_is_refused_in_one_line(tmp_path: Path, capsys: py
     assert main(["demo", "--quick", "--out", str(out)]) == 2  # a run folder's config may not import anything
     err = capsys.readouterr().err.strip()
     assert "names 'os.system'" in err and len(err.splitlines()) == 1
-    config.write_text(original.replace("class_path: stamlane.models.", "class_path: stamlane.demo.os.system  #", 1))
+    config.write_text(
+        original.replace("class_path: stamlane.models.", "class_path: stamlane.experiments.demo.os.system  #", 1)
+    )
     capsys.readouterr()
     assert main(["demo", "--quick", "--out", str(out)]) == 2  # a stamlane. prefix reaching the shell: not in the table
     err = capsys.readouterr().err.strip()
-    assert "names 'stamlane.demo.os.system'" in err and len(err.splitlines()) == 1
+    assert "names 'stamlane.experiments.demo.os.system'" in err and len(err.splitlines()) == 1
     config.write_text(original)
     ckpt = Path(record["last_ckpt"])  # a checkpoint weights_only refuses, its digest forged, predicted again
     kept = ckpt.read_bytes()
@@ -323,7 +325,7 @@ def test_score_split_iou_is_what_stamlane_eval_culane_says(tmp_path: Path, capsy
 def test_rows_of_a_table_with_a_baseline_are_compared_with_it() -> None:
     """Table 8's rows against its baseline (2 unaligned frames summed) besides one frame and STAM; the baseline
     itself and rows of tables without one are not."""
-    from stamlane.demo import MODELS
+    from stamlane.experiments.demo import MODELS
 
     rows = [*MODELS[:2], *(Row.paper_row(r) for r in ("f2_noalign_add", "f2_add", "f2_mixed_cs_gates", "f4_stpsa"))]
     found = pairs(rows)
