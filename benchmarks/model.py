@@ -57,10 +57,10 @@ def _fusions() -> dict[str, Callable[[int], nn.Module]]:
         "stdanet": STDANet,
         "stpsa": STPSA,
     }
-    for history in ("gates", "features"):
+    for reading in ("gates", "features"):
         for mode, order in (("parallel", "cs"), ("serial", "cs"), ("serial", "sc"), ("mixed", "cs"), ("mixed", "sc")):
-            name = f"stam-{mode}" + ("" if mode == "parallel" else f"-{order}") + f"-{history}"
-            table[name] = functools.partial(STAM, mode=mode, order=order, history=history)
+            name = f"stam-{mode}" + ("" if mode == "parallel" else f"-{order}") + f"-{reading}"
+            table[name] = functools.partial(STAM, mode=mode, order=order, reading=reading)
     return table
 
 

@@ -84,7 +84,7 @@ def _interleaved(fns: dict[str, Callable[[], float]], repeats: int, frames: int)
 
 def _demo_net(width: float) -> LaneNet:
     torch.manual_seed(0)
-    return LaneNet(VGGEncoder(width), functools.partial(STAM, reduction=4, history="features"), LaneDecoder).eval()
+    return LaneNet(VGGEncoder(width), functools.partial(STAM, reduction=4, reading="features"), LaneDecoder).eval()
 
 
 def _homographies(num: int) -> np.ndarray:

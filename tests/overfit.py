@@ -24,7 +24,7 @@ def tiny_module(num_frames: int, postprocess: PostprocessConfig | None = None) -
     seed_everything(0)
     return StamLaneModule(
         VGGEncoder(width=0.125),
-        functools.partial(STAM, mode="mixed", order="cs", reduction=4, history="features"),
+        functools.partial(STAM, mode="mixed", order="cs", reduction=4, reading="features"),
         LaneDecoder,
         optimizer=functools.partial(torch.optim.AdamW, lr=5e-3, weight_decay=1e-4),
         scheduler=PolyLR,

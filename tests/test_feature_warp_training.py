@@ -42,7 +42,7 @@ def _module(fusion: object = None, **kwargs: object) -> StamLaneModule:
     torch.manual_seed(0)
     return StamLaneModule(
         VGGEncoder(width=0.125),
-        fusion or functools.partial(STAM, mode="mixed", order="cs", reduction=4, history="features"),
+        fusion or functools.partial(STAM, mode="mixed", order="cs", reduction=4, reading="features"),
         LaneDecoder,
         num_frames=T,
         image_size=SIZE,

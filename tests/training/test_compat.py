@@ -19,8 +19,8 @@ from stamlane.training.compat import (
     clip_options,
     group_config,
     group_data,
-    group_flags,
     upgrade_config,
+    upgrade_flags,
     upgrade_hparams,
 )
 
@@ -101,23 +101,49 @@ def test_flags_are_renamed_for_records_and_refused_on_the_command_line() -> None
         "--data.num_frames",
         "2",
     ]
-    assert group_flags(old) == [
+    assert upgrade_flags(old) == [
         "--data.augment.key_corruption=0.5",
         "--data.augment.key_corruption_kinds=[blank, glare]",
         "--data.root=x",
         "--data.clip.num_frames",
         "2",
     ]
-    assert group_flags(["--data.synth_size=[64, 96]"]) == ["--data.synth.size=[64, 96]"]
+    assert upgrade_flags(["--data.synth_size=[64, 96]"]) == ["--data.synth.size=[64, 96]"]
     check_flags(["--data.clip.num_frames=2", "--data.root=x", "--model.num_frames=2", "num_frames"])  # today's: fine
     with pytest.raises(OldOptionError, match=r"^--data.batch_size is now --data.loader.batch_size \(the data"):
         check_flags(["--data.root=x", "--data.batch_size=2"])
+    # STAM's reading, formerly ``history``
+    assert upgrade_flags(["--model.fusion.init_args.history=gates"]) == ["--model.fusion.init_args.reading=gates"]
+    with pytest.raises(
+        OldOptionError, match=r"^--model.fusion.init_args.history is now --model.fusion.init_args.reading"
+    ):
+        check_flags(["--model.fusion.init_args.history", "gates"])
+
+
+# ------------------------------------------------------------------ renamed options (RENAMED_OPTIONS)
+def test_stams_old_history_option_is_read_as_its_reading() -> None:
+    old = {"fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "history": "gates"}}}
+    assert upgrade_hparams(old)["fusion"]["init_args"] == {"mode": "mixed", "reading": "gates"}
+    same = {
+        "fusion": {"class_path": "stamlane.models.stam.STAM", "init_args": {"history": "gates", "reading": "gates"}}
+    }
+    assert upgrade_hparams(same)["fusion"]["init_args"] == {"reading": "gates"}
+    with pytest.raises(OldOptionError, match=r"fusion\.init_args\.history is 'gates' but fusion\.init_args\.reading"):
+        upgrade_hparams({"fusion": {**same["fusion"], "init_args": {"history": "gates", "reading": "features"}}})
+    other = {"fusion": {"class_path": "stamlane.models.STPSA", "init_args": {"history": "x"}}}
+    assert upgrade_hparams(other) == other  # only the class that had the option
+    config = upgrade_config(yaml.safe_load(FLAT_CONFIG.read_text()))  # the real config of before
+    assert config["model"]["fusion"]["init_args"]["reading"] == "features"
+    assert "history" not in config["model"]["fusion"]["init_args"]
 
 
 # ------------------------------------------------------------------ names of before a move (RENAMED_CLASSES)
 OLD_HPARAMS = {
     "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
-    "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
+    "fusion": {
+        "class_path": "stamlane.models.STAM",
+        "init_args": {"mode": "mixed", "reduction": 4, "history": "gates"},
+    },
     "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
     "loss": {"class_path": "stamlane.losses.LaneLoss", "init_args": {"delta_v": 0.5}},
     "optimizer": "stamlane.module.paper_sgd",
@@ -128,7 +154,8 @@ OLD_HPARAMS = {
     "_instantiator": "lightning.pytorch.cli.instantiate_module",
     "_class_path": "stamlane.module.StamLaneModule",
 }
-"""The hyper_parameters of a checkpoint written before the training shell moved into stamlane.training."""
+"""The hyper_parameters of a checkpoint written before the training shell moved into stamlane.training and before
+STAM's ``history`` option was named ``reading``."""
 
 
 def test_every_old_class_name_is_an_alias_of_todays_class() -> None:
@@ -148,8 +175,10 @@ def test_names_are_upgraded_everywhere_and_nothing_else_changes() -> None:
     assert new["optimizer"] == "stamlane.training.module.paper_sgd"
     assert new["scheduler"]["class_path"] == "stamlane.training.module.PolyLR"
     assert new["_class_path"] == "stamlane.training.module.StamLaneModule"
-    assert {k: v for k, v in new.items() if k not in ("loss", "optimizer", "scheduler", "_class_path")} == {
-        k: v for k, v in OLD_HPARAMS.items() if k not in ("loss", "optimizer", "scheduler", "_class_path")
+    assert new["fusion"]["init_args"] == {"mode": "mixed", "reduction": 4, "reading": "gates"}
+    renamed = ("fusion", "loss", "optimizer", "scheduler", "_class_path")
+    assert {k: v for k, v in new.items() if k not in renamed} == {
+        k: v for k, v in OLD_HPARAMS.items() if k not in renamed
     }
     assert OLD_HPARAMS["loss"]["class_path"] == "stamlane.losses.LaneLoss"  # the input is not changed
     assert upgrade_hparams(new) == new  # today's: as it is
@@ -169,7 +198,7 @@ def test_a_checkpoint_with_the_old_names_builds_the_same_network(tmp_path: Path)
     torch.manual_seed(0)
     net = StamLaneModule(
         VGGEncoder(width=0.125),
-        partial(STAM, mode="mixed", reduction=4),
+        partial(STAM, mode="mixed", reduction=4, reading="gates"),
         partial(LaneDecoder, embed_dim=4),
         loss=LaneLoss(delta_v=0.5),
         num_frames=2,
@@ -180,6 +209,7 @@ def test_a_checkpoint_with_the_old_names_builds_the_same_network(tmp_path: Path)
     torch.save({"state_dict": net.state_dict(), "hyper_parameters": OLD_HPARAMS}, ckpt)
     loaded = StamLaneModule.from_checkpoint(ckpt)  # through the closed registry, which refuses unknown names
     assert type(loaded.loss) is LaneLoss and loaded.loss.delta_v == 0.5
+    assert loaded.net.fusion.reading == "gates"  # the old ``history: gates``
     assert loaded.hparams["loss"]["class_path"] == "stamlane.training.losses.LaneLoss"  # recorded in today's names
     clip = torch.rand(1, 2, 3, 32, 64)
     with torch.no_grad():

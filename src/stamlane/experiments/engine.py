@@ -226,7 +226,7 @@ def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
     """A run record with the ``stamlane fit`` arguments it was made with (``row_args``, ``extra``) in today's
     names: a run recorded with ``--data.key_corruption`` before the data options were grouped is the same run as
     one with ``--data.augment.key_corruption``."""
-    from stamlane.training.compat import group_flags
+    from stamlane.training.compat import upgrade_flags as group_flags
 
     return record | {k: group_flags(record[k]) for k in ("row_args", "extra") if isinstance(record.get(k), list)}
 

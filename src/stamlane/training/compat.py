@@ -8,7 +8,8 @@ through this module before anything else looks at it:
 - `RENAMED_CLASSES`: classes that moved to another module (``stamlane.losses.LaneLoss`` is
   ``stamlane.training.losses.LaneLoss``); the closed registry takes the old names as aliases
   (`stamlane.training.registry.registry`) and `upgrade_names` writes today's;
-- `RENAMED_OPTIONS`: options of a class that were renamed;
+- `RENAMED_OPTIONS` (and `RENAMED_FLAGS`, the same on the command line): options of a class that were renamed
+  (``STAM(history=...)`` is ``STAM(reading=...)``);
 - the flat data options: until the data options were grouped, every one was a plain argument of
   ``ClipDataModule`` (``data.num_frames``, ``data.flip_prob``, ``data.synth_train``, ``data.batch_size``);
   `group_data` turns such a ``data`` section into today's (``data.clip.num_frames``, ``data.augment.flip_prob``,
@@ -16,9 +17,9 @@ through this module before anything else looks at it:
   option is declared in its group alone.
 
 Who upgrades: the closed registry for everything read from a checkpoint or a run folder (`upgrade_config`,
-`upgrade_hparams`, `clip_options`), the experiment engine for the arguments its records hold (`group_flags`), and the YAML mode of
-``stamlane fit|validate|test|predict`` (`yaml_mode`) for a ``--config`` file, which may be an old run's
-``config.yaml``. An old name typed on the command line is refused with today's (`check_flags`).
+`upgrade_hparams`, `clip_options`), the experiment engine for the arguments its records hold (`upgrade_flags`),
+and the YAML mode of ``stamlane fit|validate|test|predict`` (`yaml_mode`) for a ``--config`` file, which may be an
+old run's ``config.yaml``. An old name typed on the command line is refused with today's (`check_flags`).
 """
 
 from __future__ import annotations
@@ -35,14 +36,15 @@ __all__ = [
     "CONFIG_MODE",
     "FLAT_KEYS",
     "RENAMED_CLASSES",
+    "RENAMED_FLAGS",
     "RENAMED_OPTIONS",
     "OldOptionError",
     "check_flags",
     "clip_options",
     "group_config",
     "group_data",
-    "group_flags",
     "upgrade_config",
+    "upgrade_flags",
     "upgrade_hparams",
     "upgrade_names",
     "yaml_mode",
@@ -60,8 +62,15 @@ RENAMED_CLASSES: Mapping[str, str] = {
 }
 """Old dotted name of a class (or a function) a stored config may name -> today's."""
 
-RENAMED_OPTIONS: Mapping[str, Mapping[str, str]] = {}
+_STAM_READING = {"history": "reading"}  # STAM(history=) said which reading of the paper; "history" meant five things
+RENAMED_OPTIONS: Mapping[str, Mapping[str, str]] = {
+    "stamlane.models.STAM": _STAM_READING,
+    "stamlane.models.stam.STAM": _STAM_READING,  # the defining module's name, which jsonargparse may write
+}
 """Today's dotted name of a class -> {old name of an option of its ``init_args``: today's}."""
+RENAMED_FLAGS: Mapping[str, str] = {"--model.fusion.init_args.history": "--model.fusion.init_args.reading"}
+"""Old command-line option -> today's, for the options of `RENAMED_OPTIONS` where the configs set them (STAM is the
+model's fusion)."""
 
 
 class OldOptionError(ValueError):
@@ -156,33 +165,42 @@ def clip_options(data: Mapping[str, Any]) -> ClipOptions:
         raise ValueError(f"data.clip {dict(clip)}: {err}") from None
 
 
-_FLAG = re.compile(r"--data\.(\w+)(=.*)?", re.DOTALL)
+_FLAG = re.compile(r"(--[\w.]+)(=.*)?", re.DOTALL)
 
 
-def group_flags(args: Iterable[str]) -> list[str]:
-    """Command-line arguments with every flat ``--data.<key>[=value]`` renamed to its grouped form (``--data.
-    num_frames=2`` -> ``--data.clip.num_frames=2``): how the arguments recorded by an older experiment read now."""
+def upgrade_flags(args: Iterable[str]) -> list[str]:
+    """Command-line arguments in today's names: every flat ``--data.<key>[=value]`` in its group (``--data.
+    num_frames=2`` -> ``--data.clip.num_frames=2``), every option of `RENAMED_FLAGS` renamed: how the arguments
+    recorded by an older experiment read now."""
     out = []
     for arg in args:
         match = _FLAG.fullmatch(arg)
-        if match and match.group(1) in FLAT_KEYS:
-            group, field = FLAT_KEYS[match.group(1)]
-            arg = f"--data.{group}.{field}{match.group(2) or ''}"
+        if match:
+            flag, value = match.group(1), match.group(2) or ""
+            key = flag.removeprefix("--data.")
+            if flag.startswith("--data.") and key in FLAT_KEYS:
+                group, field = FLAT_KEYS[key]
+                arg = f"--data.{group}.{field}{value}"
+            elif flag in RENAMED_FLAGS:
+                arg = f"{RENAMED_FLAGS[flag]}{value}"
         out.append(arg)
     return out
 
 
 def check_flags(args: Iterable[str]) -> None:
-    """Refuse old flat data options on the command line, naming the new one.
+    """Refuse old options on the command line (the flat data options, `RENAMED_FLAGS`), naming today's.
 
     Raises:
-        OldOptionError: for the first ``--data.<flat key>``.
+        OldOptionError: for the first old option.
     """
     for arg in args:
-        renamed = group_flags([arg])[0]
+        renamed = upgrade_flags([arg])[0]
         if renamed != arg:
             old, new = arg.split("=", 1)[0], renamed.split("=", 1)[0]
-            raise OldOptionError(f"{old} is now {new} (the data options are grouped: clip, augment, synth, loader)")
+            why = (
+                "the data options are grouped: clip, augment, synth, loader" if old.startswith("--data.") else "renamed"
+            )
+            raise OldOptionError(f"{old} is now {new} ({why})")
 
 
 def _renamed_keys(options: Mapping[str, Any], renamed: Mapping[str, str], where: str) -> dict[str, Any]:
