@@ -226,13 +226,15 @@ def _dataset(module: torch.nn.Module, clip: ClipOptions, root: Path, labels: lis
     return TuSimpleClips(
         root,
         list(labels),
-        num_frames=int(module.num_frames or clip.num_frames),
-        stride=clip.stride,
-        image_size=tuple(module.hparams.get("image_size") or clip.image_size),
-        align="fly",
-        horizon_row=clip.horizon_row,
-        align_strategy=clip.align_strategy,
-        warp=warp,
+        clip=ClipOptions(
+            num_frames=int(module.num_frames or clip.num_frames),
+            stride=clip.stride,
+            image_size=tuple(module.hparams.get("image_size") or clip.image_size),
+            align="fly",
+            horizon_row=clip.horizon_row,
+            align_strategy=clip.align_strategy,
+            warp=warp,
+        ),
     )
 
 

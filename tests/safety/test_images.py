@@ -36,12 +36,13 @@ def test_a_truncated_key_frame_is_a_data_error_and_align_says_so(tiny_synthetic,
     from stamlane.align.cli import main as align
     from stamlane.data.clips import TuSimpleClips
     from stamlane.data.labels import DataError
+    from stamlane.data.options import ClipOptions
 
     root = tiny_synthetic(96, 64, 4, train=1, val=0, test=0, challenging=0, seed=2)
     key = root / json.loads((root / "train.json").read_text().splitlines()[0])["raw_file"]
     key.write_bytes(key.read_bytes()[:-200])
     with pytest.raises(DataError, match="missing, truncated or not an image"):
-        TuSimpleClips(root, "train.json", image_size=(32, 64))[0]
+        TuSimpleClips(root, "train.json", clip=ClipOptions(image_size=(32, 64), align="none"))[0]
     assert align([str(root), "--cache", str(tmp_path / "cache"), "--num-frames", "2", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert f"cannot read frame {key}" in err and len(err.splitlines()) == 1

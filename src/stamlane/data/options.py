@@ -22,7 +22,6 @@ Configs written before the groups existed (flat ``data.num_frames`` ...) are rea
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
@@ -44,8 +43,9 @@ def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tu
 class ClipOptions:
     """How a clip is read and resized: what the network sees, the same in training, evaluation and prediction.
 
-    `ClipDataModule` and `FramesDataModule` read clips with it; ``num_frames``, ``image_size`` and ``crop_top`` are
-    linked into the model (``model.num_frames`` ...), so that a checkpoint carries them to ``stamlane stream``.
+    Every clip dataset takes it whole (`stamlane.data.clips.ClipDataset`'s ``clip``): these options are declared,
+    defaulted and checked here alone. `ClipDataModule` and `FramesDataModule` read clips with it; ``num_frames``,
+    ``image_size`` and ``crop_top`` are linked into the model (``model.num_frames`` ...), so that a checkpoint carries them to ``stamlane stream``.
 
     Attributes:
         num_frames: frames per clip T >= 1, key frame last (the paper: 4 on TuSimple, 2 on ApolloScape).
@@ -100,20 +100,6 @@ class ClipOptions:
     def transform(self) -> ClipTransform:
         """The evaluation and prediction transform: the sky cut and the resize to ``image_size``, no augmentation."""
         return ClipTransform(self.image_size, crop_top=self.crop_top)
-
-    def dataset_kwargs(self) -> dict[str, Any]:
-        """The keyword arguments of `stamlane.data.clips.ClipDataset` these options set (not the transform)."""
-        return {
-            "num_frames": self.num_frames,
-            "stride": self.stride,
-            "image_size": self.image_size,
-            "align": self.align,
-            "warp": self.warp,
-            "cache_dir": self.cache_dir,
-            "horizon_row": self.horizon_row,
-            "align_strategy": self.align_strategy,
-            "repeat_missing_history": self.repeat_missing_history,
-        }
 
 
 @dataclass(frozen=True)

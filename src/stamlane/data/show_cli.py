@@ -87,9 +87,7 @@ def _show(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         label_dir = args.label_dir if args.format == "apollo" else None
-        ds: ClipDataset = make_clips(
-            args.format, args.root, args.labels, label_dir, transform=clip.transform(), **clip.dataset_kwargs()
-        )
+        ds: ClipDataset = make_clips(args.format, args.root, args.labels, label_dir, clip=clip)
     if len(ds) == 0:
         raise ValueError(f"no samples in {' '.join(args.labels)} under {args.root}")
     indices = sorted({int(i) for i in np.linspace(0, len(ds) - 1, min(args.n, len(ds)))})
