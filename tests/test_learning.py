@@ -57,7 +57,7 @@ def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path
     trainer.fit(module, datamodule=tiny_data(two_clips, 1))
     last = tmp_path / "ckpt" / "last.ckpt"
     assert periodic.last_model_path == str(last)
-    assert not list((tmp_path / "ckpt").glob("*.partial"))  # written beside, then renamed
+    assert not [p for p in (tmp_path / "ckpt").iterdir() if ".tmp" in p.name]  # written beside, then renamed
     ckpt = torch.load(last, map_location="cpu", weights_only=True)
     assert ckpt["global_step"] == 7
     final = module.state_dict()

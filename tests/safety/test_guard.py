@@ -14,7 +14,15 @@ from stamlane.experiments.demo import main as demo_main
 from stamlane.experiments.engine import ExperimentError, _check_run_config, _verify_checkpoint
 from stamlane.experiments.store import StoreError, file_sha256, finished
 from stamlane.safety.budget import MAX_CLIP_PIXELS, BudgetError, check_clip, check_rate, check_size
-from stamlane.safety.guard import GuardError, atomic_path, check_outputs, exclusive, read_inside, temporary_name
+from stamlane.safety.guard import (
+    GuardError,
+    atomic_path,
+    check_outputs,
+    exclusive,
+    is_inside,
+    read_inside,
+    temporary_name,
+)
 
 
 def test_an_output_that_is_an_input_or_lies_in_a_protected_one_is_refused(tmp_path: Path) -> None:
@@ -171,3 +179,15 @@ def test_a_video_source_is_decoded_afresh_never_beside_the_video(tmp_path: Path)
     data.prepare_data()
     assert not data.root.is_relative_to(tmp_path) and len(list(data.root.glob("*.jpg"))) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.frames", "drive.mp4"]
+
+
+def test_is_inside_resolves_dots_and_links(tmp_path: Path) -> None:
+    """The one path-inside-root check (run records here, label and list paths in stamlane.data.labels)."""
+    top = tmp_path / "root"
+    (top / "a").mkdir(parents=True)
+    (tmp_path / "rootx").mkdir()
+    (top / "out").symlink_to(tmp_path / "rootx")
+    assert is_inside(top, top) and is_inside(top / "a" / "f.jpg", top) and is_inside(top / "a" / ".." / "b", top)
+    assert not is_inside(top / ".." / "rootx", top)  # a sibling whose name starts like the root
+    assert not is_inside(top / "out" / "f.jpg", top)  # a link that leads out
+    assert not is_inside(tmp_path, top)

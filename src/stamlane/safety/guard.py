@@ -10,7 +10,8 @@ compares them with links resolved and refuses, in one line naming both paths:
   folder cannot be written.
 
 Records of a run folder (``done.json``, ``run/config.yaml``) are read with `read_inside`: only when the file,
-links resolved, lies inside that folder. `atomic_path` / `write_atomic` are the one atomic writer (a temporary
+links resolved, lies inside that folder (`is_inside`, the one path-inside-root check, which the data's label and
+list paths go through too). `atomic_path` / `write_atomic` are the one atomic writer (a temporary
 name beside the output, then a rename); `exclusive` takes a folder's lock file, so that two runs never write one
 folder at once.
 """
@@ -32,6 +33,7 @@ __all__ = [
     "atomic_path",
     "check_outputs",
     "exclusive",
+    "is_inside",
     "read_input",
     "read_inside",
     "temporary_name",
@@ -52,7 +54,11 @@ def _resolved(path: PathLike) -> Path:
     return Path(path).expanduser().resolve()
 
 
-def _is_within(path: Path, top: Path) -> bool:
+def is_inside(path: PathLike, top: PathLike) -> bool:
+    """Whether ``path`` is ``top`` or lies inside it, links resolved in both (``..`` and a link out of ``top`` lead
+    outside): the one path-inside-root check of stamlane (a data root's label and list paths, a run folder's
+    records, an output inside a protected input)."""
+    path, top = Path(path).resolve(), Path(top).resolve()
     return path == top or path.is_relative_to(top)
 
 
@@ -114,7 +120,7 @@ def check_outputs(
             if target == source:
                 raise GuardError(f"{out}: the output would overwrite or write into the input {given}")
         for given, source in trees:
-            if _is_within(target, source):
+            if is_inside(target, source):
                 raise GuardError(f"{out}: the output would overwrite or write into the input {given}")
         _check_writable(out, target, folder)
 
@@ -140,7 +146,7 @@ def read_inside(path: PathLike, top: PathLike, limit: int, what: str = "record")
         GuardError: outside ``top`` (a link out of the folder: its target is never read), or unreadable as in
             `read_input`.
     """
-    if not _is_within(_resolved(path), _resolved(top)):
+    if not is_inside(_resolved(path), _resolved(top)):
         raise GuardError(f"{what} {path} leads outside {top} (a link?); it is not read")
     return read_input(path, limit, what)
 
