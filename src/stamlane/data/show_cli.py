@@ -23,7 +23,7 @@ from stamlane.data.transforms import ClipTransform
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 
-__all__ = ["main", "render_grid"]
+__all__ = ["build_parser", "main", "render_grid"]
 
 PALETTE = [(0, 0, 255), (0, 255, 0), (255, 0, 0), (0, 255, 255), (255, 0, 255), (255, 255, 0), (0, 128, 255)]
 
@@ -52,7 +52,7 @@ def render_grid(dataset: ClipDataset, indices: list[int]) -> np.ndarray:
     return np.concatenate(rows, axis=0)
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="stamlane show", description=__doc__.splitlines()[0])
     p.add_argument("--root", required=True, help="data root")
     p.add_argument("--labels", required=True, nargs="+", help="label (TuSimple) or list files, relative to root")
@@ -69,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     return run_command("stamlane show", lambda: _show(args))

@@ -29,10 +29,10 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
 from stamlane.experiments.tables import PaperRow, TableIndex, baseline_pairs, load_tables
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0])
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     if "--" in argv:
         cut = argv.index("--")
         argv, extra = argv[:cut], argv[cut + 1 :]
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     from stamlane.safety.boundary import run_command

@@ -31,7 +31,7 @@ from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Ro
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import check_outputs, exclusive, temporary_name
 
-__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "main", "pairs"]
+__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "build_parser", "main", "pairs"]
 
 MODELS = (
     Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",), paper="f4_mixed_cs_features"),
@@ -59,7 +59,7 @@ def pairs(rows: list[Row]) -> list[tuple[str, str]]:
     return [(a, b) for a, b in dict.fromkeys(found) if a in names and b in names]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
@@ -217,7 +217,7 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     for option in ("seeds", "pretrain_steps", "finetune_steps"):

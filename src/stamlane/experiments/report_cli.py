@@ -17,10 +17,10 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="stamlane report", description=__doc__.split("\n")[0])
     p.add_argument("summary", type=Path, nargs="+", help="summary.json; several with --paper / --replication")
     p.add_argument("--models", nargs="+", metavar="NAME", help="only these models of the summary")
@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     from stamlane.experiments.summary import SummaryError

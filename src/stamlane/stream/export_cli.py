@@ -22,10 +22,10 @@ from stamlane_eval.cli_tools import OneLineParser, format_wxh, parse_or_status
 from stamlane.safety.boundary import expected_errors, one_line
 from stamlane.safety.guard import check_outputs
 
-__all__ = ["main", "parity"]
+__all__ = ["build_parser", "main", "parity"]
 
 
-def _parser() -> OneLineParser:
+def build_parser() -> OneLineParser:
     p = OneLineParser(prog="stamlane export", description=__doc__.split("\n")[0])
     p.add_argument("--ckpt_path", required=True, type=Path, help="a checkpoint of `stamlane fit`")
     p.add_argument("--output", type=Path, default=None, help="the .onnx file (default: the checkpoint's, .onnx)")
@@ -71,7 +71,7 @@ def _need_onnx() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     from stamlane.safety.checkpoints import CheckpointError

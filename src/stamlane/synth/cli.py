@@ -21,10 +21,10 @@ from stamlane.synth.generator import (
     generate_dataset,
 )
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="stamlane synth",
         description="Write synthetic road clips (clips/<id>/1..T.jpg, train/val/test/challenging.json, "
@@ -78,7 +78,7 @@ def split_counts(total: int) -> tuple[int, int, int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     return run_command("stamlane synth", lambda: _synth(args))
