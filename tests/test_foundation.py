@@ -116,6 +116,15 @@ def test_every_package_has_its_floor():
     assert top == ["__init__.py", "cli.py", "types.py"]  # the top: the command entry and the shared types
 
 
+def test_pyproject_installs_every_package_and_the_configs():
+    tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads TOML")
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = ["stamlane", "stamlane.configs", *(f"stamlane.{p.parent.name}" for p in SRC.glob("*/__init__.py"))]
+    assert sorted(setuptools["packages"]) == sorted(found)
+    assert setuptools["package-dir"]["stamlane.configs"] == "configs"
+    assert _outside([REPO / "configs" / "__init__.py"], ()) == []  # package data and one function: a leaf
+
+
 def test_only_the_command_entry_knows_every_floor():
     assert violations(python_files(SRC), ("stamlane.cli",)) == []
 

@@ -27,6 +27,7 @@ from typing import Any
 
 import yaml
 
+from stamlane.configs import configs_dir
 from stamlane.experiments.scoring import (
     SCORING,
     image_size,
@@ -56,7 +57,7 @@ __all__ = [
     "oracle_subject",
 ]
 
-CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs"
+CONFIG_DIR = configs_dir()
 PROBES = ("key", "other_clip")
 """History probes of every multi-frame run on every split (`stamlane.data.clips.HISTORY_SOURCES` other than
 ``real``)."""

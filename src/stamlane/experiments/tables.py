@@ -12,6 +12,8 @@ from pathlib import Path
 
 import yaml
 
+from stamlane.configs import configs_dir
+
 __all__ = [
     "METRIC_KINDS",
     "PaperRow",
@@ -104,11 +106,8 @@ class TableIndex:
 
 
 def default_index_path() -> Path:
-    """``configs/paper/tables.yaml`` of the working directory, else of the source checkout."""
-    local = Path("configs/paper/tables.yaml")
-    if local.is_file():
-        return local
-    return Path(__file__).resolve().parents[3] / "configs" / "paper" / "tables.yaml"
+    """stamlane's ``configs/paper/tables.yaml`` (`stamlane.configs.configs_dir`), installed or in a checkout."""
+    return configs_dir() / "paper" / "tables.yaml"
 
 
 def load_tables(path: str | Path | None = None) -> TableIndex:
