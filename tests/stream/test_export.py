@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder
+from stamlane.models.feature_warp import feature_homography, sampling_grid
 from stamlane.stream.export import export_all, export_encoder, export_fuse_decode, identity_grid
-from stamlane.stream.feature_warp import feature_homography, sampling_grid
 from stamlane.stream.predictor import fuse_feature_aligned
 
 torch.set_num_threads(1)

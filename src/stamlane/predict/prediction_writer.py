@@ -31,8 +31,6 @@ from stamlane.safety.images import read_image
 
 __all__ = ["LanePredictionWriter"]
 
-"""File suffixes `FramesDataModule` treats as videos."""
-
 _FORMATS = ("auto", "tusimple", "culane")
 
 

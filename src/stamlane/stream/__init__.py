@@ -6,7 +6,7 @@
 ``cli``: ``stamlane stream VIDEO``.
 """
 
-from stamlane.stream.feature_warp import feat_from_net, feature_homography, sampling_grid, warp_features
+from stamlane.models.feature_warp import feat_from_net, feature_homography, sampling_grid, warp_features
 from stamlane.stream.predictor import StreamingPredictor, StreamOutput, fuse_feature_aligned
 
 __all__ = [

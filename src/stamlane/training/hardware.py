@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["BF16_CHOICES", "native_bf16", "resolve_bf16"]
-
-BF16_CHOICES = (True, False, "auto")
-"""Values of the ``bf16`` option: on, off, or on where the device runs bfloat16 natively."""
+__all__ = ["native_bf16", "resolve_bf16"]
 
 
 def native_bf16(device_type: str = "cpu") -> bool:

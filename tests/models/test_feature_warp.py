@@ -8,7 +8,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from stamlane.stream.feature_warp import feat_from_net, feature_homography, sampling_grid, warp_features
+from stamlane.models.feature_warp import feat_from_net, feature_homography, sampling_grid, warp_features
 
 torch.set_num_threads(1)
 
