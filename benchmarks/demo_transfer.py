@@ -25,8 +25,8 @@ import cv2
 import numpy as np
 import yaml
 
-from stamlane.data.flat_options import clip_options
-from stamlane.demo import MODELS
+from stamlane.experiments.demo import MODELS
+from stamlane.training.compat import clip_options
 
 SPLITS = ("test", "challenging")
 
@@ -81,10 +81,10 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
 
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
-    from stamlane.checkpoints import read_checkpoint
-    from stamlane.module import StamLaneModule
-    from stamlane.overlay import draw_lanes
+    from stamlane.predict.overlay import draw_lanes
+    from stamlane.safety.checkpoints import read_checkpoint
     from stamlane.stream import StreamingPredictor
+    from stamlane.training.module import StamLaneModule
 
     images = sorted(p for p in frames.iterdir() if p.suffix.lower() in (".jpg", ".png"))
     predictors = []

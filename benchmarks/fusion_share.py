@@ -22,8 +22,9 @@ import torch
 import yaml
 
 from stamlane.data.clips import make_clips
+from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
-from stamlane.module import StamLaneModule
+from stamlane.training.module import StamLaneModule
 
 SOURCES = ("real", "key", "other_clip")
 
@@ -37,9 +38,7 @@ def shares(run: Path, root: Path, split: str, source: str) -> dict[str, list[tup
         "tusimple",
         root,
         [f"{split}.json"],
-        num_frames=data["num_frames"],
-        image_size=size,
-        align=data["align"],
+        clip=ClipOptions(num_frames=data["num_frames"], image_size=size, align=data["align"]),
         transform=ClipTransform(size, crop_top=data.get("crop_top", 0.0)),
         history_source=source,
     )

@@ -6,7 +6,7 @@
 Every variant trains the demo's 4-frame pre-aligned STAM model (``configs/demo.yaml``) in the demo's two stages
 (the single-frame network from scratch, then the 4-frame model from its weights) or end to end, on the synthetic
 set of format 5, and validates on its val split (clean and factor clips; never the test or challenging clips)
-with `stamlane.history_use.HistoryUseMonitor`: the TuSimple F1 with the real history minus with the key frame
+with `stamlane.training.history_use_monitor.HistoryUseMonitor`: the TuSimple F1 with the real history minus with the key frame
 copied into every history slot, at every validation. A stage 1 shared by several variants is trained once.
 
 After training, the final weights are scored on the val split three ways by the experiment engine (real
@@ -153,7 +153,7 @@ VARIANTS = {
 
 def _fit(stage: Stage, folder: Path, root: Path, seed: int, bf16: str, init: Path | None) -> Path:
     """Train ``stage`` into ``folder`` and return its run folder (config.yaml, metrics.csv, checkpoints)."""
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     val_every = max(1, stage.steps // (6 if init is None else 3))
     args = [
@@ -170,7 +170,7 @@ def _fit(stage: Stage, folder: Path, root: Path, seed: int, bf16: str, init: Pat
         f"--trainer.logger.save_dir={folder}",
         "--trainer.logger.name=.",
         "--trainer.logger.version=run",
-        "--trainer.callbacks+=stamlane.history_use.HistoryUseMonitor",
+        "--trainer.callbacks+=stamlane.training.history_use_monitor.HistoryUseMonitor",
         *([f"--model.init_weights={init}"] if init else []),
         *stage.overrides,
     ]

@@ -33,7 +33,6 @@ from torch import nn
 from torch.utils.flop_counter import FlopCounterMode
 from tqdm import tqdm
 
-from stamlane.losses import LaneLoss
 from stamlane.models import (
     STAM,
     STPSA,
@@ -46,6 +45,7 @@ from stamlane.models import (
     STDANet,
     VGGEncoder,
 )
+from stamlane.training.losses import LaneLoss
 
 
 def _fusions() -> dict[str, Callable[[int], nn.Module]]:
@@ -57,10 +57,10 @@ def _fusions() -> dict[str, Callable[[int], nn.Module]]:
         "stdanet": STDANet,
         "stpsa": STPSA,
     }
-    for history in ("gates", "features"):
+    for reading in ("gates", "features"):
         for mode, order in (("parallel", "cs"), ("serial", "cs"), ("serial", "sc"), ("mixed", "cs"), ("mixed", "sc")):
-            name = f"stam-{mode}" + ("" if mode == "parallel" else f"-{order}") + f"-{history}"
-            table[name] = functools.partial(STAM, mode=mode, order=order, history=history)
+            name = f"stam-{mode}" + ("" if mode == "parallel" else f"-{order}") + f"-{reading}"
+            table[name] = functools.partial(STAM, mode=mode, order=order, reading=reading)
     return table
 
 

@@ -1,4 +1,4 @@
-"""Time ``stamlane.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5: tens of ms).
+"""Time ``stamlane.predict.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5: tens of ms).
 
 Synthetic heads: ``--lanes`` curved lanes ``--width`` px wide over the lower part of an H x W frame,
 embeddings drawn around cluster means 3.0 apart (the loss's ``2 * delta_d``) with spread ``--spread``,
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 
 
 def synthetic_heads(

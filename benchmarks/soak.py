@@ -46,8 +46,8 @@ def soak_stream(args: argparse.Namespace) -> dict:
     import torch
 
     from stamlane.data.clips import frame_order
-    from stamlane.module import StamLaneModule
     from stamlane.stream.predictor import StreamingPredictor
+    from stamlane.training.module import StamLaneModule
 
     torch.set_num_threads(args.threads)
     module = StamLaneModule.from_checkpoint(args.ckpt)

@@ -60,7 +60,7 @@ from stamlane.data.collate import collate_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import net_homographies
 from stamlane.models import STAM, LaneDecoder, LaneNet, VGGEncoder, forward_feature_aligned
-from stamlane.postprocess import decode_lanes
+from stamlane.predict.postprocess import decode_lanes
 from stamlane.stream import StreamingPredictor, feature_homography, sampling_grid
 from stamlane.stream.export import export_all, export_clip
 from stamlane.types import NET_HOMOGRAPHIES
@@ -84,7 +84,7 @@ def _interleaved(fns: dict[str, Callable[[], float]], repeats: int, frames: int)
 
 def _demo_net(width: float) -> LaneNet:
     torch.manual_seed(0)
-    return LaneNet(VGGEncoder(width), functools.partial(STAM, reduction=4, history="features"), LaneDecoder).eval()
+    return LaneNet(VGGEncoder(width), functools.partial(STAM, reduction=4, reading="features"), LaneDecoder).eval()
 
 
 def _homographies(num: int) -> np.ndarray:
@@ -212,9 +212,9 @@ def measure_end_to_end(
 
 def _load(ckpt: Path) -> tuple[torch.nn.Module, ClipOptions]:
     """The StamLaneModule of a checkpoint (eval mode) and how its clips were read (flat older checkpoints too)."""
-    from stamlane.checkpoints import read_checkpoint
-    from stamlane.data.flat_options import clip_options
-    from stamlane.module import StamLaneModule
+    from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.module import StamLaneModule
 
     module = StamLaneModule.from_checkpoint(ckpt)
     return module, clip_options(read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {})
@@ -226,13 +226,15 @@ def _dataset(module: torch.nn.Module, clip: ClipOptions, root: Path, labels: lis
     return TuSimpleClips(
         root,
         list(labels),
-        num_frames=int(module.num_frames or clip.num_frames),
-        stride=clip.stride,
-        image_size=tuple(module.hparams.get("image_size") or clip.image_size),
-        align="fly",
-        horizon_row=clip.horizon_row,
-        align_strategy=clip.align_strategy,
-        warp=warp,
+        clip=ClipOptions(
+            num_frames=int(module.num_frames or clip.num_frames),
+            stride=clip.stride,
+            image_size=tuple(module.hparams.get("image_size") or clip.image_size),
+            align="fly",
+            horizon_row=clip.horizon_row,
+            align_strategy=clip.align_strategy,
+            warp=warp,
+        ),
     )
 
 

@@ -12,8 +12,8 @@ from lightning.pytorch import Callback, Trainer, seed_everything
 from stamlane.data.datamodule import ClipDataModule
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
-from stamlane.module import PolyLR, StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
+from stamlane.training.module import PolyLR, StamLaneModule
 
 SIZE = (64, 128)  # network input (H, W)
 NO_AUGMENTATION = AugmentOptions(crop_scale=(1.0, 1.0), flip_prob=0.0, brightness=0.0, contrast=0.0, saturation=0.0)
@@ -24,7 +24,7 @@ def tiny_module(num_frames: int, postprocess: PostprocessConfig | None = None) -
     seed_everything(0)
     return StamLaneModule(
         VGGEncoder(width=0.125),
-        functools.partial(STAM, mode="mixed", order="cs", reduction=4, history="features"),
+        functools.partial(STAM, mode="mixed", order="cs", reduction=4, reading="features"),
         LaneDecoder,
         optimizer=functools.partial(torch.optim.AdamW, lr=5e-3, weight_decay=1e-4),
         scheduler=PolyLR,

@@ -77,7 +77,7 @@ def test_two_row_table_end_to_end_resume_and_lock(
     assert not (out / "pretrain-s0").exists()  # one stage: every row from scratch
     # the row's settings reached the model; the shrink arguments (given after the base) did not override them
     config = (out / "f2_mixed_cs_features-s0" / "run" / "config.yaml").read_text()
-    assert "history: features" in config and "num_frames: 2" in config and "width: 0.125" in config
+    assert "reading: features" in config and "num_frames: 2" in config and "width: 0.125" in config
     assert "KeyFrameOnly" in (out / "f1_keyonly-s1" / "run" / "config.yaml").read_text()
     # the two-frame row against one frame, and its history probed, with intervals over the two seeds
     diff = summary.difference("f2_mixed_cs_features", "f1_keyonly", "test", "tusimple_f1")

@@ -17,7 +17,7 @@ import torch
 from stamlane_eval.cli import main as eval_main
 
 from stamlane.cli import main
-from stamlane.lightning_cli import StamLaneCLI
+from stamlane.training.lightning_cli import StamLaneCLI
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((REPO / "configs").glob("*.yaml"))
@@ -125,7 +125,7 @@ def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: 
     assert "carries no config and none is beside it: give --config" in capsys.readouterr().err
 
     # the checkpoint alone rebuilds the network (only stamlane's classes and torch.optim are built from it)
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     module = StamLaneModule.from_checkpoint(ckpt)
     assert module.num_frames == 2 and not module.training
@@ -330,7 +330,7 @@ def test_a_data_error_in_a_dataloader_worker_is_one_line(tiny_set: Path, tmp_pat
 
 
 QUIETED = ("LightningCLI's args parameter", "The dirpath has changed", "dataloader is not resumable")
-"""The Lightning warnings the quiet front end drops where stamlane expects them (`stamlane.quiet.WARNINGS`)."""
+"""The Lightning warnings the quiet front end drops where stamlane expects them (`stamlane.training.quiet.WARNINGS`)."""
 
 
 def test_a_run_is_quiet_keeps_its_best_and_works_from_any_folder(

@@ -80,24 +80,24 @@ def _tool_options(program: str, command: str) -> set[str] | None:
     if program == "stamlane-eval":
         from stamlane_eval import cli
 
-        parser = next(
-            getattr(cli, name)() for name in ("_build_parser", "build_parser", "_parser") if hasattr(cli, name)
-        )
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        sub = next(a for a in cli._build_parser()._actions if isinstance(a, argparse._SubParsersAction))
         return _options(sub.choices[command]) | {"--help"} if command in sub.choices else None
     if command not in TOOLS:
         return None
-    module = importlib.import_module(TOOLS[command])
-    build = next(
-        getattr(module, name) for name in ("_parser", "build_parser", "_build_parser") if hasattr(module, name)
-    )
-    return _options(build()) | {"--help"}
+    return _options(importlib.import_module(TOOLS[command]).build_parser()) | {"--help"}
+
+
+def test_every_tool_builds_its_parser_by_one_name() -> None:
+    for command, module in TOOLS.items():
+        parser = importlib.import_module(module).build_parser()
+        assert isinstance(parser, argparse.ArgumentParser), command
+        assert parser.prog.endswith(command), (command, parser.prog)
 
 
 @cache
 def _config_keys() -> frozenset[str]:
     """Every key of the ``stamlane fit`` config (dotted), from the demo config's resolved form."""
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]
     try:
@@ -170,7 +170,7 @@ def test_the_checker_catches_a_wrong_flag_and_a_missing_path(tmp_path: Path) -> 
     assert not _lightning_flag_ok("--data.nope") and _lightning_flag_ok("--data.root")
     assert _lightning_flag_ok("--model.postprocess.degree") and not _lightning_flag_ok("--model.nope.degree")
     assert "--ckpt" in _tool_options("stamlane", "stream") and "--ckpt_path" not in _tool_options("stamlane", "stream")
-    assert PATH.findall("see configs/nope.yaml and `src/stamlane/demo.py`") == [
+    assert PATH.findall("see configs/nope.yaml and `src/stamlane/experiments/demo.py`") == [
         "configs/nope.yaml",
-        "src/stamlane/demo.py",
+        "src/stamlane/experiments/demo.py",
     ]

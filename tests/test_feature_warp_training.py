@@ -7,6 +7,7 @@ import functools
 import importlib.util
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -15,21 +16,22 @@ import pytest
 import torch
 from lightning.pytorch import Trainer
 
-import stamlane.module
+import stamlane.training.module
 from stamlane.cli import main as cli_main
 from stamlane.data import NET_HOMOGRAPHIES, TuSimpleClips, collate_clips, net_homographies
 from stamlane.data.datamodule import ClipDataModule
 from stamlane.data.options import ClipOptions, LoaderOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_feature_aligned
-from stamlane.module import StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.stream import StreamingPredictor
+from stamlane.training.module import StamLaneModule
 
 torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[1]
 T, SIZE = 3, (32, 64)
-CLIPS = {"num_frames": T, "stride": 2, "image_size": SIZE, "align": "true"}  # exact homographies, no ORB
+CLIPS = ClipOptions(num_frames=T, stride=2, image_size=SIZE, align="true")  # exact homographies, no ORB
+FEATURE = replace(CLIPS, warp="feature")
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +44,7 @@ def _module(fusion: object = None, **kwargs: object) -> StamLaneModule:
     torch.manual_seed(0)
     return StamLaneModule(
         VGGEncoder(width=0.125),
-        fusion or functools.partial(STAM, mode="mixed", order="cs", reduction=4, history="features"),
+        fusion or functools.partial(STAM, mode="mixed", order="cs", reduction=4, reading="features"),
         LaneDecoder,
         num_frames=T,
         image_size=SIZE,
@@ -68,9 +70,9 @@ def _calibrate_batchnorm(module: StamLaneModule, clip: torch.Tensor, mats: torch
 
 
 def test_feature_sample_has_unwarped_frames_and_network_pixel_homographies(root: Path) -> None:
-    image = TuSimpleClips(root, "train.json", **CLIPS)
-    feature = TuSimpleClips(root, "train.json", warp="feature", **CLIPS)
-    unaligned = TuSimpleClips(root, "train.json", **dict(CLIPS, align="none"))
+    image = TuSimpleClips(root, "train.json", clip=CLIPS)
+    feature = TuSimpleClips(root, "train.json", clip=FEATURE)
+    unaligned = TuSimpleClips(root, "train.json", clip=replace(CLIPS, align="none"))
     s_img, s_feat = image[0], feature[0]
     assert NET_HOMOGRAPHIES not in s_img  # image-space data keeps the documented sample unchanged
     mats = s_feat[NET_HOMOGRAPHIES]
@@ -99,8 +101,8 @@ def test_feature_sample_has_unwarped_frames_and_network_pixel_homographies(root:
 
 def test_augmented_feature_sample_shares_the_key_frame_geometry(root: Path) -> None:
     transform = ClipTransform(SIZE, crop_scale=(0.7, 0.9), flip_prob=1.0, brightness=0.2)
-    image = TuSimpleClips(root, "train.json", transform=transform, **CLIPS)
-    feature = TuSimpleClips(root, "train.json", warp="feature", transform=transform, **CLIPS)
+    image = TuSimpleClips(root, "train.json", clip=CLIPS, transform=transform)
+    feature = TuSimpleClips(root, "train.json", clip=FEATURE, transform=transform)
     s_img = image.load(image.entries[1], np.random.default_rng(7))
     s_feat = feature.load(feature.entries[1], np.random.default_rng(7))
     assert s_feat["meta"]["net_from_orig"] == s_img["meta"]["net_from_orig"]
@@ -114,8 +116,8 @@ def test_augmented_feature_sample_shares_the_key_frame_geometry(root: Path) -> N
 
 
 def test_collate_stacks_the_homographies_and_refuses_a_mix(root: Path) -> None:
-    feature = TuSimpleClips(root, "train.json", warp="feature", **CLIPS)
-    image = TuSimpleClips(root, "train.json", **CLIPS)
+    feature = TuSimpleClips(root, "train.json", clip=FEATURE)
+    image = TuSimpleClips(root, "train.json", clip=CLIPS)
     batch = collate_clips([feature[0], feature[1]])
     assert batch[NET_HOMOGRAPHIES].shape == (2, T, 3, 3)
     assert NET_HOMOGRAPHIES not in collate_clips([image[0], image[1]])
@@ -127,7 +129,7 @@ def test_a_wrong_warp_value_is_a_clear_error(root: Path) -> None:
     with pytest.raises(ValueError, match="'pixels'"):
         ClipDataModule(root=str(root), clip=ClipOptions(warp="pixels"))
     with pytest.raises(ValueError, match="'Feature'"):
-        TuSimpleClips(root, "train.json", warp="Feature", **CLIPS)
+        TuSimpleClips(root, "train.json", clip=replace(CLIPS, warp="Feature"))
     with pytest.raises(ValueError, match=r"\(2, 3, 3, 3\).*\(2, 2, 3, 3\)"):
         forward_feature_aligned(_module().net, torch.zeros(2, T, 3, *SIZE), torch.zeros(2, 2, 3, 3))
 
@@ -174,8 +176,8 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
         calls.append(tuple(key_from_hist.shape))
         return forward_feature_aligned(net, clip, key_from_hist)
 
-    monkeypatch.setattr(stamlane.module, "forward_feature_aligned", spy)
-    clip = ClipOptions(warp="feature", **CLIPS)
+    monkeypatch.setattr(stamlane.training.module, "forward_feature_aligned", spy)
+    clip = FEATURE
     data = ClipDataModule(root=str(root), clip=clip, loader=LoaderOptions(batch_size=2), predict_labels=["test.json"])
     module = _module(bf16=True, channels_last=True, report_run_time=False)
     trainer = Trainer(
@@ -200,7 +202,7 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
     assert len(calls) == 5 and len(predictions[0]) == 1
     # the streaming predictor takes the trained module as it is and computes what the module computes
     module.bf16 = False  # compared in float32
-    sample = TuSimpleClips(root, "test.json", warp="feature", **CLIPS)[0]
+    sample = TuSimpleClips(root, "test.json", clip=FEATURE)[0]
     frames, mats = sample["frames"], sample[NET_HOMOGRAPHIES]
     _calibrate_batchnorm(module, frames[None], mats[None])
     with torch.no_grad():
@@ -249,7 +251,7 @@ def test_cli_fit_and_predict_with_data_warp_feature(
 ) -> None:
     calls = []
     monkeypatch.setattr(
-        stamlane.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
+        stamlane.training.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
     )
     common = [
         f"--trainer.default_root_dir={tmp_path}",
@@ -301,7 +303,7 @@ def test_stream_benchmark_finetunes_through_the_library_path(root: Path, monkeyp
     spec.loader.exec_module(bench)
     calls = []
     monkeypatch.setattr(
-        stamlane.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
+        stamlane.training.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
     )
     module = _module()
     before = [p.detach().clone() for p in module.parameters()]

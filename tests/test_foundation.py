@@ -54,6 +54,17 @@ def violations(files: list[Path], forbidden: tuple[str, ...]) -> list[str]:
     return found
 
 
+def _outside(files: list[Path], allowed: tuple[str, ...]) -> list[str]:
+    """``file: module`` for every import of a stamlane module that is not one of ``allowed`` (or inside one)."""
+    found = []
+    for path in files:
+        for name in sorted(imported_modules(path)):
+            inside = any(name == ok or name.startswith(ok + ".") for ok in allowed)
+            if name.startswith("stamlane.") and not inside:
+                found.append(f"{path.relative_to(REPO)}: {name}")
+    return found
+
+
 def python_files(folder: Path, *, exclude: tuple[str, ...] = ()) -> list[Path]:
     return [p for p in sorted(folder.rglob("*.py")) if not any(part in exclude for part in p.parts)]
 
@@ -66,29 +77,92 @@ def test_evaluators_never_import_stamlane():
     assert violations(python_files(EVAL_SRC), ("stamlane",)) == []
 
 
-def test_models_never_import_data_module_or_lightning():
-    forbidden = ("stamlane.data", "stamlane.module", "stamlane.cli", "lightning", "pytorch_lightning")
-    assert violations(python_files(SRC / "models"), forbidden) == []
+FLOORS: dict[str, tuple[str, ...]] = {
+    # package -> what of stamlane it may import besides itself: the floors below it (docs/architecture.md)
+    "safety": ("stamlane.types",),
+    "align": ("stamlane.safety", "stamlane.types"),
+    "synth": ("stamlane.align.camera", "stamlane.safety", "stamlane.types"),  # the camera, nothing else of align
+    "models": ("stamlane.types",),
+    # the DataModule stores its hyperparameters through the one module of private Lightning parts (a leaf)
+    "data": (
+        "stamlane.align",
+        "stamlane.synth",
+        "stamlane.safety",
+        "stamlane.types",
+        "stamlane.training.lightning_compat",
+    ),
+    "predict": ("stamlane.safety", "stamlane.types"),
+    "training": ("stamlane.models", "stamlane.data", "stamlane.predict", "stamlane.safety", "stamlane.types"),
+    "stream": (
+        *("stamlane.align", "stamlane.models", "stamlane.data", "stamlane.predict", "stamlane.training"),
+        *("stamlane.safety", "stamlane.types"),
+    ),
+    "experiments": (
+        *("stamlane.synth", "stamlane.data", "stamlane.predict", "stamlane.training", "stamlane.configs"),
+        *("stamlane.safety", "stamlane.types"),
+    ),
+}
 
 
-def test_data_never_imports_models():
-    assert violations(python_files(SRC / "data"), ("stamlane.models", "stamlane.module")) == []
+@pytest.mark.parametrize("floor", sorted(FLOORS))
+def test_each_floor_imports_only_the_floors_below_it(floor: str):
+    assert _outside(python_files(SRC / floor), (f"stamlane.{floor}", *FLOORS[floor])) == []
 
 
-def test_the_generator_makes_clips_without_reading_them_or_torch():
-    forbidden = ("stamlane.data", "stamlane.models", "stamlane.module", *TORCH_STACK)
-    assert violations(python_files(SRC / "synth"), forbidden) == []
+def test_every_package_has_its_floor():
+    packages = {p.parent.name for p in SRC.glob("*/__init__.py")}
+    assert packages == set(FLOORS)
+    top = sorted(p.name for p in SRC.glob("*.py"))
+    assert top == ["__init__.py", "cli.py", "types.py"]  # the top: the command entry and the shared types
 
 
-def test_checkpoints_is_a_leaf():
-    # the safe loader is stamlane.registry (behind StamLaneModule.from_checkpoint); checkpoints.py reads files only
-    assert violations([SRC / "checkpoints.py"], ("stamlane",)) == []
+def test_pyproject_installs_every_package_and_the_configs():
+    tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads TOML")
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = ["stamlane", "stamlane.configs", *(f"stamlane.{p.parent.name}" for p in SRC.glob("*/__init__.py"))]
+    assert sorted(setuptools["packages"]) == sorted(found)
+    assert setuptools["package-dir"]["stamlane.configs"] == "configs"
+    assert _outside([REPO / "configs" / "__init__.py"], ()) == []  # package data and one function: a leaf
+
+
+def test_only_the_command_entry_knows_every_floor():
+    assert violations(python_files(SRC), ("stamlane.cli",)) == []
+
+
+def test_models_never_import_lightning():
+    assert violations(python_files(SRC / "models"), ("lightning", "pytorch_lightning")) == []
+
+
+def test_the_generator_makes_clips_without_torch():
+    assert violations(python_files(SRC / "synth"), TORCH_STACK) == []
+
+
+def test_lightning_compat_is_a_leaf():
+    # data may import it (the one arrow up, to a module that imports nothing of stamlane's)
+    assert violations([SRC / "training" / "lightning_compat.py"], ("stamlane",)) == []
 
 
 def test_the_experiment_engine_knows_no_model_internals():
     # the engine drives `stamlane fit/predict` through the CLI and reads files: models and data stay behind it
-    forbidden = ("stamlane.models", "stamlane.module", "stamlane.data.clips", "stamlane.losses")
+    forbidden = ("stamlane.models", "stamlane.training.module", "stamlane.data.clips", "stamlane.training.losses")
     assert violations(python_files(SRC / "experiments"), forbidden) == []
+
+
+def test_decoding_lanes_needs_no_lightning():
+    # the package __init__ imports nothing: postprocess and the writers load without Lightning (or torch)
+    code = (
+        "import sys\n"
+        "import stamlane.predict.postprocess, stamlane.predict.writers, stamlane.predict.overlay\n"
+        "leaked = sorted(m for m in ('torch', 'lightning', 'torchmetrics') if m in sys.modules)\n"
+        "assert not leaked, leaked\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+
+
+def test_checkpoints_is_a_leaf():
+    # the safe loader is training.registry (behind StamLaneModule.from_checkpoint); checkpoints.py reads files only
+    assert violations([SRC / "safety" / "checkpoints.py"], ("stamlane",)) == []
 
 
 def test_the_import_checker_catches_a_forbidden_import(tmp_path):

@@ -277,7 +277,7 @@ def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     import lightning
     from lightning.pytorch.cli import instantiate_module
 
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     torch.manual_seed(0)
     module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})
@@ -453,7 +453,7 @@ def test_synth(
 )
 def test_demo_quick(capsys: pytest.CaptureFixture[str], data: str, out: str, seeds: int) -> None:
     """Arguments a careless or hostile user gives ``demo --quick``: every one is refused before anything is
-    trained or written (a valid run is `tests/test_demo.py`'s)."""
+    trained or written (a valid run is `tests/experiments/test_demo.py`'s)."""
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
         tusimple = tmp / "tusimple"

@@ -19,8 +19,8 @@ import pytest
 import torch
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.history_use import HistoryUseMonitor
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
+from stamlane.training.history_use_monitor import HistoryUseMonitor
 from tests.overfit import overfit, tiny_data, tiny_module
 
 torch.set_num_threads(1)

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stamlane.cli import main
-from stamlane.imageio import MAX_IMAGE_PIXELS, declared_size, open_video, read_image
+from stamlane.safety.images import MAX_IMAGE_PIXELS, declared_size, open_video, read_image
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -301,7 +301,7 @@ def test_the_label_property_saw_both_outcomes() -> None:
 def test_prediction_writers_never_write_through_links(tmp_path: Path) -> None:
     """``stamlane predict`` writes its files as new files: a link planted where one goes is replaced, never written
     through (into the labels it points at), and a linked folder leading out of the output folder is refused."""
-    from stamlane.writers import TusimpleWriter, write_culane_lines
+    from stamlane.predict.writers import TusimpleWriter, write_culane_lines
 
     labels = tmp_path / "data" / "label.json"
     labels.parent.mkdir()

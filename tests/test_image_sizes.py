@@ -22,8 +22,8 @@ from stamlane.data.datamodule import ClipDataModule
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions
 from stamlane.models import LaneDecoder, VGGEncoder
 from stamlane.models.aggregators import KeyFrameOnly
-from stamlane.module import StamLaneModule
-from stamlane.postprocess import PostprocessConfig
+from stamlane.predict.postprocess import PostprocessConfig
+from stamlane.training.module import StamLaneModule
 
 H, W = 90, 240
 """Original frames: wide, and the right lane lies at x > H, where a swapped size would cut it off."""

@@ -15,7 +15,7 @@ from lightning.pytorch import Trainer, seed_everything
 from lightning.pytorch.callbacks import ModelCheckpoint
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.final_checkpoint import FinalCheckpoint
+from stamlane.training.final_checkpoint import FinalCheckpoint
 from tests.overfit import overfit, tiny_data, tiny_module
 
 torch.set_num_threads(1)
@@ -57,7 +57,7 @@ def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path
     trainer.fit(module, datamodule=tiny_data(two_clips, 1))
     last = tmp_path / "ckpt" / "last.ckpt"
     assert periodic.last_model_path == str(last)
-    assert not list((tmp_path / "ckpt").glob("*.partial"))  # written beside, then renamed
+    assert not [p for p in (tmp_path / "ckpt").iterdir() if ".tmp" in p.name]  # written beside, then renamed
     ckpt = torch.load(last, map_location="cpu", weights_only=True)
     assert ckpt["global_step"] == 7
     final = module.state_dict()
@@ -67,7 +67,7 @@ def test_last_checkpoint_holds_the_final_weights(two_clips: Path, tmp_path: Path
 
 
 def test_the_cli_adds_the_final_checkpoint() -> None:
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     cli = StamLaneCLI(args=["--config", str(Path(__file__).parents[1] / "configs" / "demo.yaml")], run=False)
     assert any(isinstance(cb, FinalCheckpoint) for cb in cli.trainer.callbacks)

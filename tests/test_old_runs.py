@@ -1,6 +1,7 @@
-"""Runs written before the data options were grouped still work: their ``config.yaml``, the config and data
-hyperparameters inside their checkpoints and their experiment records are read in the grouped form by
-``stamlane predict|validate``, ``stamlane stream``, ``stamlane export`` and the experiment engine."""
+"""Runs written before the data options were grouped and before the training shell moved into stamlane.training
+still work: their ``config.yaml``, the config, model and data hyperparameters inside their checkpoints and their
+experiment records are read in today's form by ``stamlane predict|validate``, ``stamlane stream``, ``stamlane
+export`` and the experiment engine."""
 
 from __future__ import annotations
 
@@ -13,18 +14,28 @@ import pytest
 import torch
 import yaml
 
-from stamlane.checkpoints import INSTANTIATOR
 from stamlane.cli import main
-from stamlane.data.flat_options import group_config
-from stamlane.lightning_cli import CONFIG_KEY
+from stamlane.safety.checkpoints import INSTANTIATOR
+from stamlane.training.compat import RENAMED_CLASSES, group_config, upgrade_config
+from stamlane.training.lightning_cli import CONFIG_KEY
 
 torch.set_num_threads(1)
 pytestmark = pytest.mark.usefixtures("plain_argv")
 
-FLAT_CONFIG = Path(__file__).parent / "data" / "flat_demo_config.yaml"
+FLAT_CONFIG = Path(__file__).parent / "training" / "flat_demo_config.yaml"
 """A real config of before the groups (``--print_config`` of configs/demo.yaml at 5a179c8)."""
 OLD_KEY_CORRUPTION = ["--data.key_corruption=0.5", "--data.key_corruption_kinds=[blank, glare]"]
 """The CPU recipe's stage-2 arguments as the experiment records of before the groups hold them."""
+
+
+def _old_names(value: object) -> object:
+    """``value`` with every class under its name of before the move (``stamlane.module.StamLaneModule``)."""
+    old = {new: name for name, new in RENAMED_CLASSES.items()}
+    if isinstance(value, dict):
+        return {k: _old_names(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_old_names(v) for v in value]
+    return old.get(value, value) if isinstance(value, str) else value
 
 
 def _lanes(path: Path) -> list:
@@ -58,6 +69,8 @@ def old_run(tiny_set: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert "clip" in content["datamodule_hyper_parameters"]  # written today: grouped; made old below
     content[CONFIG_KEY] = flat.read_text()
     content["datamodule_hyper_parameters"] = {**config["data"], "_instantiator": INSTANTIATOR}
+    content["hyper_parameters"] = _old_names(content["hyper_parameters"])
+    assert content["hyper_parameters"]["loss"]["class_path"] == "stamlane.losses.LaneLoss"
     torch.save(content, ckpt)
     shutil.copy(flat, run / "config.yaml")
     return run
@@ -78,7 +91,7 @@ def test_predict_and_validate_read_an_old_checkpoint_and_run_folder(
     assert main(["predict", f"--ckpt_path={lone}", *quiet, f"--predictions.output_dir={tmp_path / 'beside'}"]) == 0
     # the same config in today's form: the same lanes
     grouped = tmp_path / "grouped.yaml"
-    grouped.write_text(yaml.safe_dump(group_config(yaml.safe_load((old_run / "config.yaml").read_text()))))
+    grouped.write_text(yaml.safe_dump(upgrade_config(yaml.safe_load((old_run / "config.yaml").read_text()))))
     args = ["--config", str(grouped), f"--ckpt_path={ckpt}", *quiet, f"--predictions.output_dir={tmp_path / 'new'}"]
     assert main(["predict", *args]) == 0
     want = _lanes(tmp_path / "new" / "predictions.json")

@@ -11,7 +11,7 @@ import torch
 import yaml
 
 from stamlane.experiments.tables import load_tables
-from stamlane.lightning_cli import StamLaneCLI
+from stamlane.training.lightning_cli import StamLaneCLI
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper"

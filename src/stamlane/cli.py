@@ -29,6 +29,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from stamlane.safety.boundary import one_line
+
 __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 
 # subcommand -> module whose ``main(argv) -> int`` runs it; imported only when asked for, so
@@ -37,7 +39,7 @@ TOOLS: dict[str, str] = {
     "align": "stamlane.align.cli",
     "synth": "stamlane.synth.cli",
     "show": "stamlane.data.show_cli",
-    "demo": "stamlane.demo",
+    "demo": "stamlane.experiments.demo",
     "ablate": "stamlane.experiments.ablate",
     "report": "stamlane.experiments.report_cli",
     "stream": "stamlane.stream.cli",
@@ -94,13 +96,6 @@ def _help() -> str:
     return "\n".join(lines)
 
 
-def build_cli(args: list[str] | None = None, run: bool = True, **kwargs: Any) -> Any:
-    """Build (and by default run) `StamLaneCLI`; ``args`` as on the command line after ``stamlane``."""
-    from stamlane.lightning_cli import StamLaneCLI
-
-    return StamLaneCLI(args=args, run=run, **kwargs)
-
-
 def _stream_args(rest: list[str]) -> list[str]:
     """``predict --stream VIDEO [options]`` -> the arguments of ``stamlane stream VIDEO [options]``."""
     for i, arg in enumerate(rest):
@@ -126,9 +121,9 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     from stamlane_eval.cli_tools import check_input_file
     from stamlane_eval.io import read_text
 
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.lightning_cli import CONFIG_KEY, START_DIR_KEY
-    from stamlane.registry import check_run_config, safe_config_file
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
+    from stamlane.training.registry import check_run_config, safe_config_file
 
     content = read_checkpoint(ckpt)
     config = content.get(CONFIG_KEY)
@@ -250,23 +245,6 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
     )
 
 
-def one_line(err: BaseException) -> str:
-    """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
-    traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
-    last line is the original message; other multi-line messages are joined."""
-    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
-    if not lines:
-        return type(err).__name__
-    if "Original Traceback" in str(err):
-        last = lines[-1]
-        name, sep, message = last.partition(": ")
-        return message if sep and name.replace(".", "").replace("_", "").isalnum() else last
-    text = lines[0]
-    for line in lines[1:]:  # a line ending in ":" introduces the next one (jsonargparse's nested messages)
-        text += (" " if text.endswith(":") else "; ") + line
-    return text
-
-
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -292,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
         from lightning.fabric.utilities.exceptions import MisconfigurationException
 
         from stamlane.data.labels import DataError
-        from stamlane.quiet import quiet_libraries
+        from stamlane.training.quiet import quiet_libraries
 
         if "--verbose" in rest:  # everything the libraries say (not an option of LightningCLI's: taken out)
             was_own = argv == sys.argv[1:]
@@ -305,9 +283,11 @@ def main(argv: list[str] | None = None) -> int:
         try:
             _check_input_files(rest)
             with _config_from_checkpoint(command, rest) as extra:
+                from stamlane.training.lightning_cli import StamLaneCLI  # once the libraries are quieted
+
                 # args=None when they are sys.argv's own (LightningCLI warns when given both); a bad option or
                 # config raises instead of printing jsonargparse's hundred-line usage
-                build_cli(
+                StamLaneCLI(
                     None if argv == sys.argv[1:] and not extra else [command, *extra, *rest],
                     parser_kwargs={"exit_on_error": False},
                 )

@@ -39,14 +39,9 @@ Samples (what a dataset returns, what the LightningModule consumes)
 
 from __future__ import annotations
 
-from typing import TypedDict
-
 import numpy as np
 
-__all__ = ["KEY_FRAME", "NET_HOMOGRAPHIES", "Lane", "Lanes", "SampleMeta"]
-
-KEY_FRAME = -1
-"""Index of the key frame along the time axis of every clip."""
+__all__ = ["NET_HOMOGRAPHIES", "Lane", "Lanes"]
 
 NET_HOMOGRAPHIES = "key_from_hist_net"
 """Sample / batch key of the history -> key homographies in network pixels (``warp="feature"`` data only)."""
@@ -56,12 +51,3 @@ Lane = np.ndarray
 
 Lanes = list[Lane]
 """All lanes of one image."""
-
-
-class SampleMeta(TypedDict, total=False):
-    raw_file: str
-    orig_size: tuple[int, int]
-    net_from_orig: list[list[float]]
-    h_samples: list[int] | None
-    frame_paths: list[str]
-    format: str

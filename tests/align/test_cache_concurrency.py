@@ -22,7 +22,7 @@ def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
     data = read_cache(path)
     assert sorted(data) == sorted(f"{w}-{i}.jpg" for w in range(4) for i in range(15))
     json.loads(path.read_text())  # whole, valid JSON
-    assert not [p for p in path.parent.iterdir() if p.name.endswith(".tmp")]
+    assert not [p for p in path.parent.iterdir() if ".tmp" in p.name]  # no temporary name left behind
 
 
 def test_merge_adds_history_frames_of_a_key_frame(tmp_path: Path) -> None:

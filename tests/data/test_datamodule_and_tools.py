@@ -118,11 +118,15 @@ def test_cached_alignment_is_read_and_missing_pairs_are_estimated(synthetic_root
     from stamlane.data import TuSimpleClips
 
     ds = TuSimpleClips(
-        synthetic_root, "test.json", num_frames=2, image_size=(32, 48), align="cache", cache_dir=tmp_path
+        synthetic_root,
+        "test.json",
+        clip=ClipOptions(num_frames=2, image_size=(32, 48), align="cache", cache_dir=tmp_path),
     )
     np.testing.assert_allclose(ds[0]["key_from_hist"][0].numpy(), m, atol=1e-6)
     ds3 = TuSimpleClips(
-        synthetic_root, "test.json", num_frames=3, image_size=(32, 48), align="cache", cache_dir=tmp_path
+        synthetic_root,
+        "test.json",
+        clip=ClipOptions(num_frames=3, image_size=(32, 48), align="cache", cache_dir=tmp_path),
     )
     with pytest.warns(UserWarning, match="no entry"):
         k = ds3[0]["key_from_hist"].numpy()
@@ -140,7 +144,7 @@ def test_datamodule_rejects_bad_options():
 
 
 def test_a_datamodule_made_in_python_stores_plain_hyperparameters(tmp_path: Path):
-    from stamlane.data.flat_options import clip_options
+    from stamlane.training.compat import clip_options
 
     dm = ClipDataModule(clip=ClipOptions(num_frames=2), loader=LoaderOptions(batch_size=3))
     assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == {"batch_size": 3, "num_workers": 0}

@@ -11,6 +11,7 @@ import torch
 
 from stamlane.data import DataError, TuSimpleClips
 from stamlane.data.corruption import KeyFrameCorruption
+from stamlane.data.options import ClipOptions
 from tests.data.conftest import write_image
 
 SIZE = (32, 48)
@@ -25,7 +26,9 @@ def two_clips(tusimple_root: Path) -> Path:
 
 
 def _frames(root: Path, source: str) -> list[torch.Tensor]:
-    ds = TuSimpleClips(root, "label_data.json", num_frames=4, image_size=SIZE, history_source=source)
+    ds = TuSimpleClips(
+        root, "label_data.json", clip=ClipOptions(num_frames=4, image_size=SIZE, align="none"), history_source=source
+    )
     return [ds[i]["frames"] for i in range(len(ds))]
 
 
@@ -38,7 +41,12 @@ def test_key_copies_the_key_frame_into_every_slot(two_clips: Path):
 
 
 def test_other_clip_takes_the_history_of_another_clip_and_keeps_the_key_frame(two_clips: Path):
-    ds = TuSimpleClips(two_clips, "label_data.json", num_frames=4, image_size=SIZE, history_source="other_clip")
+    ds = TuSimpleClips(
+        two_clips,
+        "label_data.json",
+        clip=ClipOptions(num_frames=4, image_size=SIZE, align="none"),
+        history_source="other_clip",
+    )
     assert [ds.partner(i) for i in range(len(ds))] == [1, 0]
     real, other = _frames(two_clips, "real"), _frames(two_clips, "other_clip")
     for i, j in ((0, 1), (1, 0)):
@@ -52,11 +60,18 @@ def test_other_clip_takes_the_history_of_another_clip_and_keeps_the_key_frame(tw
 
 def test_other_clip_needs_two_clips_and_unknown_sources_are_refused(tusimple_root: Path):
     (tusimple_root / "one.json").write_text((tusimple_root / "label_data.json").read_text().splitlines()[0] + "\n")
-    ds = TuSimpleClips(tusimple_root, "one.json", num_frames=4, image_size=SIZE, history_source="other_clip")
+    ds = TuSimpleClips(
+        tusimple_root,
+        "one.json",
+        clip=ClipOptions(num_frames=4, image_size=SIZE, align="none"),
+        history_source="other_clip",
+    )
     with pytest.raises(DataError, match="needs samples of two clips"):
         ds[0]
     with pytest.raises(ValueError, match="history_source must be one of"):
-        TuSimpleClips(tusimple_root, "label_data.json", image_size=SIZE, history_source="shuffled")
+        TuSimpleClips(
+            tusimple_root, "label_data.json", clip=ClipOptions(image_size=SIZE, align="none"), history_source="shuffled"
+        )
 
 
 def test_key_corruption_changes_the_key_frame_only():
@@ -77,8 +92,15 @@ def test_key_corruption_changes_the_key_frame_only():
 
 def test_key_corruption_reaches_training_samples_only(tusimple_root: Path):
     corrupt = KeyFrameCorruption(1.0, ("drop",))
-    plain = TuSimpleClips(tusimple_root, "label_data.json", num_frames=2, image_size=SIZE)
-    spoilt = TuSimpleClips(tusimple_root, "label_data.json", num_frames=2, image_size=SIZE, key_corruption=corrupt)
+    plain = TuSimpleClips(
+        tusimple_root, "label_data.json", clip=ClipOptions(num_frames=2, image_size=SIZE, align="none")
+    )
+    spoilt = TuSimpleClips(
+        tusimple_root,
+        "label_data.json",
+        clip=ClipOptions(num_frames=2, image_size=SIZE, align="none"),
+        key_corruption=corrupt,
+    )
     a, b = (
         plain.load(plain.entries[0], np.random.default_rng(3)),
         spoilt.load(spoilt.entries[0], np.random.default_rng(3)),
@@ -88,7 +110,9 @@ def test_key_corruption_reaches_training_samples_only(tusimple_root: Path):
 
 
 def _synthetic_frames(root: Path, source: str, align: str) -> torch.Tensor:
-    ds = TuSimpleClips(root, "reveal.json", num_frames=4, image_size=(48, 80), align=align, history_source=source)
+    ds = TuSimpleClips(
+        root, "reveal.json", clip=ClipOptions(num_frames=4, image_size=(48, 80), align=align), history_source=source
+    )
     return ds[0]["frames"]
 
 

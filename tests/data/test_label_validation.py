@@ -10,6 +10,7 @@ import pytest
 from stamlane_eval.cli import main as eval_main
 
 from stamlane.data import DataError, TuSimpleClips
+from stamlane.data.options import ClipOptions
 from tests.data.conftest import H, W
 
 SIZE = (32, 48)
@@ -42,9 +43,11 @@ def test_a_typed_bad_label_is_refused_by_the_dataset_and_the_evaluator(
     bad = json.dumps(_record(**changes))
     (tusimple_root / "bad.json").write_text(bad + "\n" + good + "\n")
     with pytest.raises(DataError, match="bad.json: line 1: " + message.replace("(", r"\(")):
-        TuSimpleClips(tusimple_root, "bad.json", num_frames=1, image_size=SIZE)
+        TuSimpleClips(tusimple_root, "bad.json", clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"))
     with pytest.warns(UserWarning, match="skipped"):
-        skip = TuSimpleClips(tusimple_root, "bad.json", num_frames=1, image_size=SIZE, on_error="skip")
+        skip = TuSimpleClips(
+            tusimple_root, "bad.json", clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"), on_error="skip"
+        )
     assert len(skip) == 1 and len(skip.skipped) == 1 and message.split(",")[0][:12] in skip.skipped[0]
     # the same file as ground truth for stamlane-eval: one line, exit 2, no traceback
     pred = tmp_path / "pred.json"
@@ -62,14 +65,19 @@ def test_duplicates_and_far_points_are_refused(tusimple_root: Path) -> None:
     with pytest.raises(
         DataError, match=r"label_data.json:3: raw_file .* again \(first at .*label_data.json:1\): two labels"
     ):
-        TuSimpleClips(tusimple_root, "label_data.json", num_frames=1, image_size=SIZE)
+        TuSimpleClips(tusimple_root, "label_data.json", clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"))
     far = _record(lanes=[[60, 65, 70, 75, 40 * W]])  # inside MAX_COORDINATE, far outside this small image
     label.write_text(json.dumps(far) + "\n" + second + "\n")
-    ds = TuSimpleClips(tusimple_root, "label_data.json", num_frames=1, image_size=SIZE)
+    ds = TuSimpleClips(tusimple_root, "label_data.json", clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"))
     with pytest.raises(DataError, match=rf"lane 0 has the point \({40 * W}, 60\), far outside the {W}x{H} image"):
         ds[0]
     with pytest.warns(UserWarning, match="far outside"):
-        skip = TuSimpleClips(tusimple_root, "label_data.json", num_frames=1, image_size=SIZE, on_error="skip")
+        skip = TuSimpleClips(
+            tusimple_root,
+            "label_data.json",
+            clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"),
+            on_error="skip",
+        )
         sample = skip[0]
     assert sample["meta"]["raw_file"].endswith("200/20.jpg") and len(skip.skipped) == 1
 
@@ -79,7 +87,7 @@ def test_one_json_document_is_not_json_lines(tusimple_root: Path) -> None:
     with pytest.raises(
         DataError, match=r"one JSON document over .* lines; TuSimple files hold one JSON object per line"
     ):
-        TuSimpleClips(tusimple_root, "pretty.json", num_frames=1, image_size=SIZE)
+        TuSimpleClips(tusimple_root, "pretty.json", clip=ClipOptions(num_frames=1, image_size=SIZE, align="none"))
 
 
 def test_the_datamodule_reports_how_many_samples_it_skipped(tusimple_root: Path) -> None:

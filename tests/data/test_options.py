@@ -91,9 +91,3 @@ def test_the_transforms_they_build() -> None:
     assert AugmentOptions().corruption() is None
     corruption = AugmentOptions(key_corruption=0.5, key_corruption_kinds=("blank",)).corruption()
     assert corruption is not None and corruption.prob == 0.5 and corruption.kinds == ("blank",)
-
-
-def test_dataset_kwargs_name_every_clip_option_but_the_sky_cut() -> None:
-    # the sky cut reaches the datasets through the transform (`transform`), every other option by name
-    names = {f.name for f in dataclasses.fields(ClipOptions)}
-    assert set(ClipOptions().dataset_kwargs()) == names - {"crop_top"}

@@ -15,8 +15,8 @@ from stamlane.models import STAM, STPSA, ConvLSTMFusion, CosineWeightedSum, KeyF
 C = 16
 
 STAM_CONFIGS = [
-    dict(mode=mode, order=order, history=history)
-    for history in ("gates", "features")
+    dict(mode=mode, order=order, reading=reading)
+    for reading in ("gates", "features")
     for mode, order in (("parallel", "cs"), ("serial", "cs"), ("serial", "sc"), ("mixed", "cs"), ("mixed", "sc"))
 ]
 
@@ -26,7 +26,7 @@ def _stam_factory(config: dict) -> Callable[[int], nn.Module]:
 
 
 FUSIONS: dict[str, Callable[[int], nn.Module]] = {
-    **{f"stam-{c['mode']}-{c['order']}-{c['history']}": _stam_factory(c) for c in STAM_CONFIGS},
+    **{f"stam-{c['mode']}-{c['order']}-{c['reading']}": _stam_factory(c) for c in STAM_CONFIGS},
     "key_frame_only": KeyFrameOnly,
     "simple_add": SimpleAdd,
     "convlstm": ConvLSTMFusion,

@@ -29,7 +29,7 @@ def _ca_sa(module: STAM):
 
 
 def test_literal_parallel(clip: torch.Tensor) -> None:
-    module = _stam(mode="parallel", history="gates")
+    module = _stam(mode="parallel", reading="gates")
     ca, sa = _ca_sa(module)
     h1, h2, k = clip.unbind(1)
     expected = sum(ca(s) * k + sa(s) * k for s in (k, h2, h1))
@@ -38,7 +38,7 @@ def test_literal_parallel(clip: torch.Tensor) -> None:
 
 @pytest.mark.parametrize("order", ["cs", "sc"])
 def test_literal_serial(clip: torch.Tensor, order: str) -> None:
-    module = _stam(mode="serial", order=order, history="gates")
+    module = _stam(mode="serial", order=order, reading="gates")
     ca, sa = _ca_sa(module)
     first, second = (ca, sa) if order == "cs" else (sa, ca)
     h1, h2, k = clip.unbind(1)
@@ -51,7 +51,7 @@ def test_literal_serial(clip: torch.Tensor, order: str) -> None:
 
 @pytest.mark.parametrize("order", ["cs", "sc"])
 def test_literal_mixed(clip: torch.Tensor, order: str) -> None:
-    module = _stam(mode="mixed", order=order, history="gates")
+    module = _stam(mode="mixed", order=order, reading="gates")
     ca, sa = _ca_sa(module)
     first, second = (ca, sa) if order == "cs" else (sa, ca)
     h1, h2, k = clip.unbind(1)
@@ -64,7 +64,7 @@ def test_literal_mixed(clip: torch.Tensor, order: str) -> None:
 
 @pytest.mark.parametrize("mode", ["serial", "mixed"])
 def test_literal_single_frame_is_cbam(clip: torch.Tensor, mode: str) -> None:
-    module = _stam(mode=mode, order="cs", history="gates")
+    module = _stam(mode=mode, order="cs", reading="gates")
     ca, sa = _ca_sa(module)
     k = clip[:, -1]
     y = ca(k) * k
@@ -73,7 +73,7 @@ def test_literal_single_frame_is_cbam(clip: torch.Tensor, mode: str) -> None:
 
 def test_features_mixed_cs_is_the_prototype_formula(clip: torch.Tensor) -> None:
     module = _stam()  # the default: mixed C-S, history features
-    assert (module.mode, module.order, module.history) == ("mixed", "cs", "features")
+    assert (module.mode, module.order, module.reading) == ("mixed", "cs", "features")
     ca, sa = _ca_sa(module)
     h1, h2, k = clip.unbind(1)
     expected = k
@@ -85,11 +85,11 @@ def test_features_mixed_cs_is_the_prototype_formula(clip: torch.Tensor) -> None:
 
 def test_features_parallel_and_serial(clip: torch.Tensor) -> None:
     h1, h2, k = clip.unbind(1)
-    parallel = _stam(mode="parallel", history="features")
+    parallel = _stam(mode="parallel", reading="features")
     ca, sa = _ca_sa(parallel)
     torch.testing.assert_close(parallel(clip), k + sum(ca(s) * s + sa(s) * s for s in (h2, h1)))
 
-    serial = _stam(mode="serial", order="sc", history="features")
+    serial = _stam(mode="serial", order="sc", reading="features")
     ca, sa = _ca_sa(serial)
 
     def att(a: torch.Tensor) -> torch.Tensor:
@@ -101,12 +101,12 @@ def test_features_parallel_and_serial(clip: torch.Tensor) -> None:
 
 @pytest.mark.parametrize("mode", ["parallel", "serial", "mixed"])
 def test_features_single_frame_is_identity(clip: torch.Tensor, mode: str) -> None:
-    torch.testing.assert_close(_stam(mode=mode, history="features")(clip[:, -1:]), clip[:, -1])
+    torch.testing.assert_close(_stam(mode=mode, reading="features")(clip[:, -1:]), clip[:, -1])
 
 
-@pytest.mark.parametrize("history", ["gates", "features"])
-def test_normalize_divides_by_clip_length(clip: torch.Tensor, history: str) -> None:
-    plain, mean = _stam(history=history), _stam(history=history, normalize=True)
+@pytest.mark.parametrize("reading", ["gates", "features"])
+def test_normalize_divides_by_clip_length(clip: torch.Tensor, reading: str) -> None:
+    plain, mean = _stam(reading=reading), _stam(reading=reading, normalize=True)
     torch.testing.assert_close(mean(clip), plain(clip) / 3)
 
 
@@ -117,8 +117,8 @@ def test_history_content_reaches_output_only_in_features_variant() -> None:
     clip = torch.rand(1, 3, C, 8, 8) + 0.1
     clip[:, -1, :, 2:5, 2:5] = 0.0  # occluded in the key frame only
     hole = (slice(None), slice(None), slice(2, 5), slice(2, 5))
-    literal = _stam(mode="mixed", history="gates")(clip)
-    variant = _stam(mode="mixed", history="features")(clip)
+    literal = _stam(mode="mixed", reading="gates")(clip)
+    variant = _stam(mode="mixed", reading="features")(clip)
     assert literal[hole].abs().max() == 0
     assert variant[hole].abs().min() > 0
 
@@ -129,7 +129,7 @@ def test_parallel_ignores_order(clip: torch.Tensor) -> None:
 
 @pytest.mark.parametrize(
     ("kwargs", "match"),
-    [({"mode": "cascade"}, "mode"), ({"order": "xy"}, "order"), ({"history": "none"}, "history")],
+    [({"mode": "cascade"}, "mode"), ({"order": "xy"}, "order"), ({"reading": "none"}, "reading")],
 )
 def test_rejects_unknown_options(kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):

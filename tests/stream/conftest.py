@@ -36,7 +36,7 @@ def save_checkpoint() -> Callable[..., Path]:
         import lightning
         from lightning.pytorch.cli import instantiate_module
 
-        from stamlane.module import StamLaneModule
+        from stamlane.training.module import StamLaneModule
 
         torch.manual_seed(0)
         module = instantiate_module(StamLaneModule, {k: v for k, v in hparams.items() if k != "_instantiator"})

@@ -33,7 +33,7 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
     import lightning
     from lightning.pytorch.cli import instantiate_module
 
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     torch.manual_seed(0)
     module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})
@@ -88,7 +88,7 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
 
 
 def test_bf16_is_the_models_unless_given(checkpoint: Path, frames_dir: Path) -> None:
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
     from stamlane.stream.cli import build_parser, load_predictor
 
     argv = [str(frames_dir), "--ckpt", str(checkpoint)]

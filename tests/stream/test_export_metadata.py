@@ -40,7 +40,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory, save_checkpoint) -> tuple
 
 
 def test_the_onnx_carries_the_checkpoints_preprocessing_and_decoding(exported: tuple[Path, Path, Path]) -> None:
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     ckpt, path, _ = exported
     module = StamLaneModule.from_checkpoint(ckpt)

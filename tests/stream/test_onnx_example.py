@@ -47,7 +47,7 @@ def workdir(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFac
 def test_the_example_runs_and_feeds_what_stamlane_feeds(workdir: Path, monkeypatch, capsys) -> None:
     from stamlane.align import estimate_clip
     from stamlane.data.transforms import ClipTransform
-    from stamlane.module import StamLaneModule
+    from stamlane.training.module import StamLaneModule
 
     monkeypatch.chdir(workdir)
     namespace: dict = {}

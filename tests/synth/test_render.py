@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 
 from stamlane.align import estimate_clip
+from stamlane.align.camera import Camera, Pose
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.camera import Camera, Pose
 from stamlane.synth.generator import SynthConfig, generate_clip
 from stamlane.synth.render import GrainLayer, GroundRenderer
 

@@ -1,6 +1,7 @@
 """Pre-alignment (paper 3.1): evenly spread ORB features, a RANSAC ground-plane homography ``key_from_hist``,
-history frames warped onto the key frame. numpy/OpenCV only (no torch), so data loading and the
-``stamlane align`` command start fast."""
+history frames warped onto the key frame; and the one camera model of stamlane (`stamlane.align.camera`: a pinhole
+over a flat road, which the synthetic generator renders with and `stamlane.align.egomotion` takes exact homographies
+from). numpy/OpenCV only (no torch), so data loading and the ``stamlane align`` command start fast."""
 
 from stamlane.align.features import FeatureConfig, Features, detect_plain_orb, detect_spread_features
 from stamlane.align.homography import (

@@ -15,7 +15,6 @@ from __future__ import annotations
 import fcntl
 import json
 import os
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import lru_cache
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from stamlane.align.homography import Alignment
+from stamlane.safety.guard import write_atomic
 
 __all__ = [
     "FRAME_SUFFIXES",
@@ -120,16 +120,7 @@ def read_cache(path: str | os.PathLike) -> CacheDict:
 
 def write_cache(path: str | os.PathLike, data: CacheDict) -> None:
     """Write a clip's cache file atomically (a crash never leaves a half-written file to be skipped later)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    write_atomic(path, json.dumps(data))
 
 
 @contextmanager

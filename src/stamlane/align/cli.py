@@ -46,11 +46,11 @@ from stamlane.align.homography import (
     resolve_horizon_row,
 )
 from stamlane.align.warp import alignments_to_key
-from stamlane.budget import check_workers
-from stamlane.guard import check_outputs
-from stamlane.imageio import read_image
+from stamlane.safety.budget import check_workers
+from stamlane.safety.guard import check_outputs
+from stamlane.safety.images import read_image
 
-__all__ = ["AlignJob", "ClipResult", "main", "process_clip"]
+__all__ = ["AlignJob", "ClipResult", "build_parser", "main", "process_clip"]
 
 
 @dataclass(frozen=True)
@@ -206,7 +206,7 @@ def _run_one(task: tuple[Path, AlignJob]) -> ClipResult:
     return process_clip(*task)
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="stamlane align", description="Precompute key_from_hist for every clip of a dataset into a JSON cache."
     )
@@ -240,7 +240,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str]) -> int:
     """Run ``stamlane align``; returns the exit status (2 on bad input)."""
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     problems = [

@@ -1,6 +1,6 @@
 """Ground-plane homographies of a moving camera, for pairs with a known ``key_from_hist`` (tests, benchmarks).
 
-The camera model is ``stamlane.camera`` (the synthetic generator's): pixel centres at integers, principal point
+The camera model is ``stamlane.align.camera`` (the synthetic generator's): pixel centres at integers, principal point
 at the image centre ``((W - 1) / 2, (H - 1) / 2)``. A `RoadCamera` is that camera mounted on a car: its height
 above the road and the image row of the horizon (which sets its pitch). The history frame's camera stands at
 the origin of the road; the key frame's has moved ``forward`` metres and turned.
@@ -12,14 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stamlane.camera import Camera, Pose
+from stamlane.align.camera import Camera, Pose
 
 __all__ = ["RoadCamera", "image_from_ground", "key_from_hist_motion"]
 
 
 @dataclass(frozen=True)
 class RoadCamera:
-    """A `stamlane.camera.Camera` (principal point at the image centre) mounted above a flat road.
+    """A `stamlane.align.camera.Camera` (principal point at the image centre) mounted above a flat road.
 
     Attributes:
         width: image width in pixels.

@@ -8,7 +8,6 @@ alignment succeeded (a failed one is written UNWARPED, ``ok: false``). numpy/Ope
 
 from __future__ import annotations
 
-import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -18,6 +17,7 @@ import numpy as np
 
 from stamlane.align.cache import alignment_from_json, read_cache, write_cache
 from stamlane.align.warp import warp_to_key
+from stamlane.safety.guard import atomic_path
 
 __all__ = [
     "MANIFEST_NAME",
@@ -63,18 +63,17 @@ def missing_outputs(out_dir: Path, frames: list[Path], pairs: dict[int, list[int
     )
 
 
-def _write_atomic(path: Path, image: np.ndarray) -> bool:
-    """``cv2.imwrite`` through a temporary file, so an interrupted run never leaves a half-written frame."""
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+def _write_image(path: Path, image: np.ndarray) -> None:
+    """``cv2.imwrite`` through `stamlane.safety.guard.atomic_path`, so an interrupted run never leaves a half-written
+    frame.
+
+    Raises:
+        OSError: OpenCV could not write it.
+    """
     params = [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY] if path.suffix.lower() in (".jpg", ".jpeg") else []
-    try:
+    with atomic_path(path) as tmp:
         if not cv2.imwrite(str(tmp), image, params):
-            return False
-        os.replace(tmp, path)
-        return True
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+            raise OSError(f"could not write {path}")
 
 
 def write_aligned_frames(
@@ -121,9 +120,8 @@ def write_aligned_frames(
         changed = True
         if i == k:
             if not target.is_file():
-                tmp = target.with_name(f".{name}.tmp")
-                shutil.copyfile(key, tmp)
-                os.replace(tmp, target)
+                with atomic_path(target) as tmp:
+                    shutil.copyfile(key, tmp)
                 written += 1
             entry[name] = {"source": key.name, "back": 0, "ok": True, "reason": "", "key_from_hist": np.eye(3).tolist()}
             continue
@@ -138,8 +136,7 @@ def write_aligned_frames(
                 entry[name] = record  # nothing to write; retried next run
                 continue
             aligned = warp_to_key(image, alignment.key_from_hist) if alignment.ok else image
-            if not _write_atomic(target, aligned):
-                raise OSError(f"could not write {target}")
+            _write_image(target, aligned)
             written += 1
             unaligned += not alignment.ok
         entry[name] = record

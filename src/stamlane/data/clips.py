@@ -31,7 +31,7 @@ import torch
 from stamlane_eval.io import duplicate_raw_file
 from torch.utils.data import Dataset
 
-from stamlane.data.alignment import WARP_MODES, ClipAligner
+from stamlane.data.alignment import ClipAligner
 from stamlane.data.corruption import KeyFrameCorruption
 from stamlane.data.labels import (
     DataError,
@@ -42,14 +42,16 @@ from stamlane.data.labels import (
     resolve_inside,
     tusimple_lanes,
 )
+from stamlane.data.options import ClipOptions
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
-from stamlane.imageio import read_image
+from stamlane.safety.images import read_image
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [
     "DATASETS",
     "FORMATS",
+    "FRAME_LOOKUPS",
     "HISTORY_SOURCES",
     "IMAGE_SUFFIXES",
     "NET_HOMOGRAPHIES",
@@ -92,29 +94,26 @@ class ClipEntry:
     label_file: str
 
 
+FRAME_LOOKUPS = ("number", "sorted")
+"""How a dataset finds a key frame's history frames: by frame number in the same folder (``19.jpg`` before
+``20.jpg``), or by position in the folder's sorted listing (timestamps: ApolloScape, a folder of frames)."""
+
+
 class ClipDataset(Dataset):
     """Shared machinery of the clip datasets; subclasses implement ``_index``.
 
     Args:
         root: data root; every path in label and list files is relative to it.
-        num_frames: frames per clip T (>= 1), key frame last.
-        stride: distance between consecutive clip frames, in frame numbers (``history="number"``) or
-            in positions within the folder (``history="sorted"``).
-        image_size: network input ``(H, W)``.
-        align: ``"none" | "fly" | "cache" | "true"`` (see ``stamlane.data.alignment``).
-        cache_dir: alignment cache folder for ``align="cache"``.
-        transform: resize/augmentation; default: plain resize to ``image_size``.
+        clip: how a clip is read (`stamlane.data.options.ClipOptions`: frames, stride, size, sky cut, alignment),
+            declared, defaulted and checked there alone.
+        transform: resize/augmentation; default: ``clip.transform()`` (the sky cut and the resize to the clip's
+            ``image_size``, no augmentation).
         thickness: lane line width of the targets, network pixels.
         on_error: ``"raise"`` or ``"skip"`` (warn and drop) on bad data.
-        history: ``"number"`` (previous frame numbers in the same folder) or ``"sorted"`` (previous
-            images in the folder's sorted listing).
-        repeat_missing_history: when a history frame does not exist, use the nearest later frame
-            instead of treating the clip as bad (for sets like CULane where earlier frames may lack).
+        frame_lookup: how history frames are found (`FRAME_LOOKUPS`): ``"number"`` (previous frame numbers in the
+            same folder) or ``"sorted"`` (previous images in the folder's sorted listing); None: the layout's own
+            (the class attribute ``frame_lookup``). ``clip.stride`` counts in frame numbers or in positions.
         require_labels: when False, a missing label file gives an unlabelled sample (prediction).
-        horizon_row: first ground row for on-the-fly alignment (None: ``stamlane.align`` default).
-        align_strategy: ``"chain"`` or ``"direct"`` for ``align="fly"`` (see ``stamlane.data.alignment``).
-        warp: where the alignment is applied (``WARP_MODES``): ``"image"`` warps the history frames onto the key
-            frame; ``"feature"`` leaves them unwarped and adds ``key_from_hist_net`` (see the module docstring).
         history_source: what fills the history slots (`HISTORY_SOURCES`), to measure whether a model reads its
             history: ``"real"`` (default) the clip's own frames; ``"key"`` copies of the key frame (no temporal
             information; alignment the identity); ``"warped_key"`` the key frame warped out through the inverse
@@ -129,59 +128,47 @@ class ClipDataset(Dataset):
     """
 
     format = ""
+    frame_lookup = "number"
+    """How this layout finds history frames (`FRAME_LOOKUPS`) unless the constructor is told otherwise."""
 
     def __init__(
         self,
         root: str | Path,
         *,
-        num_frames: int = 4,
-        stride: int = 1,
-        image_size: tuple[int, int] = (128, 256),
-        align: str = "none",
-        cache_dir: str | Path | None = None,
+        clip: ClipOptions = ClipOptions(),
         transform: ClipTransform | None = None,
         thickness: int = 3,
         on_error: str = "raise",
-        history: str = "number",
-        repeat_missing_history: bool = False,
+        frame_lookup: str | None = None,
         require_labels: bool = True,
-        horizon_row: int | None = None,
-        align_strategy: str = "chain",
-        warp: str = "image",
         history_source: str = "real",
         key_corruption: KeyFrameCorruption | None = None,
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
             raise DataError(f"data root {self.root} is not a folder")
-        if num_frames < 1:
-            raise ValueError(f"num_frames must be >= 1, got {num_frames}")
-        if stride < 1:
-            raise ValueError(f"stride must be >= 1, got {stride}")
+        if not isinstance(clip, ClipOptions):
+            raise TypeError(f"clip must be a ClipOptions, got {type(clip).__name__}")
         if on_error not in ("raise", "skip"):
             raise ValueError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
-        if history not in ("number", "sorted"):
-            raise ValueError(f"history must be 'number' or 'sorted', got {history!r}")
+        frame_lookup = self.frame_lookup if frame_lookup is None else frame_lookup
+        if frame_lookup not in FRAME_LOOKUPS:
+            raise ValueError(f"frame_lookup must be one of {FRAME_LOOKUPS}, got {frame_lookup!r}")
         if thickness < 1:
             raise ValueError(f"thickness must be >= 1, got {thickness}")
-        if warp not in WARP_MODES:
-            raise ValueError(f"warp must be one of {WARP_MODES}, got {warp!r}")
         if history_source not in HISTORY_SOURCES:
             raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
+        self.clip = clip
         self.history_source = history_source
         self.key_corruption = key_corruption
-        self.num_frames, self.stride = int(num_frames), int(stride)
-        self.image_size = (int(image_size[0]), int(image_size[1]))
-        self.transform = transform or ClipTransform(self.image_size)
-        if self.transform.image_size != self.image_size:
-            raise ValueError(f"transform.image_size {self.transform.image_size} != image_size {self.image_size}")
+        self.transform = transform or clip.transform()
+        if self.transform.image_size != clip.image_size:
+            raise ValueError(f"transform.image_size {self.transform.image_size} != image_size {clip.image_size}")
         self.thickness = thickness
         self.on_error = on_error
-        self.history = history
-        self.repeat_missing_history = repeat_missing_history
+        self.frame_lookup = frame_lookup
         self.require_labels = require_labels
-        self.warp = warp
-        self.aligner = ClipAligner(align, self.root, cache_dir, horizon_row, align_strategy)
+        self.aligner = ClipAligner(clip.align, self.root, clip.cache_dir, clip.horizon_row, clip.align_strategy)
         self._listing: dict[Path, list[str]] = {}
         self.skipped: list[str] = []
         self.entries: list[ClipEntry] = []
@@ -195,6 +182,16 @@ class ClipDataset(Dataset):
                 self._bad(err)
                 continue
             self.entries.append(item)
+
+    @property
+    def num_frames(self) -> int:
+        """Frames per clip T (``clip.num_frames``), key frame last."""
+        return self.clip.num_frames
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """The network input ``(H, W)`` (``clip.image_size``)."""
+        return self.clip.image_size
 
     # --- subclass interface ---------------------------------------------------------------------------
     def _index(self) -> list[ClipEntry | DataError]:
@@ -213,9 +210,10 @@ class ClipDataset(Dataset):
         key_path = resolve_inside(self.root, key_rel, source)
         rel = key_path.relative_to(self.root.resolve()).as_posix()
         paths = []
+        stride = self.clip.stride
         for k in range(self.num_frames - 1, 0, -1):
-            back = k * self.stride
-            if self.history == "number":
+            back = k * stride
+            if self.frame_lookup == "number":
                 name = history_name(rel, back)
             else:
                 listing = self._sorted_listing(key_path.parent)
@@ -223,13 +221,13 @@ class ClipDataset(Dataset):
                 name = str(PurePosixPath(rel).with_name(listing[pos - back])) if pos - back >= 0 else None
             paths.append(name)
         paths.append(rel)
-        if self.repeat_missing_history:
+        if self.clip.repeat_missing_history:
             for i in range(len(paths) - 2, -1, -1):
                 if paths[i] is None or not (self.root / paths[i]).is_file():
                     paths[i] = paths[i + 1]
         missing = [p for p in paths if p is None]
         if missing:
-            raise DataError(f"{source}: {rel} has no history frame {self.stride * (self.num_frames - 1)} frames back")
+            raise DataError(f"{source}: {rel} has no history frame {stride * (self.num_frames - 1)} frames back")
         return paths
 
     def _sorted_listing(self, folder: Path) -> list[str]:
@@ -324,7 +322,7 @@ class ClipDataset(Dataset):
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
         params = self.transform.draw((h0, w0), rng)
-        feature = self.warp == "feature"
+        feature = self.clip.warp == "feature"
         applied = np.repeat(np.eye(3)[None], len(frames), axis=0) if feature else key_from_hist
         clip = self.transform.apply_frames(frames, applied, params)
         if self.key_corruption is not None:
@@ -495,7 +493,7 @@ class CULaneClips(_ListClips):
     beside each image (``00030.lines.txt``: one lane a line, ``x1 y1 x2 y2 ...``).
 
     CULane keeps every 30th frame of its videos, so history frames come by name with ``stride=30`` where
-    they exist; use ``num_frames=1`` for the single-frame protocol, or ``repeat_missing_history=True``.
+    they exist; use ``clip.num_frames=1`` for the single-frame protocol, or ``clip.repeat_missing_history=True``.
     """
 
     format = "culane"
@@ -514,7 +512,7 @@ class ApolloClips(_ListClips):
     image sequences (e.g. ``ColorImage_road02/ColorImage/Record001/Camera 5/<stamp>_Camera_5.jpg``)
     with ``<frame>.lines.txt`` either beside each image or, with ``label_dir``, mirrored under
     ``<root>/<label_dir>/<same relative path>``. History frames are the previous images in the
-    folder's sorted listing (``history="sorted"``; the frame names are timestamps).
+    folder's sorted listing (``frame_lookup="sorted"``; the frame names are timestamps).
 
     Args:
         root: data root.
@@ -524,10 +522,10 @@ class ApolloClips(_ListClips):
     """
 
     format = "apollo"
+    frame_lookup = "sorted"
 
     def __init__(self, root: str | Path, lists: list[str] | str, label_dir: str | None = None, **kwargs: Any) -> None:
         self.label_dir = label_dir
-        kwargs.setdefault("history", "sorted")
         super().__init__(root, lists, **kwargs)
 
     def _label_path(self, image_rel: str) -> Path:

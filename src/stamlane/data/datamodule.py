@@ -17,8 +17,8 @@ from stamlane.data.collate import collate_clips
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
 from stamlane.data.labels import DataError
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
-from stamlane.lightning_compat import plain_hyperparameters
 from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION, generate_dataset
+from stamlane.training.lightning_compat import plain_hyperparameters
 
 __all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
 
@@ -155,7 +155,7 @@ class ClipDataModule(LightningDataModule):
             self.root,
             self.split_labels(split),
             self.label_dir,
-            **self.clip.dataset_kwargs(),
+            clip=self.clip,
             transform=self.train_transform if train else self.eval_transform,
             thickness=self.thickness,
             on_error=self.on_error,
@@ -253,7 +253,7 @@ class FramesDataModule(LightningDataModule):
 
     def setup(self, stage: str | None = None) -> None:
         if self.dataset is None:
-            self.dataset = FolderClips(self.root, transform=self.clip.transform(), **self.clip.dataset_kwargs())
+            self.dataset = FolderClips(self.root, clip=self.clip)
 
     def predict_dataloader(self) -> DataLoader:
         self.setup("predict")

@@ -7,6 +7,7 @@ as history. `decode_video` turns a video into such a folder.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,8 @@ from tqdm import tqdm
 
 from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.labels import DataError
-from stamlane.imageio import open_video
+from stamlane.data.options import ClipOptions
+from stamlane.safety.images import open_video
 
 __all__ = ["VIDEO_SUFFIXES", "FolderClips", "decode_video"]
 
@@ -29,10 +31,12 @@ class FolderClips(ClipDataset):
     """
 
     format = "frames"
+    frame_lookup = "sorted"
 
-    def __init__(self, root: str | Path, **kwargs: Any) -> None:
-        kwargs.update(history="sorted", repeat_missing_history=True, require_labels=False)
-        super().__init__(root, **kwargs)
+    def __init__(self, root: str | Path, *, clip: ClipOptions = ClipOptions(), **kwargs: Any) -> None:
+        # the first frames of the sequence have no predecessors: the earliest frame stands in for them
+        kwargs.update(require_labels=False)
+        super().__init__(root, clip=replace(clip, repeat_missing_history=True), **kwargs)
 
     def _index(self) -> list[ClipEntry | DataError]:
         names = self._sorted_listing(self.root)

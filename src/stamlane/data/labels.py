@@ -15,6 +15,8 @@ import numpy as np
 from stamlane_eval import io as eval_io
 from stamlane_eval.io import LaneFileError, iter_tusimple, tusimple_points
 
+from stamlane.safety.guard import is_inside
+
 __all__ = [
     "DataError",
     "TuSimpleRecord",
@@ -36,7 +38,7 @@ class TuSimpleRecord(dict):
 
 
 def resolve_inside(root: Path, rel: str, source: str) -> Path:
-    """``root / rel`` after checking that it stays inside ``root``.
+    """``root / rel``, resolved, after checking that it stays inside ``root`` (`stamlane.safety.guard.is_inside`).
 
     Args:
         root: data root.
@@ -51,8 +53,7 @@ def resolve_inside(root: Path, rel: str, source: str) -> Path:
     if not rel_clean:
         raise DataError(f"{source}: empty path")
     path = (root / rel_clean).resolve()
-    root_r = root.resolve()
-    if path != root_r and root_r not in path.parents:
+    if not is_inside(path, root):
         raise DataError(f"{source}: path {rel!r} is outside the data root {root}")
     return path
 

@@ -16,18 +16,17 @@ On the command line a field is ``--data.<group>.<field>`` (``--data.clip.num_fra
 What belongs to one labelled dataset (``root``, ``format``, label files, ``label_dir``, ``thickness``,
 ``on_error``, ``history_source``) stays a plain argument of `ClipDataModule`. Each group is a frozen dataclass
 that checks its values when it is made, so a bad option fails when the config is read, not in the first epoch.
-Configs written before the groups existed (flat ``data.num_frames`` ...) are read by `stamlane.data.flat_options`.
+Configs written before the groups existed (flat ``data.num_frames`` ...) are read by `stamlane.training.compat`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
-from stamlane.budget import check_clip, check_size, check_workers
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
+from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
@@ -44,8 +43,9 @@ def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tu
 class ClipOptions:
     """How a clip is read and resized: what the network sees, the same in training, evaluation and prediction.
 
-    `ClipDataModule` and `FramesDataModule` read clips with it; ``num_frames``, ``image_size`` and ``crop_top`` are
-    linked into the model (``model.num_frames`` ...), so that a checkpoint carries them to ``stamlane stream``.
+    Every clip dataset takes it whole (`stamlane.data.clips.ClipDataset`'s ``clip``): these options are declared,
+    defaulted and checked here alone. `ClipDataModule` and `FramesDataModule` read clips with it; ``num_frames``,
+    ``image_size`` and ``crop_top`` are linked into the model (``model.num_frames`` ...), so that a checkpoint carries them to ``stamlane stream``.
 
     Attributes:
         num_frames: frames per clip T >= 1, key frame last (the paper: 4 on TuSimple, 2 on ApolloScape).
@@ -100,20 +100,6 @@ class ClipOptions:
     def transform(self) -> ClipTransform:
         """The evaluation and prediction transform: the sky cut and the resize to ``image_size``, no augmentation."""
         return ClipTransform(self.image_size, crop_top=self.crop_top)
-
-    def dataset_kwargs(self) -> dict[str, Any]:
-        """The keyword arguments of `stamlane.data.clips.ClipDataset` these options set (not the transform)."""
-        return {
-            "num_frames": self.num_frames,
-            "stride": self.stride,
-            "image_size": self.image_size,
-            "align": self.align,
-            "warp": self.warp,
-            "cache_dir": self.cache_dir,
-            "horizon_row": self.horizon_row,
-            "align_strategy": self.align_strategy,
-            "repeat_missing_history": self.repeat_missing_history,
-        }
 
 
 @dataclass(frozen=True)
@@ -215,7 +201,7 @@ class SynthOptions:
         if min(self.size) < 1:
             raise ValueError(f"synth.size must be (H, W) with positive sides, got {self.size}")
         check_size(self.size, "data.synth.size")
-        self.config()  # the generator's size budget (`stamlane.budget`), checked when the config is read
+        self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
     def splits(self) -> dict[str, int]:
         """Clips per split as ``dataset.json`` records them (the arguments of

@@ -16,14 +16,14 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
-from stamlane.boundary import run_command
 from stamlane.data.alignment import ALIGN_MODES
 from stamlane.data.clips import FORMATS, ClipDataset, make_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
-from stamlane.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 
-__all__ = ["main", "render_grid"]
+__all__ = ["build_parser", "main", "render_grid"]
 
 PALETTE = [(0, 0, 255), (0, 255, 0), (255, 0, 0), (0, 255, 255), (255, 0, 255), (255, 255, 0), (0, 128, 255)]
 
@@ -52,7 +52,7 @@ def render_grid(dataset: ClipDataset, indices: list[int]) -> np.ndarray:
     return np.concatenate(rows, axis=0)
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="stamlane show", description=__doc__.splitlines()[0])
     p.add_argument("--root", required=True, help="data root")
     p.add_argument("--labels", required=True, nargs="+", help="label (TuSimple) or list files, relative to root")
@@ -69,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     return run_command("stamlane show", lambda: _show(args))
@@ -87,9 +87,7 @@ def _show(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         label_dir = args.label_dir if args.format == "apollo" else None
-        ds: ClipDataset = make_clips(
-            args.format, args.root, args.labels, label_dir, transform=clip.transform(), **clip.dataset_kwargs()
-        )
+        ds: ClipDataset = make_clips(args.format, args.root, args.labels, label_dir, clip=clip)
     if len(ds) == 0:
         raise ValueError(f"no samples in {' '.join(args.labels)} under {args.root}")
     indices = sorted({int(i) for i in np.linspace(0, len(ds) - 1, min(args.n, len(ds)))})

@@ -29,10 +29,10 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
 from stamlane.experiments.tables import PaperRow, TableIndex, baseline_pairs, load_tables
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0])
@@ -105,16 +105,16 @@ def main(argv: list[str] | None = None) -> int:
     if "--" in argv:
         cut = argv.index("--")
         argv, extra = argv[:cut], argv[cut + 1 :]
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.boundary import run_command
+    from stamlane.safety.boundary import run_command
 
     return run_command("stamlane ablate", lambda: _ablate(args, extra), ExperimentError)
 
 
 def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
-    from stamlane.guard import check_outputs, exclusive, temporary_name
+    from stamlane.safety.guard import check_outputs, exclusive, temporary_name
 
     index = load_tables(args.tables)
     if args.list:
@@ -149,7 +149,7 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
     check_outputs(  # the runs never land among the frames and labels, nor replace the base or the index
         [*outputs, *map(temporary_name, outputs)], [base, index.path], folders=[args.out], protected=[root]
     )
-    from stamlane.hardware import resolve_bf16
+    from stamlane.training.hardware import resolve_bf16
 
     bf16 = resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
     experiment = Experiment(

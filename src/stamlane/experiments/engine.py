@@ -27,6 +27,7 @@ from typing import Any
 
 import yaml
 
+from stamlane.configs import configs_dir
 from stamlane.experiments.scoring import (
     SCORING,
     image_size,
@@ -39,7 +40,7 @@ from stamlane.experiments.scoring import (
 from stamlane.experiments.stats import Scores, views
 from stamlane.experiments.store import StoreError, finished, mark_finished, write_atomic
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
-from stamlane.quiet import quiet_libraries
+from stamlane.training.quiet import quiet_libraries
 
 __all__ = [
     "CONFIG_DIR",
@@ -56,7 +57,7 @@ __all__ = [
     "oracle_subject",
 ]
 
-CONFIG_DIR = Path(__file__).resolve().parents[3] / "configs"
+CONFIG_DIR = configs_dir()
 PROBES = ("key", "other_clip")
 """History probes of every multi-frame run on every split (`stamlane.data.clips.HISTORY_SOURCES` other than
 ``real``)."""
@@ -149,7 +150,7 @@ budget). Steps can be changed per call."""
 
 
 def _cli(args: list[str], **kwargs: Any) -> Any:
-    from stamlane.lightning_cli import StamLaneCLI
+    from stamlane.training.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
     try:
@@ -160,8 +161,8 @@ def _cli(args: list[str], **kwargs: Any) -> Any:
 
 def _run_config(run: Path) -> str:
     """The text of a run folder's ``config.yaml``, read only inside the folder (links resolved)."""
-    from stamlane.budget import MAX_RECORD_BYTES
-    from stamlane.guard import GuardError, read_inside
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import GuardError, read_inside
 
     path = run / "config.yaml"
     try:
@@ -172,9 +173,9 @@ def _run_config(run: Path) -> str:
 
 def _check_run_config(run: Path) -> None:
     """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
-    (`stamlane.registry.check_run_config`); a tampered one is refused in one line."""
-    from stamlane.checkpoints import CheckpointError
-    from stamlane.registry import check_run_config
+    (`stamlane.training.registry.check_run_config`); a tampered one is refused in one line."""
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.training.registry import check_run_config
 
     try:
         check_run_config(_run_config(run), run / "config.yaml")
@@ -200,7 +201,7 @@ def _one_line(err: BaseException) -> str:
 
 
 def _frames_of(run: Path) -> int:
-    from stamlane.data.flat_options import clip_options  # a run of before the data options were grouped too
+    from stamlane.training.compat import clip_options  # a run of before the data options were grouped too
 
     try:
         return clip_options(_run_data(run, "data")).num_frames
@@ -211,7 +212,7 @@ def _frames_of(run: Path) -> int:
 def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
     """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
     checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
     if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
         try:
@@ -226,7 +227,7 @@ def _grouped_args(record: dict[str, Any]) -> dict[str, Any]:
     """A run record with the ``stamlane fit`` arguments it was made with (``row_args``, ``extra``) in today's
     names: a run recorded with ``--data.key_corruption`` before the data options were grouped is the same run as
     one with ``--data.augment.key_corruption``."""
-    from stamlane.data.flat_options import group_flags
+    from stamlane.training.compat import upgrade_flags as group_flags
 
     return record | {k: group_flags(record[k]) for k in ("row_args", "extra") if isinstance(record.get(k), list)}
 
@@ -326,7 +327,7 @@ class Experiment:
         name = self.run_name(row, seed)
         last = self.out / name / "run" / "checkpoints" / "last.ckpt"  # a run killed midway goes on from there
         row_args = self.recipe.row_args if row is not self.recipe.pretrain and row.recipe_args else ()
-        from stamlane.checkpoints import CheckpointError
+        from stamlane.safety.checkpoints import CheckpointError
 
         try:
             cli = _cli(
@@ -355,8 +356,8 @@ class Experiment:
         predictions folder."""
         from jsonargparse import ArgumentError
 
-        from stamlane.cli import one_line
-        from stamlane.registry import safe_config_file
+        from stamlane.safety.boundary import one_line
+        from stamlane.training.registry import safe_config_file
 
         pred_dir = self.pred_dir(name, split, source)
         try:  # the run's config is data: a checked copy is what LightningCLI reads
@@ -469,7 +470,7 @@ class Experiment:
         from stamlane_eval.io import read_tusimple
 
         from stamlane.experiments.history import oracle_predictions, read_visibility
-        from stamlane.postprocess import PostprocessConfig
+        from stamlane.predict.postprocess import PostprocessConfig
         from stamlane.synth.generator import FIRST_KEY
 
         config = PostprocessConfig(**postprocess)

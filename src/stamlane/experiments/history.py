@@ -10,7 +10,7 @@ Two measurements on the labels of a split with ``visibility/<split>.json`` (gene
   is within that threshold on the point's row. A model that reads its history recalls more ``revealed`` points
   than one that does not; ``visible`` points are the single frame's job.
 - **the oracle headroom** of a split (a property of the data, not of a model): TuSimple F1 of lanes fitted, with
-  the demo's post-processing fit (`stamlane.postprocess.fit_curve` and `sample_lanes`), to the labelled points
+  the demo's post-processing fit (`stamlane.predict.postprocess.fit_curve` and `sample_lanes`), to the labelled points
   visible in the key frame, and to those visible in the key frame or its aligned history. Their difference is
   what perfect use of ``num_frames`` aligned frames can add over a perfect detector of the key frame's paint:
   where it is about 0 (the fitted lines bridge the gaps anyway), no model can show the paper's effect. A third
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
-from stamlane.postprocess import PostprocessConfig, fit_curve, sample_lanes
+from stamlane.predict.postprocess import PostprocessConfig, fit_curve, sample_lanes
 from stamlane.synth.generator import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
 

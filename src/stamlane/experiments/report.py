@@ -529,7 +529,7 @@ def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> l
 def write_csv(path: Path, summary: Summary) -> None:
     """Every value and difference of a summary, one line each (``kind, subject, b, view, metric, value, low, high,
     seed_low, seed_high, std, seeds``)."""
-    from stamlane.guard import atomic_path
+    from stamlane.safety.guard import atomic_path
 
     with atomic_path(path) as tmp, tmp.open("w", newline="") as f:  # written whole, then renamed
         w = csv.writer(f)
@@ -596,8 +596,8 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from stamlane.budget import MAX_RECORD_BYTES
-    from stamlane.guard import read_inside
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import read_inside
 
     f1 = metric_name("tusimple", "f1", stage="val")  # as the callback logs it
     fig, ax = plt.subplots(figsize=(7, 4))

@@ -17,10 +17,10 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="stamlane report", description=__doc__.split("\n")[0])
     p.add_argument("summary", type=Path, nargs="+", help="summary.json; several with --paper / --replication")
     p.add_argument("--models", nargs="+", metavar="NAME", help="only these models of the summary")
@@ -35,11 +35,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
-    from stamlane.boundary import run_command
     from stamlane.experiments.summary import SummaryError
+    from stamlane.safety.boundary import run_command
 
     return run_command("stamlane report", lambda: _report(args), SummaryError, KeyError)
 
@@ -48,7 +48,7 @@ def _report(args: argparse.Namespace) -> int:
     from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
     from stamlane.experiments.summary import Summary
     from stamlane.experiments.tables import default_index_path, load_tables
-    from stamlane.guard import atomic_path, check_outputs, temporary_name, write_atomic
+    from stamlane.safety.guard import atomic_path, check_outputs, temporary_name, write_atomic
 
     outputs = [p for p in (args.out, args.csv, args.plot) if p is not None]
     index = args.index if args.index is not None else default_index_path() if args.paper or args.replication else None

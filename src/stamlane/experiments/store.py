@@ -15,8 +15,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from stamlane.budget import MAX_RECORD_BYTES
-from stamlane.guard import GuardError, read_inside, write_atomic  # the one atomic writer, re-exported here
+from stamlane.safety.budget import MAX_RECORD_BYTES
+from stamlane.safety.guard import GuardError, read_inside, write_atomic  # the one atomic writer, re-exported here
 
 __all__ = ["DONE", "StoreError", "file_sha256", "finished", "mark_finished", "write_atomic"]
 

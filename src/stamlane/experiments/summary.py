@@ -239,8 +239,8 @@ class Summary:
         Raises:
             SummaryError: unreadable, not json, or not a summary (the message names the file).
         """
-        from stamlane.budget import MAX_RECORD_BYTES
-        from stamlane.guard import GuardError, read_input
+        from stamlane.safety.budget import MAX_RECORD_BYTES
+        from stamlane.safety.guard import GuardError, read_input
 
         try:  # a regular file within the budget: a FIFO or /dev/zero is refused unread
             data = json.loads(read_input(path, MAX_RECORD_BYTES, "summary"))

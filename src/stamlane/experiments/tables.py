@@ -13,6 +13,8 @@ from pathlib import Path
 import yaml
 from stamlane_eval import names
 
+from stamlane.configs import configs_dir
+
 __all__ = [
     "METRIC_KINDS",
     "PaperRow",
@@ -110,11 +112,8 @@ class TableIndex:
 
 
 def default_index_path() -> Path:
-    """``configs/paper/tables.yaml`` of the working directory, else of the source checkout."""
-    local = Path("configs/paper/tables.yaml")
-    if local.is_file():
-        return local
-    return Path(__file__).resolve().parents[3] / "configs" / "paper" / "tables.yaml"
+    """stamlane's ``configs/paper/tables.yaml`` (`stamlane.configs.configs_dir`), installed or in a checkout."""
+    return configs_dir() / "paper" / "tables.yaml"
 
 
 def load_tables(path: str | Path | None = None) -> TableIndex:
@@ -133,8 +132,8 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
     path = Path(path) if path is not None else default_index_path()
     if not path.is_file():
         raise FileNotFoundError(f"table index {path} not found")
-    from stamlane.budget import MAX_RECORD_BYTES
-    from stamlane.guard import read_input
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import read_input
 
     try:  # plain YAML: a !!python tag is refused, never run
         raw = yaml.safe_load(read_input(path, MAX_RECORD_BYTES, "table index"))

@@ -1,7 +1,7 @@
 """The network: VGG16 encoder, STAM and the Table 4 aggregators, the two-branch decoder (pure torch); the
 feature-space alignment of history frames (`forward_feature_aligned`, `warp_features`).
 
-This package never imports ``stamlane.data``, ``stamlane.module`` or lightning.
+This package never imports ``stamlane.data``, ``stamlane.training.module`` or lightning.
 """
 
 from stamlane.models.aggregators import STPSA, ConvLSTMFusion, CosineWeightedSum, KeyFrameOnly, SimpleAdd, STDANet

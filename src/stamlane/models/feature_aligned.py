@@ -4,7 +4,7 @@ The paper (3.1) warps history IMAGES onto the key frame before the encoder (``La
 pre-aligned clip). Here the frames reach the encoder unwarped and the same homographies are applied to the
 deepest-stage feature maps of the history frames (`stamlane.models.feature_warp`), which are then fused with
 the key frame's and decoded. This is what `stamlane.stream.StreamingPredictor` runs on a video (each frame
-encoded once, its features cached), and what `stamlane.module.StamLaneModule` trains and evaluates on batches
+encoded once, its features cached), and what `stamlane.training.module.StamLaneModule` trains and evaluates on batches
 of ``warp="feature"`` data (``key_from_hist_net`` in the batch), so that a model is trained in the alignment
 space it is run in. With identity homographies both spaces give the same result.
 """

@@ -4,7 +4,7 @@ Notation (docs/method.md §3): K = key-frame features, H_1 .. H_{T-1} the aligne
 CA / SA the CBAM channel / spatial attention maps (`stamlane.models.attention`), ``x`` a broadcast multiply.
 One CA and one SA block are shared by every frame, so one module serves any clip length T.
 
-``history="gates"`` — the literal reading of the paper:
+``reading="gates"`` — the literal reading of the paper:
 
 - parallel: ``out = sum_S [CA(S) x K + SA(S) x K]`` over S in (K, H_{T-1}, ..., H_1).
 - serial C-S: ``A = H_1; for G in (H_2, ..., H_{T-1}, K): Y = CA(A) x G; A = SA(Y) x Y; out = A``;
@@ -17,7 +17,7 @@ The sum runs over the key frame too, so with T = 1 serial and mixed modes are CB
 frame reaches the output only through attention maps applied to K — in serial and mixed modes only as C
 channel gains — so it cannot fill in a lane the key frame does not show (occlusion, dash gaps).
 
-``history="features"`` — the documented variant (docs/method.md §3) in which the aligned history features
+``reading="features"`` — the documented variant (docs/method.md §3) in which the aligned history features
 themselves, gated by their own attention, are added to the key frame:
 
 - parallel: ``out = K + sum_{S in history} [CA(S) x S + SA(S) x S]``.
@@ -29,7 +29,7 @@ themselves, gated by their own attention, are added to the key frame:
   (C-S) or ``att(A) = CA(Y) x Y, Y = SA(A) x A`` (S-C); ``out = A``.
 
 With T = 1 every ``"features"`` mode returns K unchanged (no history to add). The default is
-``mode="mixed", order="cs", history="features"``: the paper's best mode (its Table 3) in the variant
+``mode="mixed", order="cs", reading="features"``: the paper's best mode (its Table 3) in the variant
 that lets history content reach the output. Evidence: docs/method.md §3's prototype (pixel F1 0.960 vs 0.888 for the
 literal mixed C-S, 0.915 for the key frame only); a unit test (a region the key frame lacks stays exactly 0
 under literal mixed C-S and is filled from history by the variant); and the reduced synthetic ablation in the
@@ -50,15 +50,16 @@ from torch import Tensor, nn
 from stamlane.models._checks import check_clip_features
 from stamlane.models.attention import ChannelAttention, SpatialAttention
 
-__all__ = ["STAM", "StamHistory", "StamMode", "StamOrder"]
+__all__ = ["STAM", "StamMode", "StamOrder", "StamReading"]
 
 StamMode = Literal["parallel", "serial", "mixed"]
 StamOrder = Literal["cs", "sc"]
-StamHistory = Literal["gates", "features"]
+StamReading = Literal["gates", "features"]
+"""Which reading of the paper STAM follows: history frames only gate the key frame, or their gated features add."""
 
 _MODES = ("parallel", "serial", "mixed")
 _ORDERS = ("cs", "sc")
-_HISTORIES = ("gates", "features")
+_READINGS = ("gates", "features")
 
 
 class STAM(nn.Module):
@@ -71,8 +72,9 @@ class STAM(nn.Module):
             two blocks run side by side.
         reduction: reduction ratio r of the channel-attention MLP.
         kernel_size: kernel size k of the spatial-attention conv.
-        history: ``"gates"`` for the paper's literal reading (history frames only produce attention maps
-            applied to K) or ``"features"`` for the variant that adds attention-gated history features to K.
+        reading: ``"gates"`` for the paper's literal reading (history frames only produce attention maps
+            applied to K) or ``"features"`` for the variant that adds attention-gated history features to K (stored
+            configs of before the rename say ``history``: `stamlane.training.compat.RENAMED_OPTIONS`).
         normalize: divide the parallel / mixed sums by T.
     """
 
@@ -83,7 +85,7 @@ class STAM(nn.Module):
         order: StamOrder = "cs",
         reduction: int = 16,
         kernel_size: int = 7,
-        history: StamHistory = "features",
+        reading: StamReading = "features",
         normalize: bool = False,
     ) -> None:
         super().__init__()
@@ -91,18 +93,18 @@ class STAM(nn.Module):
             raise ValueError(f"mode must be one of {_MODES}, got {mode!r}")
         if order not in _ORDERS:
             raise ValueError(f"order must be one of {_ORDERS}, got {order!r}")
-        if history not in _HISTORIES:
-            raise ValueError(f"history must be one of {_HISTORIES}, got {history!r}")
+        if reading not in _READINGS:
+            raise ValueError(f"reading must be one of {_READINGS}, got {reading!r}")
         self.channels = channels
         self.mode = mode
         self.order = order
-        self.history = history
+        self.reading = reading
         self.normalize = normalize
         self.channel_attention = ChannelAttention(channels, reduction)
         self.spatial_attention = SpatialAttention(kernel_size)
 
     def extra_repr(self) -> str:
-        return f"channels={self.channels}, mode={self.mode}, order={self.order}, history={self.history}, normalize={self.normalize}"
+        return f"channels={self.channels}, mode={self.mode}, order={self.order}, reading={self.reading}, normalize={self.normalize}"
 
     def _gate(self, source: Tensor, target: Tensor) -> Tensor:
         """One serial CBAM step: the first block's map from ``source`` gates ``target``, the second block's
@@ -133,7 +135,7 @@ class STAM(nn.Module):
         if self.mode == "serial":
             return self._serial(frames)
         term = self._parallel if self.mode == "parallel" else self._gate
-        if self.history == "gates":
+        if self.reading == "gates":
             out = term(key, key)
             for source in reversed(past):  # (K, H_{T-1}, ..., H_1)
                 out = out + term(source, key)
@@ -144,7 +146,7 @@ class STAM(nn.Module):
         return out / num_frames if self.normalize else out
 
     def _serial(self, frames: tuple[Tensor, ...]) -> Tensor:
-        if self.history == "gates":
+        if self.reading == "gates":
             acc = frames[0]
             for target in frames[1:] or frames:  # T = 1: one step with A = G = K (CBAM)
                 acc = self._gate(acc, target)

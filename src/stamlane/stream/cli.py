@@ -17,7 +17,7 @@ untrained). Writes under ``--out`` (default ``outputs/stream/<VIDEO name>``):
   .lines.txt``: what ``stamlane-eval tusimple | culane | video`` score, frames named ``<sequence>/<frame name>``
   (``--sequence``, ``--first-frame``, ``--h-samples``; `stamlane.stream.eval_outputs`).
 
-Every file is written under a temporary name and renamed when the stream ends (`stamlane.guard.atomic_path`): a
+Every file is written under a temporary name and renamed when the stream ends (`stamlane.safety.guard.atomic_path`): a
 failed run leaves the previous results whole. A progress bar shows frames per second. Bad input: one line on
 stderr, exit status 2.
 """
@@ -38,10 +38,10 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.boundary import run_command
-from stamlane.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
-from stamlane.guard import atomic_path, check_outputs, temporary_name
-from stamlane.imageio import open_video, read_image
+from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
+from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.images import open_video, read_image
 from stamlane.stream.eval_outputs import (
     DEFAULT_FIRST_FRAME,
     EvalOutputs,
@@ -158,13 +158,13 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     """The LightningModule and how the clips it was trained on were read (`stamlane.data.options.ClipOptions`:
     num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
     of an older checkpoint too); None for a checkpoint without data options."""
-    from stamlane.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.data.flat_options import clip_options
-    from stamlane.module import StamLaneModule
-    from stamlane.registry import check_data_hparams
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.module import StamLaneModule
+    from stamlane.training.registry import check_data_hparams
 
     if args.config:
-        from stamlane.cli import build_cli
+        from stamlane.training.lightning_cli import StamLaneCLI as build_cli
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")
@@ -209,7 +209,7 @@ def load_predictor(args: argparse.Namespace) -> Any:
     module.eval()
     overrides: dict[str, Any] = {"align": not args.no_align}
     if args.bf16 is not None:
-        from stamlane.hardware import resolve_bf16
+        from stamlane.training.hardware import resolve_bf16
 
         overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16))
     num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
@@ -311,7 +311,7 @@ def _stream(
     import torch
     from tqdm import tqdm
 
-    from stamlane.overlay import draw_lanes
+    from stamlane.predict.overlay import draw_lanes
 
     video_path = paths.get("video")
     writer = None

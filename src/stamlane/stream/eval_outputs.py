@@ -7,11 +7,11 @@ TuSimple clips and the generator's ``clips/<id>/1.jpg``). Then:
 
 ``predictions.json`` (``--tusimple``)
     TuSimple json-lines, one record per frame, ``{"raw_file": "<sequence>/<frame>", "lanes", "h_samples",
-    "run_time"}`` (`stamlane.writers.tusimple_record`, as ``stamlane predict`` writes them): read by
+    "run_time"}`` (`stamlane.predict.writers.tusimple_record`, as ``stamlane predict`` writes them): read by
     ``stamlane-eval tusimple`` (give ``--h-samples`` the ground truth's rows) and ``stamlane-eval video``, where the
     folder of ``raw_file`` is the sequence.
 ``lines/<sequence>/<frame stem>.lines.txt`` (``--culane``)
-    CULane text, one lane a line (`stamlane.writers.write_culane_lines`): read by ``stamlane-eval culane`` and
+    CULane text, one lane a line (`stamlane.predict.writers.write_culane_lines`): read by ``stamlane-eval culane`` and
     ``stamlane-eval video`` with ``lines/`` as the prediction folder.
 """
 
@@ -28,8 +28,8 @@ from typing import TextIO
 
 import numpy as np
 
-from stamlane.budget import MAX_SIDE
-from stamlane.guard import temporary_name
+from stamlane.safety.budget import MAX_SIDE
+from stamlane.safety.guard import temporary_name
 
 __all__ = [
     "DEFAULT_FIRST_FRAME",
@@ -98,7 +98,7 @@ def check_h_samples(rows: Sequence[int]) -> list[int]:
 
 def folder_temporaries(path: Path) -> tuple[Path, Path]:
     """The names `atomic_folder` uses beside ``path``: the new folder while it is written, the old one while it
-    is swapped out (for `stamlane.guard.check_outputs`)."""
+    is swapped out (for `stamlane.safety.guard.check_outputs`)."""
     tmp = temporary_name(path)
     return tmp, tmp.with_name(tmp.name + ".old")
 
@@ -107,7 +107,7 @@ def folder_temporaries(path: Path) -> tuple[Path, Path]:
 def atomic_folder(path: Path) -> Iterator[Path]:
     """A temporary folder beside ``path`` (`folder_temporaries`) that replaces ``path`` when the block ends without
     an error, and is removed when it fails: a failed run leaves the previous folder whole.
-    (`stamlane.guard.atomic_path` does this for files; a folder is swapped in two renames.)"""
+    (`stamlane.safety.guard.atomic_path` does this for files; a folder is swapped in two renames.)"""
     tmp, old = folder_temporaries(path)
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
@@ -146,7 +146,7 @@ class EvalOutputs:
 
     def write(self, frame: str, lanes: list[np.ndarray], run_time: float, height: int) -> None:
         """One frame: its name, its lanes ``(N, 2)`` ``(x, y)`` in frame pixels, milliseconds, the frame's rows."""
-        from stamlane.writers import tusimple_record, write_culane_lines
+        from stamlane.predict.writers import tusimple_record, write_culane_lines
 
         raw_file = f"{self.sequence}/{frame}"
         if self.tusimple is not None:

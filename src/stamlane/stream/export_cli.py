@@ -7,7 +7,7 @@ pre-aligned; outputs ``logits`` (B, 2, H, W) and ``embedding`` (B, E, H, W); see
 ``--output`` (default: the checkpoint's path with ``.onnx``), and with ``--streaming DIR`` also the two graphs of
 the streaming predictor. Each file carries in its ``metadata_props`` how to feed it and read it (crop, size,
 colour order, T, alignment, post-processing, the checkpoint's SHA-256: `stamlane.stream.metadata`), read from the
-checkpoint. The network is built from the checkpoint alone, from the closed registry (`stamlane.registry`: nothing
+checkpoint. The network is built from the checkpoint alone, from the closed registry (`stamlane.training.registry`: nothing
 the file names is imported). Parity: onnxruntime and PyTorch, both in float32, run on the same random clip and
 the largest absolute differences are printed. Needs the ``export`` extra (onnx, onnxscript, onnxruntime); without
 it, one line with the install command and exit status 2, before anything is read.
@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, check_input_file, format_wxh, parse_or_status
 
-from stamlane.boundary import run_command
-from stamlane.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 
-__all__ = ["EXPORT_PACKAGES", "ONNX_HINT", "main", "parity"]
+__all__ = ["EXPORT_PACKAGES", "ONNX_HINT", "build_parser", "main", "parity"]
 
 EXPORT_PACKAGES = ("onnx", "onnxscript", "onnxruntime")
 """What ``stamlane export`` needs: onnx and onnxscript to write the graph (``torch.onnx.export``), onnxruntime for
@@ -39,7 +39,7 @@ STREAMING_GRAPHS = ("encoder", "fuse_decode")
 """The graphs ``--streaming DIR`` writes, as ``DIR/<name>.onnx``."""
 
 
-def _parser() -> OneLineParser:
+def build_parser() -> OneLineParser:
     p = OneLineParser(prog="stamlane export", description=__doc__.split("\n")[0])
     p.add_argument("--ckpt_path", required=True, type=Path, help="a checkpoint of `stamlane fit`")
     p.add_argument("--output", type=Path, default=None, help="the .onnx file (default: the checkpoint's, .onnx)")
@@ -108,10 +108,10 @@ def _export(args: Any) -> int:
 def _write(args: Any, opset: int, outputs: list[Path]) -> int:
     import time
 
-    from stamlane.checkpoints import read_checkpoint
-    from stamlane.data.flat_options import clip_options
-    from stamlane.module import StamLaneModule
-    from stamlane.registry import check_data_hparams
+    from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.module import StamLaneModule
+    from stamlane.training.registry import check_data_hparams
     from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
     from stamlane.stream.metadata import annotate, deployment_metadata
 
@@ -152,7 +152,7 @@ def _write(args: Any, opset: int, outputs: list[Path]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     return run_command("stamlane export", lambda: _export(args))  # a CheckpointError is a ValueError

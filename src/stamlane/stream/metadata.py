@@ -28,7 +28,7 @@ Keys (`METADATA_KEYS`; docs/streaming.md "What the .onnx carries"):
                       ``"unaligned"``), ``by``, ``source`` (``ClipOptions.align``), ``warp``, ``strategy``,
                       ``horizon_row``; ``null`` when the checkpoint records no data options.
 ``lane_channel``      the channel of ``logits`` that is "lane" (softmax over the two channels).
-``postprocess``       the `stamlane.postprocess.PostprocessConfig` of the model, as a JSON object.
+``postprocess``       the `stamlane.predict.postprocess.PostprocessConfig` of the model, as a JSON object.
 ``precision``         ``"float32"``: the graph's arithmetic (parity is measured in it).
 ``opset``             the ONNX opset.
 """
@@ -60,7 +60,7 @@ FORMAT = "stamlane-onnx/1"
 """The version of the metadata layout; a change of a key's meaning changes it."""
 
 LANE_CHANNEL = 1
-"""``logits[:, 1]`` is "lane", ``logits[:, 0]`` background (`stamlane.module.StamLaneModule.decode`)."""
+"""``logits[:, 1]`` is "lane", ``logits[:, 0]`` background (`stamlane.training.module.StamLaneModule.decode`)."""
 
 RESIZE = (
     "bilinear (OpenCV INTER_LINEAR), pixel centres aligned: x_net = (x + 0.5) * W / W0 - 0.5, "
@@ -156,8 +156,8 @@ def deployment_metadata(module: Any, clip: ClipOptions | None, checkpoint: str |
     """What every graph exported from one checkpoint carries (`annotate` adds the graph's own keys).
 
     Args:
-        module: the `stamlane.module.StamLaneModule` built from the checkpoint.
-        clip: the data options of its run (`stamlane.data.flat_options.clip_options` of the checkpoint's
+        module: the `stamlane.training.module.StamLaneModule` built from the checkpoint.
+        clip: the data options of its run (`stamlane.training.compat.clip_options` of the checkpoint's
             ``datamodule_hyper_parameters``), or None when the checkpoint records none.
         checkpoint: the checkpoint file.
         opset: the ONNX opset of the graphs.

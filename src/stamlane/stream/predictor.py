@@ -15,7 +15,7 @@ frames, warps those FEATURE maps onto each new key frame with the same ground-pl
    failing that is used unaligned (identity), as the data pipeline does;
 3. the cached features are warped (zeros where a history frame has no source), stacked with the key
    frame's, oldest first, key last, and fused and decoded (``LaneNet.fuse_and_decode``);
-4. ``stamlane.postprocess.decode_lanes`` turns the two heads into lanes in original pixels.
+4. ``stamlane.predict.postprocess.decode_lanes`` turns the two heads into lanes in original pixels.
 
 Warm-up: while fewer than T-1 frames have been seen, the earliest frame seen fills the missing history
 slots (with its own alignment), exactly as ``stamlane predict`` builds clips at the start of a sequence
@@ -49,7 +49,7 @@ from stamlane.align.warp import chain_link
 from stamlane.data.transforms import ClipTransform
 from stamlane.models import LaneNet
 from stamlane.models.feature_aligned import fuse_feature_aligned
-from stamlane.postprocess import PostprocessConfig, decode_lanes
+from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.types import Lanes
 
 __all__ = ["StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]

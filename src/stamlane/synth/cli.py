@@ -9,9 +9,9 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
-from stamlane.boundary import run_command
-from stamlane.budget import check_workers
-from stamlane.guard import check_outputs
+from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import check_workers
+from stamlane.safety.guard import check_outputs
 from stamlane.synth.generator import (
     DEMO_SPLITS,
     EVAL_KEY_STEP,
@@ -21,10 +21,10 @@ from stamlane.synth.generator import (
     generate_dataset,
 )
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="stamlane synth",
         description="Write synthetic road clips (clips/<id>/1..T.jpg, train/val/test/challenging.json, "
@@ -78,7 +78,7 @@ def split_counts(total: int) -> tuple[int, int, int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_or_status(_parser(), argv)
+    args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
     return run_command("stamlane synth", lambda: _synth(args))

@@ -47,7 +47,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stamlane.camera import Camera, Pose
+from stamlane.align.camera import Camera, Pose
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
@@ -325,7 +325,7 @@ class SynthConfig:
     def __post_init__(self) -> None:
         if self.width < 64 or self.height < 48:
             raise ValueError(f"frame size must be at least 64x48, got {self.width}x{self.height}")
-        from stamlane.budget import MAX_SYNTH_FRAMES, check_clip, check_rate
+        from stamlane.safety.budget import MAX_SYNTH_FRAMES, check_clip, check_rate
 
         # one clip is rendered in memory: its frames x height x width within the size budget
         check_clip(self.num_frames, (self.height, self.width), "synthetic", frames_limit=MAX_SYNTH_FRAMES)

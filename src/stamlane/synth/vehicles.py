@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stamlane.camera import Camera, Pose
+from stamlane.align.camera import Camera, Pose
 from stamlane.synth.road import Road
 
 __all__ = ["Vehicle", "draw_vehicles", "sample_vehicles", "shadow_polygons"]

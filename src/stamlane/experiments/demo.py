@@ -1,0 +1,234 @@
+"""``stamlane demo``: README command 1 — the experiment engine on three models of synthetic clips, and pictures.
+
+    stamlane demo [--out outputs/demo] [--data DIR] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
+                  [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--max-overlays 12]
+                  [--quick]
+
+Generates the default synthetic set when missing, then runs `stamlane.experiments.engine` with the CPU recipe
+(the single-frame network from scratch, then each model from its weights: every model gets the same steps on the
+same data) on the 4-frame pre-aligned STAM model, the single frame and the 4-frame model without alignment (and
+``--rows`` of the paper's tables), scores their final weights on the clean ``test`` and the ``challenging`` splits
+in TuSimple F1 and IoU F1 with intervals over clips and seeds, probes each multi-frame model's history (the key
+frame copied into every history slot; another clip's history), and writes ``summary.json``, ``tables.md``,
+``val_f1.png``, ``history_use.png`` and ``comparison.jpg`` (the same challenging key frames, one column per model)
+to ``--out``, and prints the tables. ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean
+nothing; the tests run it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stamlane_eval.cli_tools import OneLineParser, parse_or_status
+
+from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
+from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import check_outputs, exclusive, temporary_name
+
+__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "build_parser", "main", "pairs"]
+
+MODELS = (
+    Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",), paper="f4_mixed_cs_features"),
+    Row("single", "1 frame (baseline)", ("demo_single.yaml",), paper="f1_keyonly"),
+    Row("stam4_noalign", "4 frames, no alignment, STAM", ("demo_noalign.yaml",), paper="f4_noalign_mixed_cs_features"),
+)
+SINGLE_CLEAN = Row("single_clean", "1 frame, no key-frame corruption", ("demo_single.yaml",), recipe_args=False)
+"""``--single-clean``: the single frame trained without the recipe's key-frame corruption, which it cannot undo."""
+PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noalign"))
+PAIRS += (("stam4", "single_clean"), ("single", "single_clean"))
+"""The demo's comparisons, A against B: what the history frames bring, with and without alignment; what the
+key-frame corruption costs a single frame and whether STAM is ahead of one trained without it."""
+OUTPUTS = ("summary.json", "tables.md", "val_f1.png", "history_use.png", "comparison.jpg")
+"""The files the demo writes at the top of ``--out`` (the runs and predictions go in folders beside them)."""
+
+
+def pairs(rows: list[Row]) -> list[tuple[str, str]]:
+    """`PAIRS` among ``rows``, each paper row asked for against the single frame and pre-aligned STAM, and the rows
+    of a table with a baseline against it (`stamlane.experiments.tables.baseline_pairs`)."""
+    from stamlane.experiments.tables import baseline_pairs
+
+    names = {r.name for r in rows}
+    found = [*PAIRS, *((r.name, other) for r in rows if r.paper and r not in MODELS for other in ("single", "stam4"))]
+    found += baseline_pairs({r.paper: r.name for r in rows if r.paper})
+    return [(a, b) for a, b in dict.fromkeys(found) if a in names and b in names]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+
+    p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
+    p.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder (default outputs/demo)")
+    p.add_argument("--data", type=Path, help=f"synthetic set (default {DEFAULT_SYNTHETIC_ROOT}; made if missing)")
+    p.add_argument("--seeds", type=int, default=1, help="training seeds per model (default 1)")
+    p.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
+    p.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
+    p.add_argument(
+        "--bf16",
+        choices=("auto", "true", "false"),
+        default="auto",
+        help="bfloat16 autocast (auto: where the CPU runs it natively; false: float32, as on an AVX2-only CPU)",
+    )
+    p.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
+    p.add_argument("--single-clean", action="store_true", help="also the single frame without key-frame corruption")
+    p.add_argument(
+        "--rows",
+        nargs="+",
+        default=[],
+        metavar="ID",
+        help="also rows of the paper's tables (configs/paper/rows/<ID>.yaml) on the demo's recipe",
+    )
+    p.add_argument("--max-overlays", type=int, default=12, help="overlay pictures per model and split")
+    p.add_argument("--quick", action="store_true", help="a seconds-long smoke run on a tiny set (tests)")
+    return p
+
+
+def _check_data(root: Path | None, quick: bool) -> None:
+    """Refuse, before anything is made, a ``--data`` that is not a folder, and one that holds another set's labels
+    without the synthetic ``dataset.json`` where ``--quick`` would generate its tiny set over them."""
+    if root is None:
+        return
+    if root.exists() and not root.is_dir():
+        raise ExperimentError(f"--data {root} is not a folder")
+    labels = [name for name in ("train.json", "val.json", "test.json") if os.path.lexists(root / name)]
+    if quick and labels and not (root / "dataset.json").is_file():  # a set of someone else's: never written over
+        raise ExperimentError(
+            f"--data {root} holds {labels[0]} but no dataset.json: not a synthetic set, --quick would write over "
+            "it; give an empty or synthetic folder"
+        )
+
+
+def _data(root: Path | None, out: Path, quick: bool) -> Path:
+    from stamlane.data.datamodule import ClipDataModule
+    from stamlane.synth import FACTORS, SynthConfig, generate_dataset
+    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, REVEAL, REVEAL_TRAFFIC
+
+    _check_data(root, quick)
+    if quick:
+        root = root or out / "quick_data"
+        if not (root / "dataset.json").is_file():  # two clips per factor: an interval per factor
+            config = SynthConfig(width=256, height=144, num_frames=4)
+            generate_dataset(
+                root,
+                train=4,
+                val=2,
+                test=2,
+                challenging=2 * len(FACTORS),
+                reveal=2 * len(REVEAL),
+                reveal_traffic=2 * len(REVEAL_TRAFFIC),
+                train_motion=2,
+                config=config,
+                progress=False,
+            )
+        return root
+    if root is None:
+        ClipDataModule(root=None).prepare_data()  # generates it when missing, with a progress bar
+        return Path(DEFAULT_SYNTHETIC_ROOT)
+    if not (root / "train.json").is_file():  # the default set's settings, generated at the given place
+        ClipDataModule(root=None).generate_synthetic(root)
+    return root
+
+
+def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int = 3) -> Path | None:
+    """The same ``count`` challenging key frames with each seed-0 model's lanes, one column per model."""
+    import cv2
+
+    folders = [experiment.pred_dir(f"{r.name}-s{experiment.seeds[0]}", "challenging") / "overlays" for r in rows]
+    frames = sorted(p.relative_to(folders[0]) for p in folders[0].rglob("*.jpg"))[:count]
+    grid = []
+    for frame in frames:
+        cells = [cv2.imread(str(folder / frame)) for folder in folders]
+        if any(c is None for c in cells):
+            return None
+        for cell, row in zip(cells, rows):
+            cv2.putText(cell, row.label, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 2, cv2.LINE_AA)
+        grid.append(np.concatenate(cells, axis=1))
+    if not grid:
+        return None
+    cv2.imwrite(str(path), np.concatenate(grid, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    return path
+
+
+def run(args: argparse.Namespace) -> None:
+    import torch
+
+    from stamlane.training.hardware import resolve_bf16
+
+    torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
+    rows = [m for m in MODELS if not ((args.no_noalign or args.quick) and m.name == "stam4_noalign")]
+    rows += [SINGLE_CLEAN] if args.single_clean else []
+    have = {m.name for m in rows} | {m.paper for m in rows}
+    rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
+    _check_data(args.data, args.quick)
+    outputs = [args.out / name for name in OUTPUTS]
+    check_outputs(
+        [*outputs, *map(temporary_name, outputs)], [args.data], folders=[args.out], protected=[args.data]
+    )  # the experiment never writes among the frames and labels it reads
+    steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
+    recipe = replace(RECIPES["cpu"], pretrain_steps=steps[0], steps=steps[1])
+    bf16 = (
+        False
+        if args.quick and args.bf16 == "auto"
+        else resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
+    )
+    args.out.mkdir(parents=True, exist_ok=True)
+    with exclusive(args.out):  # two demos writing one --out at once: the second is refused
+        _run(args, rows, recipe, bf16)
+
+
+def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> None:
+    from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
+    from stamlane.experiments.store import write_atomic
+
+    root = _data(args.data, args.out, args.quick)
+    experiment = Experiment(
+        rows,
+        recipe,
+        list(range(args.seeds)),
+        root,
+        args.out,
+        bf16=bf16,
+        quick=args.quick,
+        max_overlays=args.max_overlays,
+    )
+    summary = experiment.run(pairs(rows))
+    runs = [("pretrain", "stage 1 (1 frame)", 0), *((r.name, r.label, recipe.pretrain_steps) for r in rows)]
+    plot_val_curves(args.out, runs, experiment.seeds, args.out / "val_f1.png")
+    pictures = {
+        "val_f1_plot": args.out / "val_f1.png",
+        "history_use": plot_history_use(summary, args.out / "history_use.png"),
+        "history_use_vs_headroom": plot_reveal(summary, args.out / "history_use_vs_headroom.png"),
+        "comparison": _comparison(experiment, rows, args.out / "comparison.jpg"),
+    }
+    summary.pictures = {k: str(v) for k, v in pictures.items() if v}
+    summary.write(args.out / "summary.json")
+    text = tables(summary)
+    write_atomic(args.out / "tables.md", text + "\n")
+    print(text)
+    print(
+        f"[stamlane] wrote {args.out}/summary.json, tables.md, the pictures, and predictions under "
+        f"{args.out}/predictions; final weights: {args.out}/<model>-s<seed>/run/checkpoints/last.ckpt"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_or_status(build_parser(), argv)
+    if isinstance(args, int):
+        return args
+    for option in ("seeds", "pretrain_steps", "finetune_steps"):
+        if getattr(args, option) < 1:
+            print(
+                f"stamlane demo: --{option.replace('_', '-')} must be >= 1, got {getattr(args, option)}",
+                file=sys.stderr,
+            )
+            return 2
+    return run_command("stamlane demo", lambda: run(args) or 0, ExperimentError)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""What the machine runs fast: native bfloat16 or not.
+
+bf16 autocast is ~3x faster than float32 on CPUs with AMX or AVX512-BF16 and ~10-15x SLOWER on CPUs
+without them (AVX2-only laptops and many cloud cores), where oneDNN emulates it. ``bf16="auto"`` in
+`stamlane.training.module.StamLaneModule` asks `native_bf16` which one this machine is.
+"""
+
+from __future__ import annotations
+
+import torch
+
+__all__ = ["native_bf16", "resolve_bf16"]
+
+
+def native_bf16(device_type: str = "cpu") -> bool:
+    """True where ``device_type`` computes in bfloat16 natively (CPU: AMX tiles or AVX512-BF16; CUDA:
+    ``torch.cuda.is_bf16_supported``)."""
+    if device_type == "cuda":
+        return bool(torch.cuda.is_available() and torch.cuda.is_bf16_supported())
+    if device_type != "cpu":
+        return False
+    cpu = torch.cpu
+    checks = ("_is_amx_tile_supported", "_is_avx512_bf16_supported")  # private, but what torch itself uses
+    return any(bool(getattr(cpu, name, lambda: False)()) for name in checks)
+
+
+def resolve_bf16(value: bool | str, device_type: str = "cpu") -> bool:
+    """The ``bf16`` option as a bool: ``"auto"`` becomes `native_bf16`; ``True`` / ``False`` stay.
+
+    Raises:
+        ValueError: for any other value.
+    """
+    if isinstance(value, bool):
+        return value
+    if value == "auto":
+        return native_bf16(device_type)
+    raise ValueError(f"bf16 must be true, false or 'auto', got {value!r}")

@@ -1,0 +1,33 @@
+"""stamlane.training.hardware: bf16 only where the CPU computes it natively."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from stamlane.training.hardware import native_bf16, resolve_bf16
+
+
+def test_explicit_values_stay_and_auto_asks_the_machine() -> None:
+    assert resolve_bf16(True) is True and resolve_bf16(False) is False
+    assert resolve_bf16("auto") is native_bf16("cpu")
+    assert native_bf16("mps") is False
+    with pytest.raises(ValueError, match="bf16 must be true, false or 'auto', got 'yes'"):
+        resolve_bf16("yes")
+
+
+def test_native_bf16_agrees_with_the_cpu_flags() -> None:
+    cpuinfo = Path("/proc/cpuinfo")
+    if not cpuinfo.is_file() or "flags" not in cpuinfo.read_text():
+        pytest.skip("no /proc/cpuinfo flags on this machine (not Linux x86)")
+    flags = set(next(line for line in cpuinfo.read_text().splitlines() if line.startswith("flags")).split())
+    assert native_bf16("cpu") == bool({"avx512_bf16", "amx_bf16"} & flags)
+
+
+def test_the_module_resolves_auto() -> None:
+    from stamlane.models import STAM, LaneDecoder, VGGEncoder
+    from stamlane.training.module import StamLaneModule
+
+    module = StamLaneModule(VGGEncoder(width=0.125), STAM, LaneDecoder, bf16="auto")
+    assert module.bf16 is native_bf16("cpu") and module.hparams["bf16"] == "auto"

@@ -1,0 +1,62 @@
+"""The private Lightning parts stamlane uses (``stamlane.training.lightning_compat``) are still there and still behave as
+relied on: these tests fail when a Lightning release changes them."""
+
+from __future__ import annotations
+
+import inspect
+import io
+
+import lightning.pytorch as pl
+import torch
+from lightning.pytorch.cli import LightningCLI
+from lightning.pytorch.demos.boring_classes import BoringModel
+
+from stamlane.models import STAM, LaneDecoder, VGGEncoder
+from stamlane.training.lightning_cli import StamLaneCLI
+from stamlane.training.lightning_compat import (
+    CKPT_HPARAMS_METHOD,
+    drop_hyperparameters,
+    fit_data_fetcher,
+    keep_command_line_hparams,
+)
+from stamlane.training.module import StamLaneModule
+
+
+def test_lightning_cli_still_merges_checkpoint_hparams_in_the_method_we_replace() -> None:
+    assert f"self.{CKPT_HPARAMS_METHOD}()" in inspect.getsource(LightningCLI.__init__)
+    merged = inspect.getsource(getattr(LightningCLI, CKPT_HPARAMS_METHOD))
+    assert "hyper_parameters" in merged and "parse_object" in merged  # what would override the command line
+    assert getattr(StamLaneCLI, CKPT_HPARAMS_METHOD) is keep_command_line_hparams
+
+
+def test_the_fit_loop_data_fetcher_holds_the_epoch_iterator(tmp_path) -> None:
+    seen = []
+
+    class Look(pl.Callback):
+        def on_train_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+            seen.append(fit_data_fetcher(trainer))
+
+    trainer = pl.Trainer(
+        max_steps=2,
+        limit_val_batches=0,
+        logger=False,
+        enable_checkpointing=False,
+        enable_progress_bar=False,
+        enable_model_summary=False,
+        callbacks=[Look()],
+        default_root_dir=tmp_path,
+    )
+    trainer.fit(BoringModel())
+    assert seen and seen[0] is not None and hasattr(seen[0], "iterator")
+
+
+def test_hyperparameters_of_built_objects_can_be_dropped() -> None:
+    module = StamLaneModule(VGGEncoder(width=0.125), STAM, LaneDecoder, num_frames=2)
+    assert "encoder" not in module.hparams and "encoder" not in module.hparams_initial  # an nn.Module: dropped
+    assert module.hparams["num_frames"] == 2
+    drop_hyperparameters(module, ["num_frames"])
+    assert "num_frames" not in module.hparams and "num_frames" not in module.hparams_initial
+    buffer = io.BytesIO()
+    torch.save({"hyper_parameters": dict(module.hparams)}, buffer)
+    buffer.seek(0)
+    assert torch.load(buffer, weights_only=True)["hyper_parameters"] == dict(module.hparams)  # plain values only
