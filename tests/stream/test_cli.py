@@ -88,8 +88,8 @@ def test_options_override_the_checkpoint(checkpoint: Path, frames_dir: Path, tmp
 
 
 def test_bf16_is_the_models_unless_given(checkpoint: Path, frames_dir: Path) -> None:
-    from stamlane.training.module import StamLaneModule
     from stamlane.stream.cli import build_parser, load_predictor
+    from stamlane.training.module import StamLaneModule
 
     argv = [str(frames_dir), "--ckpt", str(checkpoint)]
     assert load_predictor(build_parser().parse_args(argv)).bf16 is StamLaneModule.from_checkpoint(checkpoint).bf16

@@ -109,11 +109,11 @@ def _write(args: Any, opset: int, outputs: list[Path]) -> int:
     import time
 
     from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
+    from stamlane.stream.metadata import annotate, deployment_metadata
     from stamlane.training.compat import clip_options
     from stamlane.training.module import StamLaneModule
     from stamlane.training.registry import check_data_hparams
-    from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
-    from stamlane.stream.metadata import annotate, deployment_metadata
 
     start = time.perf_counter()
     module = StamLaneModule.from_checkpoint(args.ckpt_path)
