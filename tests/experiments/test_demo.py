@@ -103,18 +103,19 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
     assert stam4.runs[0].scores["reveal@warped_key"]["images"] == 2 * len(REVEAL)
     key_copied = summary.difference("stam4@key", "single", "reveal", "tusimple_f1")  # the training, history aside
     assert key_copied is not None and key_copied.kind == "key_copied"
-    for source in ("key", "other_clip"):
-        pred = quick / "predictions" / "stam4-s0" / f"challenging@{source}"
-        assert (pred / "per_image.jsonl").is_file() and not list(pred.rglob("*.jpg"))  # no overlays for probes
-        assert stam4.runs[0].scores[f"challenging@{source}"]["images"] == 2 * len(FACTORS)
-    for kind, b in (("history_key", "stam4@key"), ("history_other", "stam4@other_clip")):
+    pred = quick / "predictions" / "stam4-s0" / "challenging@key"
+    assert (pred / "per_image.jsonl").is_file() and not list(pred.rglob("*.jpg"))  # no overlays for probes
+    assert stam4.runs[0].scores["challenging@key"]["images"] == 2 * len(FACTORS)
+    # another clip's history on the reveal splits only (--all-probes: everywhere)
+    assert "challenging@other_clip" not in stam4.runs[0].scores and "reveal@other_clip" in stam4.runs[0].scores
+    for kind, b, split in (
+        ("history_key", "stam4@key", "challenging"),
+        ("history_other", "stam4@other_clip", "reveal"),
+    ):
         found = {(d.view, d.metric) for d in summary.differences if d.kind == kind}
-        assert ("challenging", "tusimple_f1") in found and ("test", "culane_f1@0.5") in found
-        d = summary.difference("stam4", b, "challenging", "tusimple_f1")
-        real, probed = (
-            summary.value("stam4", "tusimple_f1", "challenging"),
-            summary.value(b, "tusimple_f1", "challenging"),
-        )
+        assert (split, "tusimple_f1") in found and (split, "culane_f1@0.5") in found
+        d = summary.difference("stam4", b, split, "tusimple_f1")
+        real, probed = summary.value("stam4", "tusimple_f1", split), summary.value(b, "tusimple_f1", split)
         assert d.diff == pytest.approx(real.mean - probed.mean, abs=1e-12)
     # the oracles of the labels: the quick set has visibility masks, so every view has a headroom
     assert {"oracle:key", "oracle:history-4f", "oracle:unaligned-4f", "oracle:history-8f"} <= set(summary.oracles)

@@ -1,17 +1,19 @@
 """``stamlane demo``: README command 1 — the experiment engine on three models of synthetic clips, and pictures.
 
     stamlane demo [--out outputs/demo] [--data DIR] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
-                  [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--max-overlays 12]
-                  [--quick]
+                  [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--all-probes]
+                  [--max-overlays 12] [--quick]
 
 Generates the default synthetic set when missing, then runs `stamlane.experiments.engine` with the CPU recipe
 (the single-frame network from scratch, then each model from its weights: every model gets the same steps on the
 same data) on the 4-frame pre-aligned STAM model, the single frame and the 4-frame model without alignment (and
-``--rows`` of the paper's tables), scores their final weights on the clean ``test`` and the ``challenging`` splits
-in TuSimple F1 and IoU F1 with intervals over clips and seeds, probes each multi-frame model's history (the key
-frame copied into every history slot; another clip's history), and writes ``summary.json``, ``tables.md``,
-``val_f1.png``, ``history_use.png`` and ``comparison.jpg`` (the same challenging key frames, one column per model)
-to ``--out``, and prints the tables. ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean
+``--rows`` of the paper's tables), scores their final weights on the clean ``test``, the ``challenging`` and the
+two reveal splits in TuSimple F1 and IoU F1 with intervals over clips and seeds, probes each multi-frame model's
+history (the key frame copied into every history slot everywhere; on the reveal splits also the matched null,
+the history reversed, another clip's history and exact alignment; ``--all-probes``: another clip's history on
+every split), and writes ``summary.json``, ``tables.md``, ``val_f1.png``, ``history_use.png``,
+``history_use_vs_headroom.png`` and ``comparison.jpg`` (the same challenging key frames, one column per model) to
+``--out``, and prints the tables. ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean
 nothing; the tests run it).
 """
 
@@ -20,6 +22,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -82,6 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="ID",
         help="also rows of the paper's tables (configs/paper/rows/<ID>.yaml) on the demo's recipe",
+    )
+    p.add_argument(
+        "--all-probes",
+        action="store_true",
+        help="probe the history with another clip's on the test and challenging splits too (the reveal splits "
+        "always are): a third prediction of their key frames by every multi-frame model",
     )
     p.add_argument("--max-overlays", type=int, default=12, help="overlay pictures per model and split")
     p.add_argument("--quick", action="store_true", help="a seconds-long smoke run on a tiny set (tests)")
@@ -185,7 +194,9 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> 
     from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
     from stamlane.experiments.store import write_atomic
 
+    start = time.perf_counter()
     root = _data(args.data, args.out, args.quick)
+    print(f"[stamlane] synthetic set {root} ready in {(time.perf_counter() - start) / 60:.1f} min", flush=True)
     experiment = Experiment(
         rows,
         recipe,
@@ -195,6 +206,7 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> 
         bf16=bf16,
         quick=args.quick,
         max_overlays=args.max_overlays,
+        all_probes=args.all_probes,
     )
     summary = experiment.run(pairs(rows))
     runs = [("pretrain", "stage 1 (1 frame)", 0), *((r.name, r.label, recipe.pretrain_steps) for r in rows)]

@@ -43,12 +43,14 @@ from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.training.quiet import quiet_libraries
 
 __all__ = [
+    "ALL_PROBES",
     "CONFIG_DIR",
     "PROBES",
     "QUICK_OVERRIDES",
     "RECIPES",
     "REVEAL_PROBES",
     "REVEAL_SPLITS",
+    "SAME_AS_KEY",
     "SPANS",
     "Experiment",
     "ExperimentError",
@@ -58,15 +60,20 @@ __all__ = [
 ]
 
 CONFIG_DIR = configs_dir()
-PROBES = ("key", "other_clip")
-"""History probes of every multi-frame run on every split (`stamlane.data.clips.HISTORY_SOURCES` other than
-``real``)."""
+PROBES = ("key",)
+"""History probes of every multi-frame run on the `Experiment.splits` (`stamlane.data.clips.HISTORY_SOURCES` other
+than ``real``): the key frame copied into every history slot."""
+ALL_PROBES = ("key", "other_clip")
+"""`PROBES` with ``other_clip`` (another clip's history) on the `Experiment.splits` too (``all_probes``): whether a
+model leans on its history at all, on splits where the history shows little (the reveal splits always have it)."""
 REVEAL_SPLITS = ("reveal", "reveal-traffic")
 """The splits where the history reveals lanes (`stamlane.synth.generator.REVEAL`), scored where the set has them."""
 REVEAL_PROBES = ("key", "warped_key", "reversed", "other_clip", "exact")
 """The probes of a multi-frame run on `REVEAL_SPLITS`: `PROBES`, the matched null (the key frame warped out and back
 through each history frame's homography), the history in reverse order, and ``exact``: the real history aligned
 by the generator's exact homographies instead of ORB (runs that align on the fly only)."""
+SAME_AS_KEY = ("warped_key",)
+"""Probes whose input equals ``key``'s for a run that does not align: scored as ``key`` without predicting."""
 SPANS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
 """The spans (frames, stride) whose oracle headroom is measured on every split with visibility masks, within the
 reach of its masks (``dataset.json``'s ``visibility_reach``)."""
@@ -117,6 +124,9 @@ class Recipe:
         pretrain: the stage-1 model.
         row_args: ``stamlane fit`` arguments of every row's training (not of stage 1), after its configs.
         val_checks: validations per run (for the curves; stage 2 validates half as often as stage 1).
+        val_batches: validation batches each validation scores (None: the whole split). The validations only draw
+            the curves (every score is of the final weights, on the test splits); how many batches they read
+            leaves the final weights bit for bit the same (tests/experiments/test_engine_speed.py).
     """
 
     name: str
@@ -125,6 +135,7 @@ class Recipe:
     pretrain: Row | None = None
     row_args: tuple[str, ...] = ()
     val_checks: int = 4
+    val_batches: int | None = None
 
     def settings(self) -> dict[str, Any]:
         return {
@@ -140,13 +151,13 @@ KEY_CORRUPTION = ("--data.augment.key_corruption=0.5", "--data.augment.key_corru
 """Stage 2 of the CPU recipe: half the training clips have their key frame's near road blanked or the frame
 overexposed, history intact (`stamlane.data.corruption`): the reason to read the history (docs/training.md)."""
 RECIPES = {
-    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_args=KEY_CORRUPTION),
+    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_args=KEY_CORRUPTION, val_batches=25),
     "paper": Recipe("paper", steps=1500),
 }
 """The named recipes (docs/training.md): ``cpu``, the demo's two stages (1,200 single-frame steps from scratch,
 then each row for 300 steps from those weights with the key frame corrupted in half the clips: every model gets
-1,500 steps on the same data); ``paper``, every row from scratch for 1,500 steps (the paper's protocol at a CPU
-budget). Steps can be changed per call."""
+1,500 steps on the same data; the validations of the curves on 25 batches, 100 clips); ``paper``, every row from
+scratch for 1,500 steps (the paper's protocol at a CPU budget). Steps can be changed per call."""
 
 
 def _cli(args: list[str], **kwargs: Any) -> Any:
@@ -249,6 +260,8 @@ class Experiment:
         bf16: bfloat16 autocast in every run.
         splits: the label files scored.
         probes: score multi-frame runs with their history probed too.
+        all_probes: `ALL_PROBES` instead of `PROBES` on ``splits`` (another clip's history too: a third prediction of
+            every clean and challenging key frame).
         temporal: predict the frames of `stamlane.synth.generator.TEMPORAL_LABELS` one after the other (each
             with its own history) and score their temporal stability, where the set has that file.
         extra: further ``stamlane fit`` arguments of every run, after the row's base config and before its row
@@ -266,11 +279,17 @@ class Experiment:
     bf16: bool = False
     splits: tuple[str, ...] = ("test", "challenging")
     probes: bool = True
+    all_probes: bool = False
     temporal: bool = True
     extra: tuple[str, ...] = ()
     quick: bool = False
     max_overlays: int = 12
     log: Callable[[str], None] = field(default=lambda line: print(f"[stamlane] {line}", flush=True))
+    _start: float = field(default_factory=time.perf_counter, init=False, repr=False)
+
+    def _say(self, line: str) -> None:
+        """A progress line, with the minutes since the experiment began (where the time goes, on every machine)."""
+        self.log(f"{(time.perf_counter() - self._start) / 60:5.1f} min  {line}")
 
     # ------------------------------------------------------------------ settings and folders
     def settings(self) -> dict[str, Any]:
@@ -295,14 +314,23 @@ class Experiment:
         return (*self.splits, *extra)
 
     def probes_of(self, split: str, record: dict[str, Any]) -> tuple[str, ...]:
-        """The history probes of a run on ``split``: none for a single frame; `REVEAL_PROBES` on the reveal splits
-        (``exact`` only for a run that aligns on the fly), `PROBES` elsewhere."""
+        """The history probes of a run on ``split``: none for a single frame; `REVEAL_PROBES` on the reveal splits,
+        `PROBES` (`ALL_PROBES` with ``all_probes``) elsewhere. A run that does not align predicts neither ``exact``
+        (there is no alignment to make exact) nor ``warped_key``: without alignment the key frame warped out comes
+        back unwarped, the very input of ``key`` (`stamlane.data.clips.warped_key`), so its scores are ``key``'s
+        (`SAME_AS_KEY`)."""
         if not self.probes or record["frames"] < 2:
             return ()
         if split not in REVEAL_SPLITS:
-            return PROBES
-        aligned = _clip_option(Path(record["run"]), "align", "fly") == "fly"
-        return tuple(p for p in REVEAL_PROBES if p != "exact" or aligned)
+            return ALL_PROBES if self.all_probes else PROBES
+        if _aligns(record):
+            return REVEAL_PROBES
+        return tuple(p for p in REVEAL_PROBES if p != "exact")
+
+    def predicted_as(self, record: dict[str, Any], source: str) -> str:
+        """The history source whose predictions stand for ``source``: ``key`` for `SAME_AS_KEY` on a run that does
+        not align (the same input: predicted once), else ``source``."""
+        return "key" if source in SAME_AS_KEY and not _aligns(record) else source
 
     # ------------------------------------------------------------------ training and prediction
     def _common(self, row: Row) -> list[str]:
@@ -340,6 +368,7 @@ class Experiment:
                     f"--seed_everything={seed}",
                     f"--trainer.max_steps={steps}",
                     f"--trainer.val_check_interval={val_every}",
+                    *([f"--trainer.limit_val_batches={self.recipe.val_batches}"] if self.recipe.val_batches else []),
                     f"--trainer.log_every_n_steps={max(1, min(25, val_every))}",
                     f"--trainer.default_root_dir={self.out / name}",
                     f"--trainer.logger.save_dir={self.out}",
@@ -397,9 +426,9 @@ class Experiment:
             _verify_checkpoint(record, self.out / name)
             if record.get("recipe_args", True) != row.recipe_args:
                 raise ExperimentError(f"{self.out / name} was trained with other recipe arguments; use another --out")
-            self.log(f"seed {seed}, {label}: {row.label}, done before, reused")
+            self._say(f"seed {seed}, {label}: {row.label}, done before, reused")
             return record
-        self.log(f"seed {seed}, {label}: {row.label}, {steps} steps")
+        self._say(f"seed {seed}, {label}: {row.label}, {steps} steps")
         start = time.perf_counter()
         run = self._fit(row, steps, seed, init)
         record = self.settings() | {
@@ -427,10 +456,15 @@ class Experiment:
                 current = labels.get(split) == digest and key in scores
                 if current and not rescore:
                     continue
-                pred_dir = self.pred_dir(name, split, source)
+                pred_dir = self.pred_dir(name, split, self.predicted_as(record, source))
+                if self.predicted_as(record, source) != source:  # scored under its own name, predicted once
+                    scores[key] = scores[f"{split}@key"]
+                    changed = True
+                    continue
                 if not current or not (pred_dir / "predictions.json").is_file():
                     if key in scores:
-                        self.log(f"{name}: the {split} labels changed, predicting them again")
+                        self._say(f"{name}: the {split} labels changed, predicting them again")
+                    self._say(f"{name}: predicting {key}")
                     self.predict(name, Path(record["run"]), split, source)
                 scores[key] = score_split(pred_dir, self.root, split, record["frames"])
                 changed = True
@@ -439,13 +473,14 @@ class Experiment:
         if frames is not None:  # the key-copied probe too: does the history itself make the lanes steadier?
             digest = _sha256(self.root / f"{frames}.json")
             for source in (
-                ("real", *PROBES[:1]) if self.probes and record["frames"] > 1 else ("real",)
+                ("real", "key") if self.probes and record["frames"] > 1 else ("real",)
             ):  # another clip's history is one clip's for every frame: not a probe of time
                 key = frames if source == "real" else f"{frames}@{source}"
                 if labels.get(frames) == digest and key in scores:
                     continue
                 pred_dir = self.pred_dir(name, frames, source)
                 if labels.get(frames) != digest or not (pred_dir / "predictions.json").is_file():
+                    self._say(f"{name}: predicting {key} frame after frame")
                     self.predict(name, Path(record["run"]), frames, source)
                 scores[key] = score_temporal(pred_dir, self.root, frames)
                 changed = True
@@ -516,7 +551,7 @@ class Experiment:
             raise ExperimentError(f"two rows share a name: {names}")
         self.out.mkdir(parents=True, exist_ok=True)
         quiet_libraries()
-        start = time.perf_counter()
+        start = self._start = time.perf_counter()
         scores = Scores()
         records: dict[str, list[dict[str, Any]]] = {r.name: [] for r in self.rows}
         steps = self.recipe.steps + self.recipe.pretrain_steps
@@ -534,11 +569,12 @@ class Experiment:
                 self._score(name, record)
                 for key in record["scores"]:
                     split, _, source = key.partition("@")
-                    pred_dir = self.pred_dir(name, split, source or "real")
+                    pred_dir = self.pred_dir(name, split, self.predicted_as(record, source or "real"))
                     read = read_per_clip if split == self.temporal_split() else read_per_image
                     per_image, clips = read(pred_dir)
                     scores.add(row.name + (f"@{source}" if source else ""), split, seed, per_image, clips)
                 records[row.name].append(record)
+        self._say("scoring the oracles of the labels")
         all_views = views(self.root, scores.clips)
         multi = [r.name for r in self.rows if records[r.name] and records[r.name][0]["frames"] > 1]
         frames = sorted({records[n][0]["frames"] for n in multi})
@@ -611,6 +647,11 @@ def _visibility_reach(root: Path) -> dict[str, int]:
     format 6, `stamlane.synth.generator.FIRST_KEY`)."""
     info = root / "dataset.json"
     return json.loads(info.read_text()).get("visibility_reach", {}) if info.is_file() else {}
+
+
+def _aligns(record: dict[str, Any]) -> bool:
+    """Whether a run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
+    return _clip_option(Path(record["run"]), "align", "fly") == "fly"
 
 
 def _clip_option(run: Path, name: str, default: Any) -> Any:
