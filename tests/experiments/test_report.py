@@ -1,29 +1,55 @@
-"""The report: the paper's tables from one or several run sets, replication, and summaries of the older format
-(these tests write their summaries in it: reading them goes through the converter)."""
+"""The report: the paper's tables from one or several run sets, replication, and the claims it makes."""
 
 from __future__ import annotations
 
 import numpy as np
+from stamlane_eval.stats import seed_interval
 
 from stamlane.experiments.report import paper_tables, replication
-from stamlane.experiments.summary import Summary
+from stamlane.experiments.summary import FORMAT, Summary
 from stamlane.experiments.tables import load_tables
+
+SPLITS = ("test", "challenging")
+
+
+def _value(mean: float, std: float | None = None) -> dict:
+    return {"mean": mean, "std": std, "ci95": None, "seeds": 1, "images": 0}
+
+
+def _difference(a: str, b: str, view: str, diff: float, metric: str = "tusimple_f1", **seeds: object) -> dict:
+    """``a - b`` with the clip interval ``diff -+ 0.01``."""
+    found = {"kind": "models", "a": a, "b": b, "view": view, "metric": metric, "diff": diff}
+    return found | {"ci95": [diff - 0.01, diff + 0.01], **seeds}
 
 
 def _summary(rows: dict[str, float], diffs: dict[tuple[str, str], float]) -> dict:
-    """A demo summary with one seed: ``rows`` = paper row -> F1 (test = challenging), ``diffs`` = paired F1
+    """A summary with one seed: ``rows`` = paper row -> F1 (test = challenging), ``diffs`` = paired F1
     differences (interval +-0.01)."""
-    score = {"f1_mean": 0.0, "f1_std": None, "f1_ci95": None}
     models = [
-        {"name": r, "paper_row": r, "test": score | {"f1_mean": f}, "challenging": score | {"f1_mean": f}}
+        {
+            "name": r,
+            "label": r,
+            "paper_row": r,
+            "configs": [],
+            "frames": 0,
+            "steps": 0,
+            "runs": [],
+            "values": {"tusimple_f1": {split: _value(f) for split in SPLITS}},
+        }
         for r, f in rows.items()
     ]
-    comparisons = [
-        {"a": a, "b": b, "split": split, "f1_diff": d, "ci95": [d - 0.01, d + 0.01]}
-        for (a, b), d in diffs.items()
-        for split in ("test", "challenging")
-    ]
-    return {"seeds": [0], "models": models, "comparisons": comparisons}
+    differences = [_difference(a, b, split, d) for (a, b), d in diffs.items() for split in SPLITS]
+    return {
+        "data": "",
+        "splits_sha256": {},
+        "seeds": [0],
+        "recipe": {},
+        "bf16": False,
+        "iou_width": None,
+        "models": models,
+        "differences": differences,
+        "format": FORMAT,
+    }
 
 
 def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() -> None:
@@ -73,53 +99,30 @@ def test_paper_tables_from_two_run_sets_compare_each_row_inside_its_own_set() ->
 
 
 def test_paper_tables_show_the_interval_over_seeds_and_claim_only_what_both_intervals_support() -> None:
-    """A summary written before the demo kept per-seed differences: the interval over seeds comes from its runs."""
-    runs = {"f1_keyonly": [0.90, 0.91, 0.92], "f4_mixed_cs_features": [0.93, 0.91, 0.95]}  # diffs 3, 0, 3 points
-    score = {"f1_mean": 0.9, "f1_std": 0.01, "f1_ci95": None}
-    summary = {
-        "seeds": [0, 1, 2],
-        "models": [
-            {
-                "name": row,
-                "paper_row": row,
-                "test": score,
-                "challenging": score,
-                "runs": [{"seed": s, "test": {"f1": f}, "challenging": {"f1": f}} for s, f in enumerate(f1)],
-            }
-            for row, f1 in runs.items()
-        ],
-        "comparisons": [
-            {"a": "f4_mixed_cs_features", "b": "f1_keyonly", "split": split, "f1_diff": 0.02, "ci95": [0.01, 0.03]}
-            for split in ("test", "challenging")
-        ],
-    }
+    seed_diffs = [0.03, 0.0, 0.03]  # per seed, 3 points, 0, 3 points
+    seeds = {"seed_diffs": seed_diffs, "seed_ci95": list(seed_interval(seed_diffs).interval)}
+    summary = _summary({"f1_keyonly": 0.9, "f4_mixed_cs_features": 0.9}, {})
+    summary["seeds"] = [0, 1, 2]
+    summary["differences"] = [
+        _difference("f4_mixed_cs_features", "f1_keyonly", split, 0.02, **seeds) for split in SPLITS
+    ]
     index = load_tables()
     line = next(
         ln for ln in paper_tables([Summary.from_dict(summary)], index, ["1"]).splitlines() if "`f4_mixed_cs_f" in ln
     )
     # mean 2.0, std 1.732, t(0.975, 2) = 4.303: 2.0 -+ 4.30 -> [-2.3, +6.3]; the clip interval alone excludes 0
     assert line.endswith("| +2.0 [+1.0, +3.0] s[-2.3, +6.3] / +2.0 [+1.0, +3.0] s[-2.3, +6.3] | – | – |")
-    assert "seed_ci95" not in summary["comparisons"][0]  # the caller's summary is left as it was
 
 
 def test_paper_iou_tables_come_at_both_thresholds_with_the_difference_from_the_baseline() -> None:
     summary = _summary({"f1_keyonly": 0.90, "f4_mixed_cs_features": 0.92, "f2_noalign_add": 0.91, "f2_add": 0.93}, {})
     for m, f1 in zip(summary["models"], (0.40, 0.45, 0.42, 0.47)):
-        for key, more in (("iou@0.5", 0.0), ("iou@0.3", 0.2)):
-            m[key] = {
-                split: {"f1_mean": f1 + more, "f1_std": None, "f1_ci95": None} for split in ("test", "challenging")
-            }
-    summary["iou_comparisons"] = [
-        {
-            "a": "f2_add",
-            "b": "f2_noalign_add",
-            "split": split,
-            "metric": key,
-            "f1_diff": d,
-            "ci95": [d - 0.01, d + 0.01],
-        }
-        for key, d in (("iou@0.5", 0.05), ("iou@0.3", -0.02))
-        for split in ("test", "challenging")
+        for key, more in (("culane_f1@0.5", 0.0), ("culane_f1@0.3", 0.2)):
+            m["values"][key] = {split: _value(f1 + more) for split in SPLITS}
+    summary["differences"] = [
+        _difference("f2_add", "f2_noalign_add", split, d, metric=key)
+        for key, d in (("culane_f1@0.5", 0.05), ("culane_f1@0.3", -0.02))
+        for split in SPLITS
     ]
     index = load_tables()
     table = paper_tables([Summary.from_dict(summary)], index, ["8"]).splitlines()
@@ -134,7 +137,7 @@ def test_paper_iou_tables_come_at_both_thresholds_with_the_difference_from_the_b
     assert at_03.startswith("| alignment, sum (`f2_add`) | 67.12 | 67.0 | 67.0 |")
     assert at_03.endswith("| **-2.0 [-3.0, -1.0]** / **-2.0 [-3.0, -1.0]** | – |")
     assert "| not run |" in next(line for line in table if "`f2_noalign_mixed_cs_gates`" in line)
-    # a summary written before the demo scored IoU: its rows are not in the IoU tables
+    # a summary without the IoU F1: its rows are not in the IoU tables
     old = _summary({"f1_keyonly": 0.90, "f2_add": 0.93}, {})
     assert "(0 of 6 rows run" in paper_tables([Summary.from_dict(old)], index, ["8"])
 

@@ -6,7 +6,7 @@
     stamlane report SUMMARY_1 SUMMARY_2 --replication          # rows trained in both sets, side by side
     stamlane report SUMMARY --csv summary.csv --plot history_use.png --out tables.md
 
-Reads summaries of this version and those written before the typed summary (converted as they are read).
+Reads summaries of format 2 (`stamlane.experiments.summary.FORMAT`).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
 def _report(args: argparse.Namespace) -> int:
     from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
     from stamlane.experiments.summary import Summary
-    from stamlane.experiments.tables import default_index_path, load_tables
+    from stamlane.experiments.table_index import default_index_path, load_tables
     from stamlane.safety.guard import atomic_path, check_outputs, temporary_name, write_atomic
 
     outputs = [p for p in (args.out, args.csv, args.plot) if p is not None]

@@ -2,8 +2,7 @@
 
 Every number of a table is here with its provenance: which models and seeds, which view of which split, which
 metric (`stamlane.experiments.metrics`), its 95 % interval over the test clips and, with several seeds, over the
-training seeds. ``Summary.write`` serialises the dataclasses to json; ``Summary.read`` reads them back, and reads
-summaries written before this format (``stamlane demo`` up to the IoU F1 and the baselines) by converting them.
+training seeds. ``Summary.write`` serialises the dataclasses to json; ``Summary.read`` reads them back.
 
 A **view** is a set of scored key frames: a split (``test``, ``challenging``) or one factor of the challenging
 split (``challenging:glare``). A **subject** is what produced predictions: a trained model (``stam4``), the same
@@ -19,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from stamlane.experiments.store import write_atomic
+from stamlane.safety.guard import write_atomic
 
 __all__ = [
     "DIFFERENCE_KINDS",
@@ -33,7 +32,8 @@ __all__ = [
 ]
 
 FORMAT = 2
-"""Format of ``summary.json``; 1 (no ``format`` key) is the demo's older, untyped summary."""
+"""Format of ``summary.json``. Format 1 (no ``format`` key), the untyped summary ``stamlane demo`` wrote up to the
+IoU F1 and the baselines, is no longer read: the summaries kept in docs/results/ were converted once."""
 DIFFERENCE_KINDS = ("models", "history_key", "history_other", "headroom")
 """``models``: two trained models on the same images; ``history_key`` / ``history_other``: a model with its real
 history minus the same weights with the key frame copied / another clip's history (its history use);
@@ -197,17 +197,16 @@ class Summary:
         if not isinstance(data, dict) or "models" not in data:
             raise SummaryError("not an experiment summary (no 'models')")
         fmt = data.get("format", 1)
-        if fmt == 1:
-            from stamlane.experiments.legacy import convert_format_1
-
-            try:
-                data = convert_format_1(data)
-            except (TypeError, KeyError, AttributeError, IndexError, ValueError) as err:
-                raise SummaryError(f"malformed format-1 summary: {type(err).__name__} {err}") from None
-        elif isinstance(fmt, int) and not isinstance(fmt, bool) and fmt > FORMAT:
+        number = isinstance(fmt, int) and not isinstance(fmt, bool)
+        if number and fmt == 1:
+            raise SummaryError(
+                "a summary of format 1 (the untyped summary of the first demos) is no longer read; run the "
+                "experiment again to write it in this format"
+            )
+        if number and fmt > FORMAT:
             raise SummaryError(f"summary format {fmt} is newer than this stamlane reads ({FORMAT}); upgrade stamlane")
-        elif fmt != FORMAT:
-            raise SummaryError(f"summary format {reprlib.repr(fmt)} is not one this stamlane reads (1, {FORMAT})")
+        if fmt != FORMAT:
+            raise SummaryError(f"summary format {reprlib.repr(fmt)} is not one this stamlane reads ({FORMAT})")
         if not isinstance(data.get("models"), list):
             raise SummaryError("malformed summary: 'models' is not a list")
         try:
@@ -234,7 +233,7 @@ class Summary:
 
     @classmethod
     def read(cls, path: Path) -> Summary:
-        """Read ``summary.json`` (this format or format 1).
+        """Read ``summary.json``.
 
         Raises:
             SummaryError: unreadable, not json, or not a summary (the message names the file).
