@@ -1,17 +1,19 @@
 """The generator split by job: the layout and settings load without the renderer, the old module path still offers
-every name."""
+every name, and what a generation writes is written atomically."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 import stamlane.synth
 import stamlane.synth.generator as old_path
 from stamlane.synth import clip, config, dataset, layout, statistics, writer
+from stamlane.synth.writer import write_json_lines
 
 RENDERER = (
     "cv2",
@@ -64,3 +66,37 @@ def test_the_old_module_path_offers_every_name_from_its_home():
         assert getattr(stamlane.synth, name) is getattr(old_path, name)
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         _ = stamlane.synth.nothing
+
+
+def test_an_interrupted_label_file_leaves_the_old_one_whole(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    path = tmp_path / "train.json"
+    path.write_text('{"raw_file": "old"}\n')
+
+    def half_then_killed(self: Path, text: str, *args: object, **kwargs: object) -> None:
+        with open(self, "w") as f:
+            f.write(text[: len(text) // 2])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "write_text", half_then_killed)
+    with pytest.raises(KeyboardInterrupt):
+        write_json_lines(path, [{"raw_file": f"clips/train-{i:04d}/20.jpg"} for i in range(10)])
+    monkeypatch.undo()
+    assert path.read_text() == '{"raw_file": "old"}\n'
+    assert [p.name for p in tmp_path.iterdir()] == ["train.json"]  # no temporary file left behind
+
+
+def test_an_interrupted_generation_leaves_no_record_of_a_complete_set(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    root = tmp_path / "set"
+    small = config.SynthConfig(width=64, height=48, num_frames=4)
+    dataset.generate_dataset(root, train=1, val=0, test=0, challenging=0, config=small, progress=False)
+    assert (root / "dataset.json").is_file()
+
+    def killed(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dataset, "write_temporal_labels", killed)  # the last step before dataset.json
+    with pytest.raises(KeyboardInterrupt):
+        dataset.generate_dataset(root, train=2, val=0, test=0, challenging=0, config=small, progress=False)
+    assert not (root / "dataset.json").exists()  # the old set's record went first: the folder reads as incomplete
+    assert not [p for p in root.rglob("*") if ".tmp" in p.name]
+    assert len((root / "train.json").read_text().splitlines()) == 2  # every file whole

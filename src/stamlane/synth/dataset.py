@@ -3,7 +3,8 @@ clip (`stamlane.synth.writer`), the label files of the splits, factors and kinds
 ``dataset.json`` with the settings and statistics. The layout is `stamlane.synth.layout`'s.
 
 Every clip is a function of ``(seed, split, index)`` alone, so the files do not depend on the order the clips are
-rendered in nor on the number of workers.
+rendered in nor on the number of workers; every file is written atomically, and ``dataset.json`` is removed first
+and written last, so a set that has it is complete.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from stamlane.safety.guard import write_atomic
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import FACTORS, REVEAL, REVEAL_TRAFFIC, TRAIN_MOTION, SynthConfig, clip_kinds
 from stamlane.synth.layout import (
@@ -162,6 +164,7 @@ def generate_dataset(
     keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
     reach_of = {split: REVEAL_FRAMES - 1 if split in ("reveal", "reveal-traffic") else FIRST_KEY for split in SPLITS}
     root.mkdir(parents=True, exist_ok=True)
+    (root / "dataset.json").unlink(missing_ok=True)  # the old set's record first: incomplete until written, last
     stats: dict[str, dict[str, float]] = {}
     clip_factors: dict[str, str] = {}
     by_kind: dict[tuple[str, str], list[dict]] = {}
@@ -233,5 +236,5 @@ def generate_dataset(
         | {split: [REVEAL_FRAMES] for split in ("reveal", "reveal-traffic") if counts[split]},
         "statistics": stats,
     }
-    (root / "dataset.json").write_text(json.dumps(info, indent=2))
+    write_atomic(root / "dataset.json", json.dumps(info, indent=2))
     return info

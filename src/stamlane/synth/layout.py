@@ -24,6 +24,9 @@ this layout (``<id>`` like ``train-0007``)::
                                                 ``stamlane.synth.visibility``)
     <root>/dataset.json                         generator settings and statistics (written last: a set without
                                                 it is incomplete)
+
+Every file is written under a temporary name and renamed (``stamlane.safety.guard.atomic_path``): a generation
+that is killed leaves whole files or none.
 """
 
 from __future__ import annotations
