@@ -85,7 +85,9 @@ def test_tusimple_swapped_files_are_named(capsys: pytest.CaptureFixture[str]) ->
     assert code == 2 and "look swapped" not in err and "h_samples" in err  # read as given: the pred has no rows
 
 
-def test_a_frame_labels_list_is_pointed_to_the_video_command(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+def test_a_frame_labels_list_is_pointed_to_the_video_command(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     """The generator's ``frame_labels/<clip>.json`` is one JSON list of records, which lane.py cannot read either:
     refused in one line that names the command that reads it."""
     records = [json.loads(line) for line in TS_GT.read_text().splitlines()[:3]]
