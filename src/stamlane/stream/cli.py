@@ -51,6 +51,7 @@ from stamlane.stream.eval_outputs import (
     folder_temporaries,
     frame_namer,
 )
+from stamlane.weights import resolve
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
@@ -65,7 +66,7 @@ class StreamError(Exception):
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
     parser.add_argument("video", help="a video file or a folder of frames (in name order, numbers compared as numbers)")
-    parser.add_argument("--ckpt", help="checkpoint written by `stamlane fit`")
+    parser.add_argument("--ckpt", type=resolve, help="checkpoint written by `stamlane fit`, or a shipped model's name")
     parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
     parser.add_argument("--out", help="output folder (default outputs/stream/<VIDEO name>)")
     parser.add_argument("--num-frames", type=int, help="T, frames fused (default: as trained)")
@@ -77,6 +78,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-frames", type=int, help="stop after this many frames")
     parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")
     parser.add_argument("--fps", type=float, help="frame rate of overlay.mp4 (default: the video's, else 10)")
+    parser.add_argument(
+        "--device",
+        default="auto",
+        help="where the network runs: cpu, cuda, cuda:N (default auto: the GPU where there is one); alignment and "
+        "decoding stay on the CPU",
+    )
     parser.add_argument(
         "--bf16",
         choices=["auto", "true", "false"],
@@ -198,6 +205,23 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     return module, clip
 
 
+def _device(name: str) -> Any:
+    """The ``--device`` as a ``torch.device`` that this machine has (``auto``: the first GPU where there is one)."""
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise StreamError(f"--device {name!r} is not a device: give cpu, cuda, cuda:N or auto") from None
+    if device.type not in ("cpu", "cuda"):
+        raise StreamError(f"--device {name!r}: stamlane stream runs on cpu or cuda")
+    if device.type == "cuda" and not (torch.cuda.is_available() and (device.index or 0) < torch.cuda.device_count()):
+        raise StreamError(f"--device {name!r}: this machine has {torch.cuda.device_count()} CUDA device(s)")
+    return device
+
+
 def load_predictor(args: argparse.Namespace) -> Any:
     """The `StreamingPredictor` the command line asks for."""
     from stamlane.stream.metadata import trained_crop_top
@@ -205,13 +229,14 @@ def load_predictor(args: argparse.Namespace) -> Any:
 
     if args.ckpt and not Path(args.ckpt).is_file():
         raise StreamError(f"checkpoint {args.ckpt} does not exist")
+    device = _device(args.device)
     module, clip = _load_module(args)
-    module.eval()
+    module.eval().to(device)
     overrides: dict[str, Any] = {"align": not args.no_align}
     if args.bf16 is not None:
         from stamlane.training.hardware import resolve_bf16
 
-        overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16))
+        overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16), device.type)
     num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
     image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
     if num_frames is None or image_size is None:
