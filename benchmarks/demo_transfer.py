@@ -4,9 +4,10 @@
                                        [--frames DIR] [--out outputs/bench/transfer]
 
 1. Writes the test and challenging splits of a synthetic set made with master seed ``--seed`` (the demo trains
-   on seed 0; the same settings otherwise), predicts them with the final weights of every run of the demo
-   (``<demo>/<model>-s<seed>/run``) and scores them as the demo does: F1 per run, the 95 % interval (clips
-   resampled) and the paired differences against the single-frame model.
+   on seed 0; the same settings otherwise), predicts them with the final weights of every finished run of the
+   demo (its run store, `stamlane.experiments.store.RunStore`) and scores them as the demo does
+   (`stamlane.experiments.runner.Runner.score`): F1 per run, the 95 % interval (clips resampled) and the paired
+   differences against the single-frame model.
 2. With ``--frames DIR`` (1280x720 road frames, each on its own): runs every model on each frame as if the car
    stood still (the frame is its own history, so alignment is the identity) and writes ``real_frames.jpg``,
    one row per frame, one column per model. The models never saw a real frame.
@@ -23,46 +24,44 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from stamlane.experiments.demo import MODELS
+from stamlane.experiments.store import RunStore
 from stamlane.training.compat import clip_options
 
 SPLITS = ("test", "challenging")
 
 
-def _runs(demo: Path) -> dict[str, list[Path]]:
-    runs: dict[str, list[Path]] = {}
-    for model in MODELS:
-        found = sorted(p / "run" for p in demo.glob(f"{model.name}-s*") if (p / "run" / "checkpoints").is_dir())
-        if found:
-            runs[model.name] = found
-    return runs
+def _runs(demo: Path) -> dict[str, list[int]]:
+    """The seeds of the finished runs of the demo's models under ``demo`` (its run store), per model."""
+    store = RunStore(demo)
+    found = {model.name: store.seeds(model.name) for model in MODELS}
+    return {model: seeds for model, seeds in found.items() if seeds}
 
 
 def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     """Score every demo run on test/challenging clips of generator seed ``seed``, as the demo scores its own."""
     from dataclasses import asdict
 
-    from stamlane.experiments.engine import RECIPES, Experiment
     from stamlane.experiments.metrics import TUSIMPLE
-    from stamlane.experiments.scoring import read_per_image, score_split
-    from stamlane.experiments.stats import Scores, views
-    from stamlane.synth.generator import generate_dataset
+    from stamlane.experiments.runner import Runner, frames_of
+    from stamlane.experiments.scores import Scores, views
+    from stamlane.synth import generate_dataset
 
     root = out / f"synthetic-seed{seed}"
     if not (root / "dataset.json").is_file():
         generate_dataset(root, train=0, val=0, test=clips, challenging=clips, seed=seed, workers=2)
-    experiment = Experiment(list(MODELS), RECIPES["cpu"], [], root, out, max_overlays=4)
+    runs, runner = RunStore(demo), Runner(RunStore(out), root, max_overlays=4)  # the demo's runs, predicted here
     scores = Scores()
-    for name, runs in _runs(demo).items():
-        for run in runs:
-            frames = clip_options(yaml.safe_load((run / "config.yaml").read_text())["data"]).num_frames
+    for model, seeds in _runs(demo).items():
+        for seed in seeds:
+            name = runs.run_name(model, seed)
+            run = runs.run_dir(name)
+            record = {"run": str(run), "frames": frames_of(run)}  # scored on these clips, not kept in the demo's
+            runner.score(name, record, dict.fromkeys(SPLITS, ()))
             for split in SPLITS:
-                pred = experiment.predict(run.parent.name, run, split)
-                score_split(pred, root, split, frames)
-                per_image, groups = read_per_image(pred)
-                scores.add(name, split, int(run.parent.name.rsplit("-s", 1)[1]), per_image, groups)
+                per_image, groups = runner.scored(name, record, split)
+                scores.add(model, split, seed, per_image, groups)
     all_views = views(root, scores.clips)
     names = list(scores.quantities)
     pairs = [(name, "single") for name in names if name != "single" and "single" in names]
@@ -87,9 +86,10 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     from stamlane.training.module import StamLaneModule
 
     images = sorted(p for p in frames.iterdir() if p.suffix.lower() in (".jpg", ".png"))
+    store = RunStore(demo)
     predictors = []
-    for name, runs in _runs(demo).items():
-        ckpt = runs[0] / "checkpoints" / "last.ckpt"
+    for name, seeds in _runs(demo).items():
+        ckpt = store.last_ckpt(store.run_name(name, seeds[0]))
         module = StamLaneModule.from_checkpoint(ckpt)
         data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
         crop_top = module.hparams.get("crop_top") or clip_options(data).crop_top  # older runs: the data's

@@ -3,20 +3,23 @@
     python benchmarks/history_recipe.py [--out outputs/bench/history_recipe] [--variants NAME ...] [--seed 0]
                                         [--bf16 auto|true|false] [--data data/synthetic-v5]
 
-Every variant trains the demo's 4-frame pre-aligned STAM model (``configs/demo.yaml``) in the demo's two stages
-(the single-frame network from scratch, then the 4-frame model from its weights) or end to end, on the synthetic
-set of format 5, and validates on its val split (clean and factor clips; never the test or challenging clips)
-with `stamlane.training.history_use_monitor.HistoryUseMonitor`: the TuSimple F1 with the real history minus with the key frame
-copied into every history slot, at every validation. A stage 1 shared by several variants is trained once.
+Every variant is a recipe (`stamlane.experiments.recipes.Recipe`) of the demo's 4-frame pre-aligned STAM model
+(``configs/demo.yaml``): the demo's two stages (the single-frame network from scratch, then the 4-frame model from
+its weights) or end to end, on the synthetic set of format 5, validated on its val split (clean and factor clips;
+never the test or challenging clips) with `stamlane.training.history_use_monitor.HistoryUseMonitor`: the TuSimple
+F1 with the real history minus with the key frame copied into every history slot, at every validation. The runs
+are trained and scored by the experiments' runner (`stamlane.experiments.runner.Runner`), into its run store
+(``<out>/<row>-s<seed>/run``): a stage 1 shared by several variants is trained once (its row is named by its
+settings), and a finished run is reused, not trained again.
 
-After training, the final weights are scored on the val split three ways by the experiment engine (real
-history, the key frame copied, another clip's history; `stamlane.experiments.engine.Experiment.predict`), per
-factor: history use and the damage another clip's history does, with clip intervals.
+After training, the final weights are scored on the val split three ways (real history, the key frame copied,
+another clip's history; `Runner.score`), per factor: history use and the damage another clip's history does, with
+clip intervals.
 
-Writes ``<out>/history_recipe.json`` (per variant: settings, minutes, per validation step the val F1, the
+Writes ``<out>/history_recipe.json`` (per variant: its recipe, minutes, per validation step the val F1, the
 key-copied F1, the history use in F1 and in segmentation loss, and the final probes per view) and
 ``<out>/history_recipe.png`` (history use and val F1 over steps, one line per variant), and prints the last
-validation of each variant. A finished variant is read back, not trained again.
+validation of each variant.
 """
 
 from __future__ import annotations
@@ -25,42 +28,20 @@ import argparse
 import csv
 import hashlib
 import json
-import sys
-import time
-from dataclasses import dataclass, field
+from dataclasses import replace
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-CONFIGS = REPO / "configs"
+from stamlane.experiments.recipes import PRETRAIN, Recipe, Row
+from stamlane.experiments.runner import Runner
 
-
-@dataclass(frozen=True)
-class Stage:
-    """One training run: its config, data and model overrides, and steps."""
-
-    config: str
-    steps: int
-    overrides: tuple[str, ...] = ()
-
-    def key(self) -> str:
-        return json.dumps([self.config, self.steps, *self.overrides])
-
-
-@dataclass(frozen=True)
-class Variant:
-    """A recipe: an optional stage 1 (single frame, whose final weights start the main run) and the main run."""
-
-    name: str
-    description: str
-    main: Stage
-    stage1: Stage | None = None
-    notes: dict = field(default_factory=dict)
-
-
+MODEL = Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",))
+PROBED = ("key", "other_clip")
+"""The history probes of the final weights on val."""
 CLEAN = ("--data.train_labels=[train-clean.json]",)
 FACTORS = ()  # train.json: the clean clips and as many factor clips
 CORRUPT = ("--data.augment.key_corruption=0.5",)
 VAL = ("--data.val_labels=[val.json]",)
+MONITOR = ("--trainer.callbacks+=stamlane.training.history_use_monitor.HistoryUseMonitor",)
 TRUE = ("--data.clip.align=true",)  # the generator's exact homographies: alignment taken out of the question
 STRIDE8 = ("--model.fuse_skip=true",)  # measured as --model.skip_fusion=STAM (reduction 4, features): the same network
 
@@ -72,12 +53,17 @@ def _two_stage(
     steps2: int = 300,
     extra: tuple = (),
     stage1_data: tuple[str, ...] | None = None,
-) -> Variant:
-    return Variant(
+) -> Recipe:
+    """Stage 1 (1,200 single-frame steps on ``stage1_data``, default ``data``), then 300 steps of the model."""
+    return Recipe(
         name,
-        description,
-        Stage("demo.yaml", steps2, (*data, *VAL, *extra)),
-        Stage("demo_single.yaml", 1200, (*(data if stage1_data is None else stage1_data), *VAL)),
+        steps=steps2,
+        pretrain_steps=1200,
+        pretrain=PRETRAIN,
+        row_args=(*data, *VAL, *MONITOR, *extra),
+        pretrain_args=(*(data if stage1_data is None else stage1_data), *VAL, *MONITOR),
+        val_checks=6,
+        description=description,
     )
 
 
@@ -142,44 +128,15 @@ VARIANTS = {
             FACTORS + CORRUPT,
             extra=(*TRUE, *STRIDE8),
         ),
-        Variant(
+        Recipe(
             "end_to_end",
-            "factor clips and corruption, the 4-frame model from scratch for 1,500 steps",
-            Stage("demo.yaml", 1500, (*FACTORS, *CORRUPT, *VAL)),
+            steps=1500,
+            row_args=(*FACTORS, *CORRUPT, *VAL, *MONITOR),
+            val_checks=6,
+            description="factor clips and corruption, the 4-frame model from scratch for 1,500 steps",
         ),
     )
 }
-
-
-def _fit(stage: Stage, folder: Path, root: Path, seed: int, bf16: str, init: Path | None) -> Path:
-    """Train ``stage`` into ``folder`` and return its run folder (config.yaml, metrics.csv, checkpoints)."""
-    from stamlane.training.lightning_cli import StamLaneCLI
-
-    val_every = max(1, stage.steps // (6 if init is None else 3))
-    args = [
-        "fit",
-        "--config",
-        str(CONFIGS / stage.config),
-        f"--data.root={root}",
-        f"--model.bf16={bf16}",
-        f"--seed_everything={seed}",
-        f"--trainer.max_steps={stage.steps}",
-        f"--trainer.val_check_interval={val_every}",
-        "--trainer.enable_progress_bar=false",
-        f"--trainer.default_root_dir={folder}",
-        f"--trainer.logger.save_dir={folder}",
-        "--trainer.logger.name=.",
-        "--trainer.logger.version=run",
-        "--trainer.callbacks+=stamlane.training.history_use_monitor.HistoryUseMonitor",
-        *([f"--model.init_weights={init}"] if init else []),
-        *stage.overrides,
-    ]
-    argv, sys.argv = sys.argv, sys.argv[:1]
-    try:
-        cli = StamLaneCLI(args=args)
-    finally:
-        sys.argv = argv
-    return Path(cli.trainer.logger.log_dir)
 
 
 def _curve(run: Path, offset: int) -> list[dict]:
@@ -200,73 +157,57 @@ def _curve(run: Path, offset: int) -> list[dict]:
     return [{"step": step, **values} for step, values in sorted(found.items())]
 
 
-def probe(run: Path, root: Path, out: Path) -> dict:
-    """The final weights of ``run`` on the val split with the real history, the key frame copied and another clip's
-    history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
+def probe(runner: Runner, name: str, record: dict) -> dict:
+    """The final weights of run ``name`` on the val split with the real history, the key frame copied and another
+    clip's history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
     from dataclasses import asdict
 
-    from stamlane.experiments.engine import RECIPES, Experiment
     from stamlane.experiments.metrics import TUSIMPLE
-    from stamlane.experiments.scoring import read_per_image, score_split
-    from stamlane.experiments.stats import Scores, views
+    from stamlane.experiments.scores import Scores, views
 
-    experiment = Experiment([], RECIPES["cpu"], [], root, out, max_overlays=0)
+    if runner.score(name, record, {"val": PROBED}):
+        runner.store.mark(name, record)
     scores = Scores()
-    for source in ("real", "key", "other_clip"):
-        pred = experiment.predict("final", run, "val", source)
-        score_split(pred, root, "val", 4)
-        per_image, clips = read_per_image(pred)
-        scores.add("final" if source == "real" else f"final@{source}", "val", 0, per_image, clips)
+    for key in ("val", *(f"val@{source}" for source in PROBED)):
+        per_image, clips = runner.scored(name, record, key)
+        scores.add(key.replace("val", "final", 1), "val", 0, per_image, clips)
     found = {}
-    for view in views(root, scores.clips):
+    for view in views(runner.root, scores.clips):
         value = scores.value("final", view, TUSIMPLE)
         found[view.name] = {
             "f1": value.mean,
             "f1_ci95": value.ci95,
             **{
                 f"minus_{source}": asdict(scores.difference("probe", "final", f"final@{source}", view, TUSIMPLE))
-                for source in ("key", "other_clip")
+                for source in PROBED
             },
         }
     return found
 
 
-def run_variant(variant: Variant, out: Path, root: Path, seed: int, bf16: str, stage1_runs: dict) -> dict:
-    folder = out / variant.name
-    done = folder / "result.json"
-    if done.is_file():
-        result = json.loads(done.read_text())
-        if "probes" not in result:  # a variant trained before the probes were: probed now, not trained again
-            result["probes"] = probe(folder / "run", root, folder / "probes")
-            done.write_text(json.dumps(result, indent=2))
-        return result
-    start = time.perf_counter()
-    init, offset = None, 0
-    if variant.stage1 is not None:
-        key = variant.stage1.key()
-        if key not in stage1_runs:
-            stage1_dir = out / f"stage1-{hashlib.sha256(key.encode()).hexdigest()[:10]}"
-            ckpt = stage1_dir / "run" / "checkpoints" / "last.ckpt"
-            if not ckpt.is_file():
-                print(f"[history_recipe] stage 1 for {variant.name}: {variant.stage1}", flush=True)
-                _fit(variant.stage1, stage1_dir, root, seed, bf16, None)
-            stage1_runs[key] = ckpt
-        init, offset = stage1_runs[key], variant.stage1.steps
-    print(f"[history_recipe] {variant.name}: {variant.description}", flush=True)
-    run = _fit(variant.main, folder, root, seed, bf16, init)
-    result = {
-        "name": variant.name,
-        "description": variant.description,
-        "main": variant.main.__dict__ | {"overrides": list(variant.main.overrides)},
-        "stage1": None if variant.stage1 is None else variant.stage1.key(),
+def run_variant(runner: Runner, recipe: Recipe, seed: int) -> dict:
+    """Train (or reuse) the variant's runs, probe its final weights, and read its curves."""
+    settings = {"data": str(runner.root.resolve()), "bf16": runner.bf16, "extra": []}
+    init, offset, minutes = None, 0, 0.0
+    stage1 = recipe.pretraining()
+    if stage1 is not None:  # named by what it is: variants with the same stage 1 share its run
+        key = json.dumps([*PRETRAIN.configs, stage1.steps, *stage1.args])
+        row = replace(PRETRAIN, name=f"stage1-{hashlib.sha256(key.encode()).hexdigest()[:10]}")
+        first = runner.train(row, seed, stage1, settings | {"stage": key}, label=f"stage 1 of {recipe.name}")
+        init, offset, minutes = Path(first["last_ckpt"]), stage1.steps, first["train_minutes"]
+    row = replace(MODEL, name=recipe.name)
+    record = runner.train(row, seed, recipe.training(row), settings | recipe.settings(), init, recipe.name)
+    name = runner.store.run_name(row.name, seed)
+    return {
+        "name": recipe.name,
+        "description": recipe.description,
+        "recipe": recipe.settings(),
         "seed": seed,
-        "bf16": bf16,
-        "minutes": round((time.perf_counter() - start) / 60, 2),
-        "curve": _curve(run, offset),
-        "probes": probe(run, root, folder / "probes"),
+        "bf16": runner.bf16,
+        "minutes": round(minutes + record["train_minutes"], 2),
+        "curve": _curve(Path(record["run"]), offset),
+        "probes": probe(runner, name, record),
     }
-    done.write_text(json.dumps(result, indent=2))
-    return result
 
 
 def _plot(results: list[dict], path: Path) -> None:
@@ -296,21 +237,27 @@ def _plot(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def _say(line: str) -> None:
+    print(f"[history_recipe] {line}", flush=True)
+
+
 def main() -> None:
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.experiments.store import RunStore
+    from stamlane.experiments.workspace import add_bf16_argument, bf16_of
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/history_recipe"))
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--bf16", choices=("auto", "true", "false"), default="auto")
+    add_bf16_argument(parser)
     parser.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     args = parser.parse_args()
     if not (args.data / "train-clean.json").is_file():
         parser.error(f"{args.data} is not a synthetic set of format 5 (no train-clean.json); generate it first")
     args.out.mkdir(parents=True, exist_ok=True)
-    stage1_runs: dict = {}
-    results = [run_variant(VARIANTS[v], args.out, args.data, args.seed, args.bf16, stage1_runs) for v in args.variants]
+    runner = Runner(RunStore(args.out), args.data, bf16=bf16_of(args.bf16), progress=False, max_overlays=0, say=_say)
+    results = [run_variant(runner, VARIANTS[v], args.seed) for v in args.variants]
     (args.out / "history_recipe.json").write_text(json.dumps(results, indent=2))
     _plot(results, args.out / "history_recipe.png")
     print(

@@ -491,10 +491,10 @@ RECORD_KINDS = st.sampled_from(["json", "link-outside", "fifo", "deep", "binary"
 )
 def test_demo_run_records(kind: str, changes: dict[str, object]) -> None:
     """What a resumed ``stamlane demo`` / ``ablate`` reads back from a run folder (``done.json``, the checkpoint
-    it names): a record that is hostile in kind or value is refused in one line (`StoreError`, `ExperimentError`),
+    it names): a record that is hostile in kind or value is refused in one line (`ExperimentError`),
     one that is used holds the types it is used with, and nothing outside the experiment's folder is read."""
-    from stamlane.experiments.engine import ExperimentError, _verify_checkpoint
-    from stamlane.experiments.store import StoreError, file_sha256, finished
+    from stamlane.experiments.runner import _verify_checkpoint
+    from stamlane.experiments.store import ExperimentError, RunStore, file_sha256
 
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
@@ -530,10 +530,10 @@ def test_demo_run_records(kind: str, changes: dict[str, object]) -> None:
         seen = _fingerprint(outside)
         with _bounded(30):
             try:
-                got = finished(top / name, {"data": "d"}, top)
+                got = RunStore(top).finished(name, {"data": "d"})
                 if got is not None:
                     _verify_checkpoint(got, top / name)
-            except (StoreError, ExperimentError) as err:
+            except ExperimentError as err:
                 assert len(str(err).splitlines()) == 1
                 got = None
         if got is not None:  # what is reused holds what it is used with, inside the experiment

@@ -138,10 +138,13 @@ def test_a_checkpoint_of_today_carries_the_grouped_options(old_run: Path, tmp_pa
 
 
 def test_the_engine_reuses_and_scores_an_old_run(old_run: Path, tiny_set: Path, tmp_path: Path) -> None:
-    from stamlane.experiments.engine import RECIPES, Experiment, Row, _frames_of
-    from stamlane.experiments.store import mark_finished
+    """A run folder and record of before the groups, before recipes took stage-1 arguments and before the frames
+    were digested: reused as it is, and scored with its ``config.yaml``."""
+    from stamlane.experiments.engine import Experiment
+    from stamlane.experiments.recipes import RECIPES, Row
+    from stamlane.experiments.runner import frames_of
 
-    assert _frames_of(old_run) == 2
+    assert frames_of(old_run) == 2
     said: list[str] = []
     experiment = Experiment(
         [Row("stam4", "4 frames", ("demo.yaml",))],
@@ -159,11 +162,13 @@ def test_the_engine_reuses_and_scores_an_old_run(old_run: Path, tiny_set: Path, 
     shutil.copytree(old_run, run)
     settings = experiment.settings()
     assert settings["row_args"] != OLD_KEY_CORRUPTION  # today's names
-    record = settings | {"row_args": OLD_KEY_CORRUPTION, "seed": 0, "train_minutes": 0.1, "frames": 2}
+    old = {k: v for k, v in settings.items() if k != "pretrain_args"}  # recorded before stage 1 took arguments
+    record = old | {"row_args": OLD_KEY_CORRUPTION, "seed": 0, "train_minutes": 0.1, "frames": 2}
     record |= {"run": str(run), "last_ckpt": str(run / "checkpoints" / "last.ckpt")}
-    mark_finished(tmp_path / "exp" / "stam4-s0", record)
-    reused = experiment._trained(experiment.rows[0], 0, 300, None, "stage 2")
-    assert len(said) == 1 and said[0].endswith(" min  seed 0, stage 2: 4 frames, done before, reused")
-    assert reused["row_args"] == settings["row_args"]
-    experiment._score("stam4-s0", reused)  # predicts with the old run's config.yaml
+    experiment.store.mark("stam4-s0", record)
+    stage = experiment.recipe.training(experiment.rows[0])
+    reused = experiment.runner.train(experiment.rows[0], 0, stage, settings, label="stage 2")
+    assert [line.split(" min  ", 1)[1] for line in said] == ["seed 0, stage 2: 4 frames, done before, reused"]
+    assert reused["row_args"] == settings["row_args"] and reused["pretrain_args"] == []
+    assert experiment.runner.score("stam4-s0", reused, {"test": ()})  # predicts with the old run's config.yaml
     assert "test" in reused["scores"] and 0 <= reused["scores"]["test"]["f1"] <= 1

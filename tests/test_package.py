@@ -1,8 +1,10 @@
-"""The stamlane distribution carries its configs and its shipped weights: a wheel installed elsewhere runs ``stamlane demo`` / ``ablate``
-from any folder (`stamlane.configs.configs_dir`, the one way to find them)."""
+"""The stamlane distribution carries its configs and its shipped weights: a wheel installed elsewhere runs
+``stamlane ablate --list`` and ``stamlane demo --quick`` from an empty folder (`stamlane.configs.configs_dir`, the
+one way to find them)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -43,8 +45,8 @@ def test_the_wheel_carries_the_configs_and_finds_them_from_an_empty_folder(tmp_p
     env = {**os.environ, "PYTHONPATH": str(site)}
     check = (
         "import stamlane, stamlane.configs\n"
-        "from stamlane.experiments.engine import CONFIG_DIR\n"
-        "from stamlane.experiments.tables import load_tables\n"
+        "from stamlane.experiments.recipes import CONFIG_DIR\n"
+        "from stamlane.experiments.table_index import load_tables\n"
         f"assert stamlane.__file__.startswith({str(site)!r}), stamlane.__file__\n"
         f"assert str(CONFIG_DIR).startswith({str(site)!r}), CONFIG_DIR\n"
         "assert (CONFIG_DIR / 'demo.yaml').is_file() and (CONFIG_DIR / 'common' / 'demo_model.yaml').is_file()\n"
@@ -63,3 +65,15 @@ def test_the_wheel_carries_the_configs_and_finds_them_from_an_empty_folder(tmp_p
     assert listed.returncode == 0, listed.stderr
     assert "f4_mixed_cs_features" in listed.stdout
     assert list(empty.iterdir()) == []  # nothing written where it ran
+    demo = subprocess.run(
+        [sys.executable, "-m", "stamlane.cli", "demo", "--quick"],
+        cwd=empty,
+        env=env | {"OMP_NUM_THREADS": "1"},
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
+    assert demo.returncode == 0, demo.stderr[-2000:]
+    summary = json.loads((empty / "outputs" / "demo" / "summary.json").read_text())  # --out's default, here
+    assert [m["name"] for m in summary["models"]] == ["stam4", "single"]
+    assert summary["models"][0]["configs"] == ["configs/demo.yaml"]

@@ -10,7 +10,7 @@ import pytest
 import torch
 import yaml
 
-from stamlane.experiments.tables import load_tables
+from stamlane.experiments.table_index import load_tables
 from stamlane.training.lightning_cli import StamLaneCLI
 
 REPO = Path(__file__).resolve().parents[1]

@@ -16,7 +16,7 @@ from stamlane_eval.tusimple import paper_f1
 
 from stamlane.cli import main
 from stamlane.experiments.demo import pairs
-from stamlane.experiments.engine import KEY_CORRUPTION, Row
+from stamlane.experiments.recipes import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
 from stamlane.experiments.store import file_sha256
 from stamlane.experiments.summary import Summary
@@ -45,7 +45,13 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     summary = Summary.read(quick / "summary.json")
     assert [m.name for m in summary.models] == ["stam4", "single"]  # --quick leaves the no-alignment model out
     assert [m.frames for m in summary.models] == [4, 1] and summary.seeds == [0]
-    assert summary.recipe == {"name": "cpu", "pretrain_steps": 3, "steps": 2, "row_args": list(KEY_CORRUPTION)}
+    assert summary.recipe == {
+        "name": "cpu",
+        "pretrain_steps": 3,
+        "steps": 2,
+        "row_args": list(KEY_CORRUPTION),
+        "pretrain_args": [],
+    }
     assert (
         set(summary.splits_sha256) == {"test", "challenging", "reveal", "reveal-traffic"} and summary.iou_width == 5
     )  # 30 px at 256 of 1640

@@ -11,7 +11,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.experiments.engine import ALL_PROBES, PROBES, REVEAL_PROBES, Experiment, Recipe, Row
+from stamlane.experiments.engine import ALL_PROBES, PROBES, REVEAL_PROBES, Experiment
+from stamlane.experiments.recipes import Recipe, Row
+from stamlane.experiments.runner import predicted_as
 
 torch.set_num_threads(1)
 SHRINK = (
@@ -42,9 +44,9 @@ def test_which_probes_each_split_gets(tmp_path: Path) -> None:
     everywhere = Experiment([], Recipe("paper", steps=1), [0], tmp_path, tmp_path / "out", all_probes=True)
     assert everywhere.probes_of("challenging", aligned) == ALL_PROBES
     # the matched null of a run that does not align is the key copied: predicted once, under the key's name
-    assert experiment.predicted_as(unaligned, "warped_key") == "key"
-    assert experiment.predicted_as(aligned, "warped_key") == "warped_key"
-    assert experiment.predicted_as(unaligned, "reversed") == "reversed"
+    assert predicted_as(unaligned, "warped_key") == "key"
+    assert predicted_as(aligned, "warped_key") == "warped_key"
+    assert predicted_as(unaligned, "reversed") == "reversed"
 
 
 @pytest.mark.usefixtures("plain_argv")
@@ -81,7 +83,7 @@ def test_validating_on_fewer_batches_leaves_the_final_weights_bit_for_bit(tiny_s
     for batches in (None, 1):
         recipe = Recipe("paper", steps=6, val_checks=3, val_batches=batches)
         experiment = Experiment([row], recipe, [0], root, tmp_path / f"out{batches}", extra=SHRINK)
-        run = experiment._fit(row, recipe.steps, 0, None)
+        run = Path(experiment.runner.train(row, 0, recipe.training(row), experiment.settings())["run"])
         weights.append(torch.load(run / "checkpoints" / "last.ckpt", weights_only=True)["state_dict"])
         with (run / "metrics.csv").open() as f:
             validated = [r for r in csv.DictReader(f) if r.get("val/tusimple_f1")]

@@ -12,7 +12,8 @@ from stamlane_eval import temporal
 from stamlane_eval.io import read_tusimple, tusimple_points
 from stamlane_eval.video import Frame
 
-from stamlane.experiments.engine import Experiment, Recipe, Row
+from stamlane.experiments.engine import Experiment
+from stamlane.experiments.recipes import Recipe, Row
 from stamlane.synth.generator import FIRST_KEY, TEMPORAL_LABELS
 
 torch.set_num_threads(1)

@@ -9,7 +9,7 @@ import pytest
 from stamlane_eval.names import metric_name, parse_metric_name
 
 from stamlane.experiments.metrics import CLASS_RECALL, CULANE, METRICS, TEMPORAL, TUSIMPLE
-from stamlane.experiments.tables import load_tables, metric_key
+from stamlane.experiments.table_index import load_tables, metric_key
 
 
 def test_every_evaluator_metric_an_experiment_reports_has_its_callback_name() -> None:

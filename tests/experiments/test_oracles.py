@@ -1,4 +1,4 @@
-"""The oracles of the labels: key frame, aligned history, unaligned history (`stamlane.experiments.history`)."""
+"""The oracles of the labels: key frame, aligned history, unaligned history (`stamlane.experiments.oracles`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 from stamlane_eval.io import read_tusimple
 
 from stamlane.experiments.engine import oracle_subject
-from stamlane.experiments.history import ORACLES, hist_from_key, oracle_predictions, read_visibility
+from stamlane.experiments.oracles import ORACLES, hist_from_key, oracle_predictions
+from stamlane.experiments.scoring import read_visibility
 from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.synth.generator import REVEAL, SynthConfig, generate_clip
 

@@ -7,7 +7,7 @@ from stamlane_eval.stats import seed_interval
 
 from stamlane.experiments.report import paper_tables, replication
 from stamlane.experiments.summary import FORMAT, Summary
-from stamlane.experiments.tables import load_tables
+from stamlane.experiments.table_index import load_tables
 
 SPLITS = ("test", "challenging")
 

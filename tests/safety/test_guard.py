@@ -11,8 +11,8 @@ import pytest
 import torch
 
 from stamlane.experiments.demo import main as demo_main
-from stamlane.experiments.engine import ExperimentError, _check_run_config, _verify_checkpoint
-from stamlane.experiments.store import StoreError, file_sha256, finished
+from stamlane.experiments.runner import _verify_checkpoint, check_run_config
+from stamlane.experiments.store import ExperimentError, RunStore, file_sha256
 from stamlane.safety.budget import MAX_CLIP_PIXELS, BudgetError, check_clip, check_rate, check_size
 from stamlane.safety.guard import (
     GuardError,
@@ -74,7 +74,7 @@ def test_a_record_is_read_only_inside_its_folder(tmp_path: Path) -> None:
     with pytest.raises(GuardError, match="leads outside"):
         read_inside(run / "config.yaml", run, 1 << 20)
     with pytest.raises(ExperimentError, match="leads outside"):
-        _check_run_config(run)
+        check_run_config(run)
 
 
 def test_a_second_holder_of_an_output_folder_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -100,16 +100,20 @@ def test_run_records_that_link_out_or_hold_the_wrong_types_are_refused(tmp_path:
     ckpt.parent.mkdir(parents=True)
     torch.save({"state_dict": {"w": torch.zeros(2)}}, ckpt)
     good = {"run": str(ckpt.parents[1]), "last_ckpt": str(ckpt), "frames": 4, "seed": 0, "train_minutes": 0.5}
-    assert finished(_done(top / "a", **good), {}, top) is not None
-    with pytest.raises(StoreError, match="frames must be int >= 1, got None"):
-        finished(_done(top / "a", **(good | {"frames": None})), {}, top)
-    with pytest.raises(StoreError, match="scores"):
-        finished(_done(top / "a", **(good | {"scores": [1]})), {}, top)
+    store = RunStore(top)
+    _done(top / "a", **good)
+    assert store.finished("a", {}) is not None
+    _done(top / "a", **(good | {"frames": None}))
+    with pytest.raises(ExperimentError, match="frames must be int >= 1, got None"):
+        store.finished("a", {})
+    _done(top / "a", **(good | {"scores": [1]}))
+    with pytest.raises(ExperimentError, match="scores"):
+        store.finished("a", {})
     elsewhere = _done(tmp_path / "elsewhere", **good) / "done.json"
     (top / "b").mkdir()
     (top / "b" / "done.json").symlink_to(elsewhere)
-    with pytest.raises(StoreError, match="leads outside"):
-        finished(top / "b", {}, top)
+    with pytest.raises(ExperimentError, match="leads outside"):
+        store.finished("b", {})
 
 
 def test_a_truncated_checkpoint_without_its_digest_is_not_reused(tmp_path: Path) -> None:

@@ -353,7 +353,8 @@ def test_the_demo_re_predicts_nothing_hostile(
     tmp_path: Path, canary: tuple[str, Path], monkeypatch: pytest.MonkeyPatch, case: str
 ) -> None:
     """``stamlane demo --quick`` re-predicts a finished run from its ``run/config.yaml``."""
-    from stamlane.experiments.engine import Experiment, ExperimentError
+    from stamlane.experiments.runner import Runner
+    from stamlane.experiments.store import ExperimentError, RunStore
 
     side = tmp_path / "pwned"
     run = tmp_path / "out" / "stam4-s0" / "run"
@@ -361,24 +362,25 @@ def test_the_demo_re_predicts_nothing_hostile(
     (run / "config.yaml").write_text(_hostile_configs(canary[0], side, run)[case])
     _save(run / "checkpoints" / "last.ckpt", None)
     monkeypatch.chdir(run)
-    experiment = Experiment(rows=[], recipe=None, seeds=[0], root=tmp_path / "data", out=tmp_path / "out")  # type: ignore[arg-type]
+    runner = Runner(RunStore(tmp_path / "out"), tmp_path / "data")
     with pytest.raises(ExperimentError) as info:
-        experiment.predict("stam4-s0", run, "test")
+        runner.predict("stam4-s0", run, "test")
     assert "config.yaml" in str(info.value) and "\n" not in str(info.value)
     assert not side.exists()
 
 
 def test_a_forged_checkpoint_is_one_line_in_the_demo(tmp_path: Path) -> None:
     """A checkpoint that ``weights_only`` refuses (a pickled object), reached through a run the demo reuses."""
-    from stamlane.experiments.engine import Experiment, ExperimentError
+    from stamlane.experiments.runner import Runner
+    from stamlane.experiments.store import ExperimentError, RunStore
 
     run = tmp_path / "out" / "stam4-s0" / "run"
     (run / "checkpoints").mkdir(parents=True)
     (run / "config.yaml").write_text(_run_config())
     torch.save({"state_dict": {}, "x": partial(print)}, run / "checkpoints" / "last.ckpt")
-    experiment = Experiment(rows=[], recipe=None, seeds=[0], root=tmp_path / "data", out=tmp_path / "out")  # type: ignore[arg-type]
+    runner = Runner(RunStore(tmp_path / "out"), tmp_path / "data")
     with pytest.raises(ExperimentError) as info:
-        experiment.predict("stam4-s0", run, "test")
+        runner.predict("stam4-s0", run, "test")
     assert "last.ckpt" in str(info.value) and "\n" not in str(info.value)
 
 
@@ -418,7 +420,7 @@ def test_a_user_config_stays_code(
 def _shipped() -> list[list[str]]:
     """The ``--config`` lists of the shipped configs: each of configs/, and every 4th paper row on its base (the
     rows differ in the fusion's init_args only)."""
-    from stamlane.experiments.tables import load_tables
+    from stamlane.experiments.table_index import load_tables
 
     index = load_tables(REPO / "configs" / "paper" / "tables.yaml")
     rows = sorted({r.config for t in index.tables.values() for r in t.rows})

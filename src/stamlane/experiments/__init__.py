@@ -1,18 +1,24 @@
-"""Experiments: train rows x seeds, score them with intervals, probe their history, report (one engine).
+"""Experiments: train rows x seeds, score them with intervals, probe their history, report (one runner).
 
-- `stamlane.experiments.engine`: rows, named recipes, the `Experiment` (train, predict, score, summarise);
-- `stamlane.experiments.store`: run folders, the resume lock (``done.json``) and the atomic writer;
-- `stamlane.experiments.scoring`: a predictions file scored in every metric, per image;
+- `stamlane.experiments.recipes`: rows (the models) and named recipes (one or two training stages);
+- `stamlane.experiments.store`: the run store: the layout of an experiment's folder and the runs' records
+  (``done.json``, the resume lock);
+- `stamlane.experiments.runner`: `Runner.train` (one run of a row from a recipe stage) and `Runner.score` (a run
+  predicted and scored on splits with its history probes);
+- `stamlane.experiments.engine`: the `Experiment`: rows x seeds trained, scored, probed and summarised;
+- `stamlane.experiments.scoring`: a predictions file scored in every metric, per image (and the recall per
+  paint-visibility class);
 - `stamlane.experiments.metrics`: the metrics, one name each (the callback's);
-- `stamlane.experiments.history`: paint visibility: recall per class, the oracle headroom;
-- `stamlane.experiments.stats`: values and differences with intervals over clips and seeds;
-- `stamlane.experiments.summary`: the typed ``summary.json`` (older summaries read through ``legacy``);
+- `stamlane.experiments.oracles`: the oracles of the labels (what history can reveal: the headroom);
+- `stamlane.experiments.scores`: values and differences with intervals over clips and seeds;
+- `stamlane.experiments.summary`: the typed ``summary.json``;
 - `stamlane.experiments.report`: markdown tables, the paper's tables, csv, plots (``stamlane report``);
-- `stamlane.experiments.tables`: the paper's table index (``configs/paper/tables.yaml``);
-- `stamlane.experiments.ablate`: ``stamlane ablate``, the engine on the paper's tables.
+- `stamlane.experiments.table_index`: the paper's table index (``configs/paper/tables.yaml``);
+- `stamlane.experiments.workspace`: the data, precision and output folder ``demo`` and ``ablate`` set up;
+- `stamlane.experiments.demo`, `stamlane.experiments.ablate`: ``stamlane demo`` and ``stamlane ablate``.
 """
 
 from stamlane.experiments.summary import Summary
-from stamlane.experiments.tables import PaperRow, PaperTable, TableIndex, load_tables
+from stamlane.experiments.table_index import PaperRow, PaperTable, TableIndex, load_tables
 
 __all__ = ["PaperRow", "PaperTable", "Summary", "TableIndex", "load_tables"]

@@ -26,8 +26,11 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
-from stamlane.experiments.tables import PaperRow, TableIndex, baseline_pairs, load_tables
+from stamlane.experiments.engine import Experiment
+from stamlane.experiments.recipes import RECIPES, Row
+from stamlane.experiments.store import ExperimentError
+from stamlane.experiments.table_index import PaperRow, TableIndex, baseline_pairs, load_tables
+from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
 
 __all__ = ["build_parser", "main"]
 
@@ -45,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", type=Path, help=f"data root, a TuSimple-layout set (default {DEFAULT_SYNTHETIC_ROOT})")
     p.add_argument("--base", type=Path, help="base config (default: the index's, configs/demo.yaml)")
     p.add_argument("--splits", nargs="+", default=["test", "challenging"], help="label files scored (stems)")
-    p.add_argument("--bf16", choices=("auto", "true", "false"), default="auto", help="bfloat16 autocast")
+    add_bf16_argument(p)
     p.add_argument("--out", type=Path, default=Path("outputs/ablate"), help="results folder (default outputs/ablate)")
     p.add_argument("--tables", type=Path, help="table index (default configs/paper/tables.yaml)")
     p.add_argument("--list", action="store_true", help="print the tables and their rows, then exit")
@@ -87,8 +90,8 @@ def _pairs(rows: list[Row]) -> list[tuple[str, str]]:
 def _report(out: Path, index: TableIndex, tables: list[str]) -> str:
     from stamlane.experiments.report import paper_tables, plot_history_use, write_csv
     from stamlane.experiments.report import tables as detail_tables
-    from stamlane.experiments.store import write_atomic
     from stamlane.experiments.summary import Summary
+    from stamlane.safety.guard import write_atomic
 
     summary = Summary.read(out / "summary.json")
     text = paper_tables([summary], index, tables)
@@ -114,8 +117,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
-    from stamlane.safety.guard import check_outputs, exclusive, temporary_name
-
     index = load_tables(args.tables)
     if args.list:
         _list(index)
@@ -141,39 +142,21 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
         raise ValueError("--pretrain-steps is for the two-stage recipe (--recipe cpu)")
     recipe = replace(recipe, steps=args.steps or recipe.steps)
     recipe = replace(recipe, pretrain_steps=args.pretrain_steps or recipe.pretrain_steps)
-    root = _data(args.data)
+    check_data(args.data, must_exist=True)
+    root = prepare_data(args.data, args.out, generate=False)
     missing = [s for s in args.splits if not (root / f"{s}.json").is_file()]
     if missing:
         raise ValueError(f"--splits: {root} has no {missing[0]}.json")
-    outputs = [args.out / "summary.json", args.out / "tables.md"]
-    check_outputs(  # the runs never land among the frames and labels, nor replace the base or the index
-        [*outputs, *map(temporary_name, outputs)], [base, index.path], folders=[args.out], protected=[root]
-    )
-    from stamlane.training.hardware import resolve_bf16
-
-    bf16 = resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
     experiment = Experiment(
-        rows, recipe, args.seeds, root, args.out, bf16=bf16, splits=tuple(args.splits), extra=tuple(extra)
+        rows, recipe, args.seeds, root, args.out, bf16=bf16_of(args.bf16), splits=tuple(args.splits), extra=tuple(extra)
     )
-    args.out.mkdir(parents=True, exist_ok=True)
-    with exclusive(args.out):  # two runs writing one --out at once: the second is refused
+    outputs = [args.out / "summary.json", args.out / "tables.md"]
+    # the runs never land among the frames and labels, nor replace the base or the index
+    with claimed_out(args.out, outputs, [base, index.path], protected=[root]):  # a second run on --out: refused
         experiment.run(_pairs(rows))
     print(_report(args.out, index, args.table))
     print(f"stamlane ablate: tables written to {args.out / 'tables.md'}", file=sys.stderr)
     return 0
-
-
-def _data(root: Path | None) -> Path:
-    """The data root: the given one, or the default synthetic set (generated when missing)."""
-    if root is not None:
-        if not root.is_dir():
-            raise ValueError(f"--data {root} is not a folder")
-        return root
-    from stamlane.data.datamodule import ClipDataModule
-    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
-
-    ClipDataModule(root=None).prepare_data()
-    return Path(DEFAULT_SYNTHETIC_ROOT)
 
 
 if __name__ == "__main__":

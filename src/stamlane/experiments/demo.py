@@ -25,14 +25,15 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.experiments.engine import RECIPES, Experiment, ExperimentError, Row
+from stamlane.experiments.engine import Experiment
+from stamlane.experiments.recipes import RECIPES, Recipe, Row
+from stamlane.experiments.store import ExperimentError
+from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
 from stamlane.safety.boundary import run_command
-from stamlane.safety.guard import check_outputs, exclusive, temporary_name
 
 __all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "build_parser", "main", "pairs"]
 
@@ -53,8 +54,8 @@ OUTPUTS = ("summary.json", "tables.md", "val_f1.png", "history_use.png", "compar
 
 def pairs(rows: list[Row]) -> list[tuple[str, str]]:
     """`PAIRS` among ``rows``, each paper row asked for against the single frame and pre-aligned STAM, and the rows
-    of a table with a baseline against it (`stamlane.experiments.tables.baseline_pairs`)."""
-    from stamlane.experiments.tables import baseline_pairs
+    of a table with a baseline against it (`stamlane.experiments.table_index.baseline_pairs`)."""
+    from stamlane.experiments.table_index import baseline_pairs
 
     names = {r.name for r in rows}
     found = [*PAIRS, *((r.name, other) for r in rows if r.paper and r not in MODELS for other in ("single", "stam4"))]
@@ -71,12 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=1, help="training seeds per model (default 1)")
     p.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
     p.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
-    p.add_argument(
-        "--bf16",
-        choices=("auto", "true", "false"),
-        default="auto",
-        help="bfloat16 autocast (auto: where the CPU runs it natively; false: float32, as on an AVX2-only CPU)",
-    )
+    add_bf16_argument(p)
     p.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
     p.add_argument("--single-clean", action="store_true", help="also the single frame without key-frame corruption")
     p.add_argument(
@@ -97,58 +93,12 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _check_data(root: Path | None, quick: bool) -> None:
-    """Refuse, before anything is made, a ``--data`` that is not a folder, and one that holds another set's labels
-    without the synthetic ``dataset.json`` where ``--quick`` would generate its tiny set over them."""
-    if root is None:
-        return
-    if root.exists() and not root.is_dir():
-        raise ExperimentError(f"--data {root} is not a folder")
-    labels = [name for name in ("train.json", "val.json", "test.json") if os.path.lexists(root / name)]
-    if quick and labels and not (root / "dataset.json").is_file():  # a set of someone else's: never written over
-        raise ExperimentError(
-            f"--data {root} holds {labels[0]} but no dataset.json: not a synthetic set, --quick would write over "
-            "it; give an empty or synthetic folder"
-        )
-
-
-def _data(root: Path | None, out: Path, quick: bool) -> Path:
-    from stamlane.data.datamodule import ClipDataModule
-    from stamlane.synth import FACTORS, SynthConfig, generate_dataset
-    from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC
-    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
-
-    _check_data(root, quick)
-    if quick:
-        root = root or out / "quick_data"
-        if not (root / "dataset.json").is_file():  # two clips per factor: an interval per factor
-            config = SynthConfig(width=256, height=144, num_frames=4)
-            generate_dataset(
-                root,
-                train=4,
-                val=2,
-                test=2,
-                challenging=2 * len(FACTORS),
-                reveal=2 * len(REVEAL),
-                reveal_traffic=2 * len(REVEAL_TRAFFIC),
-                train_motion=2,
-                config=config,
-                progress=False,
-            )
-        return root
-    if root is None:
-        ClipDataModule(root=None).prepare_data()  # generates it when missing, with a progress bar
-        return Path(DEFAULT_SYNTHETIC_ROOT)
-    if not (root / "train.json").is_file():  # the default set's settings, generated at the given place
-        ClipDataModule(root=None).generate_synthetic(root)
-    return root
-
-
 def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int = 3) -> Path | None:
     """The same ``count`` challenging key frames with each seed-0 model's lanes, one column per model."""
     import cv2
 
-    folders = [experiment.pred_dir(f"{r.name}-s{experiment.seeds[0]}", "challenging") / "overlays" for r in rows]
+    store = experiment.store
+    folders = [store.pred_dir(store.run_name(r.name, experiment.seeds[0]), "challenging") / "overlays" for r in rows]
     frames = sorted(p.relative_to(folders[0]) for p in folders[0].rglob("*.jpg"))[:count]
     grid = []
     for frame in frames:
@@ -167,36 +117,26 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
 def run(args: argparse.Namespace) -> None:
     import torch
 
-    from stamlane.training.hardware import resolve_bf16
-
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
     rows = [m for m in MODELS if not ((args.no_noalign or args.quick) and m.name == "stam4_noalign")]
     rows += [SINGLE_CLEAN] if args.single_clean else []
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
-    _check_data(args.data, args.quick)
-    outputs = [args.out / name for name in OUTPUTS]
-    check_outputs(
-        [*outputs, *map(temporary_name, outputs)], [args.data], folders=[args.out], protected=[args.data]
-    )  # the experiment never writes among the frames and labels it reads
+    check_data(args.data, quick=args.quick)
     steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     recipe = replace(RECIPES["cpu"], pretrain_steps=steps[0], steps=steps[1])
-    bf16 = (
-        False
-        if args.quick and args.bf16 == "auto"
-        else resolve_bf16({"true": True, "false": False}.get(args.bf16, "auto"))
-    )
-    args.out.mkdir(parents=True, exist_ok=True)
-    with exclusive(args.out):  # two demos writing one --out at once: the second is refused
+    bf16 = bf16_of(args.bf16, quick=args.quick)
+    outputs = [args.out / name for name in OUTPUTS]  # the experiment never writes among the frames and labels
+    with claimed_out(args.out, outputs, [args.data], protected=[args.data]):  # a second demo on --out is refused
         _run(args, rows, recipe, bf16)
 
 
-def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> None:
+def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) -> None:
     from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
-    from stamlane.experiments.store import write_atomic
+    from stamlane.safety.guard import write_atomic
 
     start = time.perf_counter()
-    root = _data(args.data, args.out, args.quick)
+    root = prepare_data(args.data, args.out, quick=args.quick)
     print(f"[stamlane] synthetic set {root} ready in {(time.perf_counter() - start) / 60:.1f} min", flush=True)
     experiment = Experiment(
         rows,
@@ -223,9 +163,10 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Any, bf16: bool) -> 
     text = tables(summary)
     write_atomic(args.out / "tables.md", text + "\n")
     print(text)
+    weights = experiment.store.last_ckpt(experiment.store.run_name("<model>", "<seed>"))
     print(
         f"[stamlane] wrote {args.out}/summary.json, tables.md, the pictures, and predictions under "
-        f"{args.out}/predictions; final weights: {args.out}/<model>-s<seed>/run/checkpoints/last.ckpt"
+        f"{experiment.store.predictions}; final weights: {weights}"
     )
 
 

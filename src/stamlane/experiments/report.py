@@ -19,7 +19,7 @@ from stamlane_eval.names import metric_name, parse_metric_name
 
 from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TEMPORAL, TUSIMPLE
 from stamlane.experiments.summary import Difference, Summary, Value
-from stamlane.experiments.tables import PaperTable, TableIndex
+from stamlane.experiments.table_index import PaperTable, TableIndex
 
 __all__ = [
     "SINGLE_ROW",
@@ -596,15 +596,17 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from stamlane.experiments.store import RunStore
     from stamlane.safety.budget import MAX_RECORD_BYTES
     from stamlane.safety.guard import read_inside
 
+    store = RunStore(out)
     f1 = metric_name("tusimple", "f1", stage="val")  # as the callback logs it
     fig, ax = plt.subplots(figsize=(7, 4))
     for colour, (name, label, first) in enumerate(runs):
         labelled = False
         for seed in seeds:
-            metrics = out / f"{name}-s{seed}" / "run" / "metrics.csv"
+            metrics = store.run_dir(store.run_name(name, seed)) / "metrics.csv"
             # a record of the run folder: read only inside it, bounded (a link out of it or a FIFO is refused)
             text = read_inside(metrics, metrics.parent, MAX_RECORD_BYTES, "metrics") if metrics.is_file() else ""
             rows = list(csv.DictReader(text.splitlines()))

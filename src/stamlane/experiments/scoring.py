@@ -2,31 +2,43 @@
 
 As ``stamlane-eval tusimple --no-time-limit`` (the benchmark's 200 ms rule measures the machine's load, not the
 model: images over it are counted as ``late``) and as ``stamlane-eval culane PRED GT --size WxH --width W`` with
-the protocol's 30-px line scaled to the frame width (`iou_width`); where the set has paint-visibility masks, the
-recall per visibility class of a model of ``num_frames`` frames (`stamlane.experiments.history`).
+the protocol's 30-px line scaled to the frame width (`iou_width`). Where a synthetic set has paint-visibility masks
+(``visibility/<split>.json``, generator format 5, `stamlane.synth.visibility`), also the **recall per visibility
+class** of a model of ``num_frames`` frames: every labelled key-frame point is ``visible`` (its paint shows in the
+key frame), ``revealed`` (hidden in the key frame, shown by one of the model's history frames at exact alignment)
+or ``hidden``; a point is recalled when the predicted lane that TuSimple's ``lane.py`` matches to its annotated lane
+(the one with the most rows within the angle-scaled 20-px threshold) is within that threshold on the point's row. A
+model that reads its history recalls more ``revealed`` points than one that does not; ``visible`` points are the
+single frame's job.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
+from stamlane_eval.tusimple import PIXEL_THRESH
 
-from stamlane.experiments.history import class_counts, point_hits, read_visibility
 from stamlane.experiments.metrics import METRICS
-from stamlane.experiments.store import write_atomic
+from stamlane.safety.guard import write_atomic
+from stamlane.synth.layout import VISIBILITY_DIR
+from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
 
 __all__ = [
     "PER_CLIP",
     "PER_IMAGE",
     "SCORING",
+    "class_counts",
     "clip_of",
     "image_size",
     "iou_width",
+    "point_hits",
     "read_per_clip",
     "read_per_image",
+    "read_visibility",
     "score_split",
     "score_temporal",
 ]
@@ -48,13 +60,23 @@ def iou_width(size: tuple[int, int]) -> int:
     return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
 
 
-def image_size(root: Path) -> tuple[int, int]:
-    """(H, W) of a synthetic set's frames, from its ``dataset.json``."""
+def image_size(root: Path, split: str) -> tuple[int, int]:
+    """(H, W) of the frames of a split: a synthetic set's (its ``dataset.json``), or the size of the split's first
+    labelled frame (a TuSimple-layout set of real frames)."""
+    from stamlane_eval.io import read_tusimple
+
+    from stamlane.safety.images import read_image
+
     info = root / "dataset.json"
-    if not info.is_file():
-        raise FileNotFoundError(f"{root}: no dataset.json (experiments score synthetic sets, which have one)")
-    config = json.loads(info.read_text())["config"]
-    return int(config["height"]), int(config["width"])
+    if info.is_file():
+        config = json.loads(info.read_text())["config"]
+        return int(config["height"]), int(config["width"])
+    labels = read_tusimple(root / f"{split}.json")
+    frame = root / labels[0]["raw_file"] if labels else None
+    image = read_image(frame) if frame is not None else None
+    if image is None:
+        raise ValueError(f"{root / f'{split}.json'}: its first frame {frame} is no readable image")
+    return image.shape[0], image.shape[1]
 
 
 def clip_of(raw_file: str) -> str:
@@ -85,7 +107,7 @@ def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict
     preds, gts = read_tusimple(pred_dir / "predictions.json"), read_tusimple(labels)
     result = evaluate(preds, gts, time_limit=False)
     by_name = {p["raw_file"]: (p, r) for p, r in zip(preds, result.per_image)}
-    size = image_size(root)
+    size = image_size(root, split)
     width = iou_width(size)
     iou = culane.evaluate(
         [tusimple_points(by_name[gt["raw_file"]][0]["lanes"], gt["h_samples"]) for gt in gts],
@@ -148,7 +170,7 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
         pred = preds[gt["raw_file"]]
         frame = Frame(tusimple_points(pred["lanes"], gt["h_samples"]), tusimple_points(gt["lanes"], gt["h_samples"]))
         sequences.setdefault(clip_of(gt["raw_file"]), []).append(frame)
-    result = temporal.evaluate(sequences, temporal.TEMPORAL_IOU_THRESHOLDS, image_size(root))
+    result = temporal.evaluate(sequences, temporal.TEMPORAL_IOU_THRESHOLDS, image_size(root, split))
     rows = [
         {
             "clip": clip,
@@ -172,3 +194,67 @@ def read_per_clip(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL}, [
         r["clip"] for r in rows
     ]
+
+
+def read_visibility(root: Path, split: str) -> dict[str, list[list[int]]] | None:
+    """``raw_file`` -> per lane, per h_sample visibility mask, from ``<root>/visibility/<split>.json``; None for a set
+    without one (format 4 and older, or a split without visibility)."""
+    path = Path(root) / VISIBILITY_DIR / f"{split}.json"
+    if not path.is_file():
+        return None
+    found = {}
+    for line in path.read_text().splitlines():
+        record = json.loads(line)
+        found[record["raw_file"]] = record["visibility"]
+    return found
+
+
+def _threshold(gt: np.ndarray, ys: np.ndarray) -> float:
+    """lane.py's per-lane pixel threshold: 20 px / cos(angle of the least-squares x = k y + b through its points)."""
+    on = gt >= 0
+    if on.sum() < 2:
+        return PIXEL_THRESH
+    k = np.polyfit(ys[on], gt[on], 1)[0]
+    return PIXEL_THRESH / np.cos(np.arctan(k))
+
+
+def point_hits(
+    pred: Sequence[Sequence[float]], gt: Sequence[Sequence[float]], h_samples: Sequence[float]
+) -> list[list[bool]]:
+    """Whether each labelled point of an image is recalled (see the module docstring).
+
+    Args:
+        pred: predicted lanes as TuSimple x lists (negative = no point), (P, R).
+        gt: annotated lanes, (G, R).
+        h_samples: the R rows.
+
+    Returns:
+        per annotated lane, per row: True where the lane's best-matching prediction is within the threshold there
+        (False on rows without a label point too: read them with the visibility mask, which marks those absent).
+    """
+    ys = np.asarray(h_samples, dtype=np.float64)
+    preds = np.where(np.asarray(pred, dtype=np.float64) >= 0, np.asarray(pred, dtype=np.float64), -100.0)
+    preds = preds.reshape(len(pred), len(ys))
+    hits = []
+    for lane in gt:
+        g = np.asarray(lane, dtype=np.float64)
+        if len(preds) == 0:
+            hits.append([False] * len(ys))
+            continue
+        thresh = _threshold(g, ys)
+        close = np.abs(preds - np.where(g >= 0, g, -100.0)[None, :]) < thresh  # (P, R), lane.py's comparison
+        best = int(np.argmax(close.mean(axis=1)))
+        hits.append([bool(c and x >= 0) for c, x in zip(close[best], g)])
+    return hits
+
+
+def class_counts(hits: list[list[bool]], masks: list[list[int]], num_frames: int, stride: int = 1) -> list[float]:
+    """Per-image quantities of the class recall: ``[recalled, points]`` of each class of `VISIBILITY_CLASSES` in
+    turn (6 numbers), for a model of ``num_frames`` frames at ``stride``."""
+    counts = np.zeros((len(VISIBILITY_CLASSES), 2))
+    for lane_hits, lane_masks in zip(hits, masks):
+        for hit, mask in zip(lane_hits, lane_masks):
+            cls = visibility_class(mask, num_frames, stride)
+            if cls is not None:
+                counts[VISIBILITY_CLASSES.index(cls)] += (float(hit), 1.0)
+    return counts.ravel().tolist()

@@ -1,30 +1,51 @@
-"""Where an experiment keeps its runs, and the one way a run is declared finished.
+"""The run store: where an experiment keeps its runs and predictions, and the one way a run is declared finished.
 
-A run (one model, one seed) is finished when its folder holds ``done.json``, written last and atomically, with
-the settings it was made with and the SHA-256 of its final checkpoint. `finished` is the resume lock: a record
-made with other settings is refused (another ``--out`` is needed), a record that does not parse, names files
-outside the experiment's folder or whose checkpoint no longer matches its digest (a tampered or half-copied
-folder) is refused too, each with one line (`StoreError`).
+`RunStore` is the one place that spells the layout of an experiment's folder ``<out>``::
+
+    <out>/<row>-s<seed>/done.json                   the run's record, written last (`RunStore.mark`)
+    <out>/<row>-s<seed>/run/                        the ``stamlane fit`` run: config.yaml, metrics.csv,
+                                                    checkpoints/last.ckpt (the final weights)
+    <out>/predictions/<row>-s<seed>/<split>         its predictions of a split (predictions.json, per_image.jsonl
+                                                    or per_clip.jsonl, overlays/)
+    <out>/predictions/<row>-s<seed>/<split>@<probe> the same with its history probed (``key``, ``other_clip``, ...)
+    <out>/predictions/oracle-<kind>-<T>f/<split>    an oracle of the labels
+    <out>/summary.json, tables.md, ...              what the command writes at the top
+
+A run is finished when its folder holds ``done.json``, written last and atomically, with the settings it was made
+with and the SHA-256 of its final checkpoint. `RunStore.finished` is the resume lock: a record made with other
+settings is refused (another ``--out`` is needed); a record that does not parse, names files outside the
+experiment's folder or whose checkpoint no longer matches its digest (a tampered or half-copied folder) is refused
+too, each with one line (`ExperimentError`). A record written by an older stamlane is read in today's form first
+(`upgrade_record`).
+
+What a record holds besides the settings: ``seed``, ``train_minutes`` (and ``pretrain_minutes``), ``run``,
+``last_ckpt`` (and ``last_ckpt_sha256``), ``frames`` (the clip length), ``hardware``, ``recipe_args`` (whether the
+recipe's row arguments applied), and, once scored, ``scores`` (per ``<split>[@<probe>]`` the totals), ``labels``
+(per split the SHA-256 of its label file), ``frame_files`` (per split the digest of its frame files,
+`stamlane.experiments.runner.frame_files_digest`; a record written before the frames were digested has none,
+and its predictions stand for the frames found when it is next scored) and ``scoring`` (the rules it was scored by).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from stamlane.safety.budget import MAX_RECORD_BYTES
-from stamlane.safety.guard import GuardError, read_inside, write_atomic  # the one atomic writer, re-exported here
+from stamlane.safety.guard import GuardError, read_inside, write_atomic
 
-__all__ = ["DONE", "StoreError", "file_sha256", "finished", "mark_finished", "write_atomic"]
+__all__ = ["DONE", "ExperimentError", "RunStore", "file_sha256", "upgrade_record"]
 
 DONE = "done.json"
+RUN = "run"
+"""The ``stamlane fit`` run folder inside a run's folder (the logger's version)."""
+PREDICTIONS = "predictions"
 
 
-class StoreError(Exception):
-    """A run folder that cannot be used: printed as one line, exit status 2."""
+class ExperimentError(Exception):
+    """A known failure of an experiment (bad rows, a used ``--out``, a broken run folder): one line, exit 2."""
 
 
 def file_sha256(path: Path) -> str:
@@ -45,14 +66,30 @@ RECORD_TYPES: dict[str, tuple[type, ...]] = {
     "pretrain_minutes": (int, float),
     "scores": (dict,),
     "labels": (dict,),
+    "frame_files": (dict,),
     "last_ckpt_sha256": (str,),
 }
 """The type of each value of a run record that is read back (a tampered record is refused, not half used)."""
-OPTIONAL = ("pretrain_minutes", "scores", "labels", "last_ckpt_sha256")
+OPTIONAL = ("pretrain_minutes", "scores", "labels", "frame_files", "last_ckpt_sha256")
 """Values a finished record may lack: written later, only by two-stage recipes, or by older versions."""
 
 
-def _inside(path: str, top: Path) -> bool:
+def upgrade_record(record: dict[str, Any]) -> dict[str, Any]:
+    """A run record as today's stamlane writes it: the ``stamlane fit`` arguments it was made with (``row_args``,
+    ``pretrain_args``, ``extra``) in today's names (a run recorded with ``--data.key_corruption`` before the data
+    options were grouped is the same run as one with ``--data.augment.key_corruption``), and ``pretrain_args``
+    empty where the record is of before recipes took stage-1 arguments (there were none)."""
+    from stamlane.training.compat import upgrade_flags
+
+    upgraded = record | {"pretrain_args": record.get("pretrain_args", [])}
+    return upgraded | {
+        k: upgrade_flags(upgraded[k])
+        for k in ("row_args", "pretrain_args", "extra")
+        if isinstance(upgraded.get(k), list)
+    }
+
+
+def _inside(path: str | Path, top: Path) -> bool:
     try:
         Path(path).resolve().relative_to(top.resolve())
     except ValueError:
@@ -60,67 +97,128 @@ def _inside(path: str, top: Path) -> bool:
     return True
 
 
-def finished(
-    folder: Path,
-    settings: dict[str, Any],
-    top: Path,
-    upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
-) -> dict[str, Any] | None:
-    """The record of a finished run in ``folder``, or None when it has not finished.
+class RunStore:
+    """The runs and predictions of one experiment folder (see the module docstring).
 
     Args:
-        folder: the run's folder.
-        settings: what every run of the experiment shares (data, steps, precision, ...); the record must hold
-            the same values.
-        top: the experiment's folder: every path the record names must lie inside it.
-        upgrade: how a record written by an older stamlane reads today, applied before anything is compared
-            (the record returned is the upgraded one).
-
-    Raises:
-        StoreError: the record does not parse, was made with other settings, names a path outside ``top``, or
-            its checkpoint is missing or differs from the digest it recorded.
+        out: the experiment's folder.
     """
-    path = folder / DONE
-    if not path.is_file():
-        return None
-    if not _inside(str(folder), top):  # a run folder linked from elsewhere: its record is not read
-        raise StoreError(f"{folder} leads outside {top} (a link?); delete it to run it again")
-    try:  # only inside the run's folder: a done.json that links elsewhere is never read
-        record = json.loads(read_inside(path, folder, MAX_RECORD_BYTES, "run record"))
-    except GuardError as err:
-        raise StoreError(f"{err}; delete the folder to run it again") from None
-    except (RecursionError, json.JSONDecodeError) as err:
-        raise StoreError(f"{path} is not a run record ({err}); delete the folder to run it again") from None
-    if not isinstance(record, dict):
-        raise StoreError(f"{path} is not a run record (a JSON object); delete the folder to run it again")
-    if upgrade is not None:
-        record = upgrade(record)
-    if {k: record.get(k) for k in settings} != settings:
-        theirs = {k: record.get(k) for k in settings}
-        raise StoreError(f"{folder} was made with other settings ({theirs}); use another --out")
-    for key in ("run", "last_ckpt"):
-        value = record.get(key)
-        if value is not None and (not isinstance(value, str) or not _inside(value, top)):
-            raise StoreError(f"{path}: {key} {value!r} is not a path inside {top}; delete the folder to run it again")
-    for key, types in RECORD_TYPES.items():  # frames: null was a TypeError far from the file
-        value = record.get(key)
-        if value is None and key in OPTIONAL:
-            continue
-        if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
-            continue
-        wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
-        raise StoreError(f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again")
-    ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
-    if ckpt is not None:
-        if not Path(ckpt).is_file():
-            raise StoreError(f"{path}: its checkpoint {ckpt} is missing; delete the folder to run it again")
-        if digest is not None and file_sha256(Path(ckpt)) != digest:
-            raise StoreError(f"{path}: its checkpoint {ckpt} changed since the run finished; delete the folder")
-    return record
 
+    def __init__(self, out: Path) -> None:
+        self.out = Path(out)
 
-def mark_finished(folder: Path, record: dict[str, Any]) -> None:
-    """Write ``record`` as the run's ``done.json`` (with its checkpoint's digest when it names one)."""
-    if record.get("last_ckpt") and "last_ckpt_sha256" not in record:
-        record["last_ckpt_sha256"] = file_sha256(Path(record["last_ckpt"]))
-    write_atomic(folder / DONE, json.dumps(record, indent=2))
+    def __repr__(self) -> str:
+        return f"RunStore({str(self.out)!r})"
+
+    # ------------------------------------------------------------------ the layout
+    @staticmethod
+    def run_name(row: str, seed: int | str) -> str:
+        """The name of a run of ``row`` with ``seed``: its folder, and its predictions' folder."""
+        return f"{row}-s{seed}"
+
+    def folder(self, name: str) -> Path:
+        """A run's folder: its record and its ``stamlane fit`` run."""
+        return self.out / name
+
+    def run_dir(self, name: str) -> Path:
+        """A run's ``stamlane fit`` folder (``config.yaml``, ``metrics.csv``, ``checkpoints/``)."""
+        return self.folder(name) / RUN
+
+    def last_ckpt(self, name: str) -> Path:
+        """A run's final weights (and the checkpoint a run killed midway goes on from)."""
+        return self.run_dir(name) / "checkpoints" / "last.ckpt"
+
+    def logger_args(self, name: str) -> list[str]:
+        """The ``stamlane fit`` arguments that put a run's files at `run_dir`."""
+        return [
+            f"--trainer.default_root_dir={self.folder(name)}",
+            f"--trainer.logger.save_dir={self.out}",
+            f"--trainer.logger.name={name}",
+            f"--trainer.logger.version={RUN}",
+        ]
+
+    @property
+    def predictions(self) -> Path:
+        """The folder of every run's (and oracle's) predictions."""
+        return self.out / PREDICTIONS
+
+    def pred_dir(self, name: str, split: str, source: str = "real") -> Path:
+        """The predictions of a run (or an oracle) of ``split``, its history as ``source`` gives it."""
+        return self.predictions / name / (split if source == "real" else f"{split}@{source}")
+
+    def oracle_dir(self, subject: str, split: str) -> Path:
+        """The predictions of an oracle of the labels (``oracle:history-4f``) of ``split``."""
+        return self.pred_dir(subject.replace(":", "-"), split)
+
+    def seeds(self, row: str) -> list[int]:
+        """The seeds of ``row`` that have a finished run here."""
+        found = []
+        for record in sorted(self.out.glob(f"{self.run_name(row, '*')}/{DONE}")):
+            seed = record.parent.name.removeprefix(f"{row}-s")
+            if seed.isdigit():
+                found.append(int(seed))
+        return sorted(found)
+
+    # ------------------------------------------------------------------ the records
+    def finished(self, name: str, settings: dict[str, Any]) -> dict[str, Any] | None:
+        """The record of the finished run ``name`` (in today's form, `upgrade_record`), or None when it has not
+        finished.
+
+        Args:
+            name: the run.
+            settings: what the run must share with the experiment's others (data, steps, precision, ...); the
+                record must hold the same values.
+
+        Raises:
+            ExperimentError: the record does not parse, was made with other settings, names a path outside the
+                experiment's folder, or its checkpoint is missing or differs from the digest it recorded.
+        """
+        folder = self.folder(name)
+        path = folder / DONE
+        if not path.is_file():
+            return None
+        if not _inside(folder, self.out):  # a run folder linked from elsewhere: its record is not read
+            raise ExperimentError(f"{folder} leads outside {self.out} (a link?); delete it to run it again")
+        try:  # only inside the run's folder: a done.json that links elsewhere is never read
+            record = json.loads(read_inside(path, folder, MAX_RECORD_BYTES, "run record"))
+        except GuardError as err:
+            raise ExperimentError(f"{err}; delete the folder to run it again") from None
+        except (RecursionError, json.JSONDecodeError) as err:
+            raise ExperimentError(f"{path} is not a run record ({err}); delete the folder to run it again") from None
+        if not isinstance(record, dict):
+            raise ExperimentError(f"{path} is not a run record (a JSON object); delete the folder to run it again")
+        record = upgrade_record(record)
+        if {k: record.get(k) for k in settings} != settings:
+            theirs = {k: record.get(k) for k in settings}
+            raise ExperimentError(f"{folder} was made with other settings ({theirs}); use another --out")
+        for key in ("run", "last_ckpt"):
+            value = record.get(key)
+            if value is not None and (not isinstance(value, str) or not _inside(value, self.out)):
+                raise ExperimentError(
+                    f"{path}: {key} {value!r} is not a path inside {self.out}; delete the folder to run it again"
+                )
+        for key, types in RECORD_TYPES.items():  # frames: null was a TypeError far from the file
+            value = record.get(key)
+            if value is None and key in OPTIONAL:
+                continue
+            if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
+                continue
+            wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
+            raise ExperimentError(
+                f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again"
+            )
+        ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
+        if ckpt is not None:
+            if not Path(ckpt).is_file():
+                raise ExperimentError(f"{path}: its checkpoint {ckpt} is missing; delete the folder to run it again")
+            if digest is not None and file_sha256(Path(ckpt)) != digest:
+                raise ExperimentError(
+                    f"{path}: its checkpoint {ckpt} changed since the run finished; delete the folder"
+                )
+        return record
+
+    def mark(self, name: str, record: dict[str, Any]) -> None:
+        """Write ``record`` as the run's ``done.json`` (with its checkpoint's digest when it names one)."""
+        if record.get("last_ckpt") and "last_ckpt_sha256" not in record:
+            record["last_ckpt_sha256"] = file_sha256(Path(record["last_ckpt"]))
+        write_atomic(self.folder(name) / DONE, json.dumps(record, indent=2))

@@ -1,0 +1,411 @@
+"""One run trained, one run scored: the two steps that every experiment and every benchmark training a model composes.
+
+`Runner.train` trains one run of a row from a recipe stage (`stamlane.experiments.recipes.Stage`) through ``stamlane
+fit`` in this process, or reuses the run when its folder holds a finished record made with the same settings
+(`stamlane.experiments.store.RunStore.finished`); a run killed midway goes on from its last checkpoint.
+
+`Runner.score` predicts splits with a run's FINAL weights (``stamlane predict``), each split with its history probes
+(``data.history_source``), and scores them (`stamlane.experiments.scoring`). What decides whether a split's
+predictions are current is kept in the run's record: the SHA-256 of its label file, the digest of its frame files
+(`frame_files_digest`) and the scoring rules (`SCORING`). A split whose labels or frames changed is predicted again;
+one scored under older rules is scored again from its saved predictions.
+
+The data root is a TuSimple-layout set (``<split>.json`` and the clip folders they name). A synthetic set adds
+paint-visibility masks (the recall per visibility class), the factors of its clips, the reveal splits and the
+frame-after-frame labels (`TEMPORAL_SPLIT`); what a set lacks is not scored.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from stamlane.experiments.recipes import CONFIG_DIR, Row, Stage
+from stamlane.experiments.scoring import SCORING, clip_of, read_per_clip, read_per_image, score_split, score_temporal
+from stamlane.experiments.store import ExperimentError, RunStore, file_sha256
+from stamlane.synth.layout import TEMPORAL_LABELS
+
+__all__ = [
+    "QUICK_OVERRIDES",
+    "SAME_AS_KEY",
+    "TEMPORAL_SPLIT",
+    "Runner",
+    "aligns",
+    "frame_files_digest",
+    "frames_of",
+    "postprocess_of",
+    "predicted_as",
+]
+
+QUICK_OVERRIDES = (
+    "--data.clip.image_size=[64, 128]",
+    "--model.encoder.width=0.125",
+    "--model.channels_last=false",
+    "--data.loader.batch_size=2",
+    "--data.loader.num_workers=0",
+)
+"""A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
+SAME_AS_KEY = ("warped_key",)
+"""Probes whose input equals ``key``'s for a run that does not align: scored as ``key`` without predicting."""
+TEMPORAL_SPLIT = TEMPORAL_LABELS.removesuffix(".json")
+"""The label file (stem) of a synthetic set whose every frame is a key frame: predicted frame after frame, each with
+its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.scoring.score_temporal`)."""
+
+
+def _say(line: str) -> None:
+    print(f"[stamlane] {line}", flush=True)
+
+
+@dataclass
+class Runner:
+    """Trains runs of rows and scores them on one data set, into one run store (see the module docstring).
+
+    Attributes:
+        store: where the runs and their predictions are kept.
+        root: the data root.
+        bf16: bfloat16 autocast in every run.
+        extra: further ``stamlane fit`` arguments of every run, after the row's base config and before its others.
+        quick: the smoke settings (`QUICK_OVERRIDES`), without progress bars.
+        progress: progress bars while training.
+        max_overlays: overlay pictures per run and split (of the real history only).
+        say: where the one-line progress messages go.
+    """
+
+    store: RunStore
+    root: Path
+    bf16: bool = False
+    extra: tuple[str, ...] = ()
+    quick: bool = False
+    progress: bool = True
+    max_overlays: int = 12
+    say: Callable[[str], None] = field(default=_say)
+
+    # ------------------------------------------------------------------ training
+    def fit_args(self, row: Row) -> list[str]:
+        """The ``stamlane fit`` arguments of every run of ``row``: its configs (``extra`` after the first, as part of
+        the base: a row's own settings hold), the data, the precision, the progress bar."""
+        configs = [str(CONFIG_DIR / c) for c in row.configs]
+        args = ["--config", configs[0], *self.extra]
+        for config in configs[1:]:
+            args += ["--config", config]
+        return [
+            *args,
+            f"--data.root={self.root}",
+            f"--model.bf16={str(self.bf16).lower()}",
+            f"--trainer.enable_progress_bar={str(self.progress and not self.quick).lower()}",
+            "--trainer.enable_model_summary=false",
+            *(QUICK_OVERRIDES if self.quick else ()),
+        ]
+
+    def train(
+        self,
+        row: Row,
+        seed: int,
+        stage: Stage,
+        settings: dict[str, Any],
+        init: Path | None = None,
+        label: str = "training",
+    ) -> dict[str, Any]:
+        """The finished record of the run of ``row`` with ``seed``, training it first when there is none.
+
+        Args:
+            row: the model.
+            seed: the training seed.
+            stage: how it is trained.
+            settings: what the run must share with the other runs of the store (recorded; a finished run made
+                with other settings is refused).
+            init: the weights it starts from (the final weights of a stage 1), or None: from scratch.
+            label: the stage's name in the progress lines.
+
+        Returns:
+            the run's record (`stamlane.experiments.store`).
+        """
+        name = self.store.run_name(row.name, seed)
+        record = self.store.finished(name, settings)
+        if record is not None:
+            check_run_config(Path(record["run"]))
+            _verify_checkpoint(record, self.store.folder(name))
+            if record.get("recipe_args", True) != row.recipe_args:
+                raise ExperimentError(
+                    f"{self.store.folder(name)} was trained with other recipe arguments; use another --out"
+                )
+            self.say(f"seed {seed}, {label}: {row.label}, done before, reused")
+            return record
+        self.say(f"seed {seed}, {label}: {row.label}, {stage.steps} steps")
+        start = time.perf_counter()
+        run = self._fit(name, row, stage, seed, init)
+        record = settings | {
+            "seed": seed,
+            "train_minutes": round((time.perf_counter() - start) / 60, 2),
+            "run": str(run),
+            "last_ckpt": str(run / "checkpoints" / "last.ckpt"),
+            "frames": frames_of(run),
+            "hardware": _hardware(),
+            "recipe_args": row.recipe_args,
+        }
+        self.store.mark(name, record)
+        return record
+
+    def _fit(self, name: str, row: Row, stage: Stage, seed: int, init: Path | None) -> Path:
+        """Train the run ``name``; returns its run folder (``config.yaml``, ``metrics.csv``, ``checkpoints/``)."""
+        from stamlane.safety.checkpoints import CheckpointError
+
+        last = self.store.last_ckpt(name)  # a run killed midway goes on from there
+        every = stage.val_every()
+        try:
+            cli = _cli(
+                [
+                    "fit",
+                    *([f"--ckpt_path={last}"] if last.is_file() else []),
+                    *self.fit_args(row),
+                    *stage.args,
+                    *([f"--model.init_weights={init}"] if init else []),
+                    f"--seed_everything={seed}",
+                    f"--trainer.max_steps={stage.steps}",
+                    f"--trainer.val_check_interval={every}",
+                    *([f"--trainer.limit_val_batches={stage.val_batches}"] if stage.val_batches else []),
+                    f"--trainer.log_every_n_steps={max(1, min(25, every))}",
+                    *self.store.logger_args(name),
+                ]
+            )
+        except CheckpointError as err:  # a tampered checkpoint to resume from or to start from: one line
+            raise ExperimentError(f"{self.store.folder(name)}: {err}") from None
+        return Path(cli.trainer.logger.log_dir)
+
+    # ------------------------------------------------------------------ prediction and scoring
+    def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
+        """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks, into the store's
+        predictions of ``name``; returns the predictions folder."""
+        from jsonargparse import ArgumentError
+
+        from stamlane.safety.boundary import one_line
+        from stamlane.training.registry import safe_config_file
+
+        pred_dir = self.store.pred_dir(name, split, source)
+        try:  # the run's config is data: a checked copy is what LightningCLI reads
+            with safe_config_file(run_config(run), run / "config.yaml") as config:
+                _cli(
+                    [
+                        "predict",
+                        "--config",
+                        str(config),
+                        f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
+                        f"--data.root={self.root}",
+                        f"--data.predict_labels=[{split}.json]",
+                        f"--data.history_source={'real' if source == 'exact' else source}",
+                        *(["--data.clip.align=true"] if source == "exact" else []),
+                        "--trainer.logger=false",
+                        "--trainer.callbacks=[]",
+                        "--trainer.enable_progress_bar=false",
+                        "--predictions.verbose=false",
+                        f"--predictions.output_dir={pred_dir}",
+                        f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
+                    ],
+                    parser_kwargs={"exit_on_error": False},
+                )
+        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
+            raise ExperimentError(f"{run}: {one_line(err)}") from None
+        return pred_dir
+
+    def score(self, name: str, record: dict[str, Any], splits: Mapping[str, Sequence[str]]) -> bool:
+        """Predict and score every split of ``splits`` with its probes that ``record`` holds no current scores of.
+
+        Args:
+            name: the run's name in the store (its predictions' folder).
+            record: the run's record (at least ``run`` and ``frames``); its ``scores``, ``labels``,
+                ``frame_files`` and ``scoring`` are brought up to date here (the caller writes it).
+            splits: each label file (stem) with the history probes it is scored with besides the real history
+                (`stamlane.data.clips.HISTORY_SOURCES`, or ``exact``: the real history aligned by the generator's
+                exact homographies).
+
+        Returns:
+            whether any score changed.
+        """
+        labels = record.setdefault("labels", {})
+        frame_files = record.setdefault("frame_files", {})
+        scores = record.setdefault("scores", {})
+        rescore = record.get("scoring") != SCORING
+        changed = False
+        for split, probes in splits.items():
+            labels_sha256 = file_sha256(self.root / f"{split}.json")
+            frames_digest = frame_files_digest(self.root, split)
+            if labels.get(split) == labels_sha256:  # a record of before the frames counted: its predictions stand
+                frame_files.setdefault(split, frames_digest)
+            stale = _stale(labels.get(split) == labels_sha256, frame_files.get(split) == frames_digest)
+            if stale and split in scores:
+                self.say(f"{name}: the {split} {stale} changed, predicting them again")
+            for source in ("real", *probes):
+                key = split if source == "real" else f"{split}@{source}"
+                current = not stale and key in scores
+                if current and not rescore:
+                    continue
+                predicted = predicted_as(record, source)
+                if predicted != source:  # scored under its own name, predicted once
+                    scores[key] = scores[f"{split}@{predicted}"]
+                    changed = True
+                    continue
+                pred_dir = self.store.pred_dir(name, split, source)
+                if not current or not (pred_dir / "predictions.json").is_file():
+                    temporal = " frame after frame" if split == TEMPORAL_SPLIT else ""
+                    self.say(f"{name}: predicting {key}{temporal}")
+                    self.predict(name, Path(record["run"]), split, source)
+                if split == TEMPORAL_SPLIT:
+                    scores[key] = score_temporal(pred_dir, self.root, split)
+                else:
+                    scores[key] = score_split(pred_dir, self.root, split, record["frames"])
+                changed = True
+            labels[split], frame_files[split] = labels_sha256, frames_digest
+        if changed:
+            record["scoring"] = SCORING
+        return changed
+
+    def scored(self, name: str, record: dict[str, Any], key: str) -> tuple[dict[str, np.ndarray], list[str]]:
+        """The per-image quantities (per clip for `TEMPORAL_SPLIT`) of a score of ``record`` (``<split>`` or
+        ``<split>@<probe>``), per metric key, and each row's clip."""
+        split, _, source = key.partition("@")
+        pred_dir = self.store.pred_dir(name, split, predicted_as(record, source or "real"))
+        return read_per_clip(pred_dir) if split == TEMPORAL_SPLIT else read_per_image(pred_dir)
+
+
+def _stale(same_labels: bool, same_frames: bool) -> str | None:
+    """What changed since a split was predicted: ``"labels"``, ``"frames"``, or None."""
+    if not same_labels:
+        return "labels"
+    return None if same_frames else "frames"
+
+
+def predicted_as(record: dict[str, Any], source: str) -> str:
+    """The history source whose predictions stand for ``source``: ``key`` for `SAME_AS_KEY` on a run that does not
+    align (the same input: predicted once), else ``source``."""
+    return "key" if source in SAME_AS_KEY and not aligns(Path(record["run"])) else source
+
+
+def frame_files_digest(root: Path, split: str) -> str:
+    """A digest of the frame files the predictions of a split read: for every clip folder its key frames lie in,
+    each file's name, size and modification time.
+
+    Frames written again (a generator that moves pixels and leaves the labels as they were) change it, so their
+    predictions are made again. It reads no frame: hashing every frame's bytes would cost about what predicting
+    them does. A set copied without its times (``cp`` without ``-p``) changes it too, and is predicted once more.
+    """
+    from stamlane_eval.io import read_tusimple
+
+    digest = hashlib.sha256()
+    for clip in sorted({clip_of(r["raw_file"]) for r in read_tusimple(root / f"{split}.json")}):
+        folder = root / clip
+        digest.update(f"{clip}\n".encode())
+        if folder.is_dir():
+            for entry in sorted(os.scandir(folder), key=lambda e: e.name):
+                stat = entry.stat()
+                digest.update(f"{entry.name}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+    return digest.hexdigest()
+
+
+# ---------------------------------------------------------------------- a run folder, read as data
+def run_config(run: Path) -> str:
+    """The text of a run folder's ``config.yaml``, read only inside the folder (links resolved)."""
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import GuardError, read_inside
+
+    try:
+        return read_inside(run / "config.yaml", run, MAX_RECORD_BYTES, "run config")
+    except GuardError as err:
+        raise ExperimentError(f"{err}; delete the run folder") from None
+
+
+def check_run_config(run: Path) -> None:
+    """A run folder's ``config.yaml`` is data, not the user's code: checked against the closed registry
+    (`stamlane.training.registry.check_run_config`); a tampered one is refused in one line."""
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.training.registry import check_run_config as check
+
+    try:
+        check(run_config(run), run / "config.yaml")
+    except CheckpointError as err:
+        raise ExperimentError(str(err)) from None
+
+
+def _run_section(run: Path, section: str) -> dict[str, Any]:
+    """A section of a run folder's config (``data``, ``model``) as a mapping."""
+    from stamlane.safety.boundary import one_line
+
+    path = run / "config.yaml"
+    try:
+        config = yaml.safe_load(run_config(run))
+    except yaml.YAMLError as err:
+        raise ExperimentError(f"{path}: not YAML ({one_line(err)}); delete the run folder") from None
+    value = config.get(section) if isinstance(config, dict) else None
+    if not isinstance(value, dict):
+        raise ExperimentError(f"{path}: its {section!r} section is not a mapping; delete the run folder")
+    return value
+
+
+def frames_of(run: Path) -> int:
+    """The clip length (T) of a run."""
+    from stamlane.training.compat import clip_options  # a run of before the data options were grouped too
+
+    try:
+        return clip_options(_run_section(run, "data")).num_frames
+    except ValueError as err:
+        raise ExperimentError(f"{run / 'config.yaml'}: {err}") from None
+
+
+def aligns(run: Path) -> bool:
+    """Whether a run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
+    return (_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly"
+
+
+def postprocess_of(run: Path) -> dict[str, Any]:
+    """A run's post-processing options (``model.postprocess``)."""
+    return dict(_run_section(run, "model").get("postprocess") or {})
+
+
+def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
+    """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
+    checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+
+    if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
+        try:
+            state = read_checkpoint(record["last_ckpt"])
+        except CheckpointError as err:
+            raise ExperimentError(f"{folder}: {err}; delete the folder to run it again") from None
+        if not isinstance(state.get("state_dict"), dict) or not state["state_dict"]:
+            raise ExperimentError(f"{folder}: its checkpoint holds no weights; delete the folder to run it again")
+
+
+def _cli(args: list[str], **kwargs: Any) -> Any:
+    from stamlane.training.lightning_cli import StamLaneCLI
+
+    argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
+    try:
+        return StamLaneCLI(args=args, report=False, **kwargs)
+    finally:
+        sys.argv = argv
+
+
+def _hardware() -> str:
+    """The CPU (or GPU), threads and torch version a run trained on."""
+    import platform
+
+    import torch
+
+    if torch.cuda.is_available():
+        return f"cuda: {torch.cuda.get_device_name(0)}, torch {torch.__version__}"
+    name = platform.processor() or platform.machine()
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        name = next(
+            (ln.split(":", 1)[1].strip() for ln in cpuinfo.read_text().splitlines() if ln.startswith("model name")),
+            name,
+        )
+    return f"cpu: {name}, {torch.get_num_threads()} threads, torch {torch.__version__}"
