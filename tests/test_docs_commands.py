@@ -199,21 +199,29 @@ TABLE_COMMAND = re.compile(r"^\|\s*`((?:\S*/)?stamlane(?:-eval)? [^`]+)`\s*\|")
 
 
 def _shell_lines(page: Path) -> list[tuple[int, str]]:
-    """``(line number, text)`` of every shell line in a code block (``\\`` continuations joined, a ``$ `` prompt
-    dropped) and every command in the first column of a table, its ``\\|`` unescaped."""
+    """``(line number, text)`` of every shell line in a code block, fenced or indented by 4 spaces after a blank line
+    (``\\`` continuations joined, a ``$ `` prompt dropped, ``$VAR`` of a ``for VAR in A B; do`` of the block read
+    as ``A``), and every command in the first column of a table, its ``\\|`` unescaped."""
     lines = page.read_text().splitlines()
-    found, block, language, i = [], False, "", 0
+    found, fenced, language, indented, loops, i = [], False, "", False, {}, 0
     while i < len(lines):
         line, number = lines[i], i + 1
+        indented = not fenced and line.startswith("    ") and (indented or i == 0 or not lines[i - 1].strip())
         if line.strip().startswith("```"):
-            block, language = not block, line.strip()[3:].strip()
-        elif block and language not in ("python", "yaml", "json", "text"):
+            fenced, language, loops = not fenced, line.strip()[3:].strip(), {}
+        elif (fenced and language not in ("python", "yaml", "json", "text")) or indented:
             while line.rstrip().endswith("\\") and i + 1 < len(lines):
                 i += 1
-                line = line.rstrip()[:-1] + " " + lines[i].strip()
+                line = line.rstrip()[:-1].rstrip() + " " + lines[i].strip()
+            if loop := re.match(r"\s*for (\w+) in (\S+)", line):
+                loops[loop.group(1)] = loop.group(2)
+            for name, value in loops.items():
+                line = re.sub(rf"\$\{{?{name}\b\}}?", value, line)
             found.append((number, line.strip().removeprefix("$ ")))
-        elif not block and (cell := TABLE_COMMAND.match(line)):
+        elif not fenced and (cell := TABLE_COMMAND.match(line)):
             found.append((number, cell.group(1).replace("\\|", "|")))
+        if not fenced and not indented:
+            loops = {}
         i += 1
     return found
 
@@ -324,6 +332,11 @@ def _parse_error(argv: list[str], tmp: Path) -> str | None:
                 _build_parser().parse_args(argv[1:])
             elif command == "predict" and any(a == "--stream" or a.startswith("--stream=") for a in args):
                 importlib.import_module(TOOLS["stream"]).build_parser().parse_args(cli._stream_args(args))
+            elif command == "ablate" and "--" in args:  # what follows ``--`` is given to each row's `stamlane fit`
+                cut = args.index("--")
+                ablate = importlib.import_module(TOOLS[command]).build_parser().parse_args(args[:cut])
+                base = str(ablate.base or REPO / "configs" / "demo.yaml")
+                return _parse_error(["stamlane", "fit", "--config", base, *args[cut + 1 :]], tmp)
             elif command in TOOLS:
                 importlib.import_module(TOOLS[command]).build_parser().parse_args(args)
             elif command in LIGHTNING_COMMANDS:
@@ -386,7 +399,7 @@ def test_the_docs_show_whole_command_lines() -> None:
     assert {("stamlane-eval", c) for c in ("tusimple", "culane", "video")} <= commands
 
 
-def test_the_line_checker_catches_what_a_user_would_meet(parse_only: Path) -> None:
+def test_the_line_checker_catches_what_a_user_would_meet(parse_only: Path, tmp_path: Path) -> None:
     def error(line: str) -> str | None:
         (argv,) = _invocations(line)
         (variant,) = _variants(argv)
@@ -395,6 +408,13 @@ def test_the_line_checker_catches_what_a_user_would_meet(parse_only: Path) -> No
     assert _invocations("A=1 .venv/bin/stamlane demo --quick && stamlane-eval tusimple p g  # x") == [
         ["stamlane", "demo", "--quick"],
         ["stamlane-eval", "tusimple", "p", "g"],
+    ]
+    page = tmp_path / "page.md"
+    page.write_text("text\n\n    for t in 1 2; do\n      stamlane ablate --table $t \\\n        --seeds 0\n    done\n")
+    assert [line for _, line in _shell_lines(page)] == [
+        "for t in 1 2; do",
+        "stamlane ablate --table 1 --seeds 0",
+        "done",
     ]
     assert _variants(_invocations("stamlane predict --x '[a.json]' [--y 1]")[0]) == [
         ["stamlane", "predict", "--x", "[a.json]"],
@@ -415,5 +435,8 @@ def test_the_line_checker_catches_what_a_user_would_meet(parse_only: Path) -> No
     assert error("stamlane predict --ckpt_path CKPT --model.postprocess.degre 2") is not None
     assert error("stamlane fit --data.root /data") is not None  # no config
     assert error("stamlane fit --config configs/demo.yaml --trainer.max_steps ten") is not None
+    assert error("stamlane ablate --table 2 -- --trainer.accelerator=gpu") is None
+    assert error("stamlane ablate --table 2 -- --trainer.acelerator=gpu") is not None
+    assert error("stamlane ablate --table 2 --accelerator gpu") is not None
     assert error("stamlane predict --stream drive.mp4 --ckpt CKPT") is None
     assert error("stamlane predict --stream drive.mp4 --ckpt_path CKPT") is not None
