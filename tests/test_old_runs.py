@@ -163,7 +163,7 @@ def test_the_engine_reuses_and_scores_an_old_run(old_run: Path, tiny_set: Path, 
     record |= {"run": str(run), "last_ckpt": str(run / "checkpoints" / "last.ckpt")}
     mark_finished(tmp_path / "exp" / "stam4-s0", record)
     reused = experiment._trained(experiment.rows[0], 0, 300, None, "stage 2")
-    assert said == ["seed 0, stage 2: 4 frames, done before, reused"]
+    assert len(said) == 1 and said[0].endswith(" min  seed 0, stage 2: 4 frames, done before, reused")
     assert reused["row_args"] == settings["row_args"]
     experiment._score("stam4-s0", reused)  # predicts with the old run's config.yaml
     assert "test" in reused["scores"] and 0 <= reused["scores"]["test"]["f1"] <= 1

@@ -1,4 +1,4 @@
-"""The stamlane distribution carries its configs: a wheel installed elsewhere runs ``stamlane demo`` / ``ablate``
+"""The stamlane distribution carries its configs and its shipped weights: a wheel installed elsewhere runs ``stamlane demo`` / ``ablate``
 from any folder (`stamlane.configs.configs_dir`, the one way to find them)."""
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ def test_the_wheel_carries_the_configs_and_finds_them_from_an_empty_folder(tmp_p
     assert len(configs) > 30 and "configs/paper/tables.yaml" in configs
     assert [c for c in configs if f"stamlane/{c}" not in names] == []  # every config, at its place
     assert "stamlane/configs/__init__.py" in names
+    assert {"stamlane/weights/stam4-synthetic.ckpt", "stamlane/weights/single-synthetic.ckpt"} <= names  # shipped
 
     site = tmp_path / "site"  # the wheel alone, in front of the test environment's dependencies
     subprocess.run(

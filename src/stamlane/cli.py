@@ -88,6 +88,10 @@ def _help() -> str:
         "",
     ]
     lines += [f"  {name:<{width}}  {text}" for name, text in SUMMARIES.items()]
+    from stamlane.weights import SHIPPED
+
+    lines += ["", "Shipped weights (--ckpt_path NAME, stream --ckpt NAME; docs/models.md):"]
+    lines += [f"  {m.name:<{width}}  {m.summary}" for m in SHIPPED]
     lines += [
         "",
         "stamlane COMMAND --help gives the command's options; evaluators: stamlane-eval --help.",
@@ -224,16 +228,20 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
     """What is missing from a LightningCLI command line, said before torch and Lightning are imported (hundredths of
     a second, not the 5-13 s of those imports): a ``--ckpt_path`` or ``--config`` file that does not exist, or
     neither of them where one is needed. None when nothing is missing; the message says what to give."""
-    if any(arg.split("=", 1)[0] in _NO_RUN for arg in rest):
+    if _asks_help(rest):
         return None
     ckpt = _option(rest, "--ckpt_path")
     configs = [a.split("=", 1)[1] for a in rest if a.startswith(("--config=", "-c="))]
     configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a in ("--config", "-c")]
     if ckpt is not None and ckpt not in _NAMED_CHECKPOINTS and not Path(ckpt).exists():
-        what = "the run to resume" if command == "fit" else "a trained run"
+        if command == "fit":
+            return (
+                f"checkpoint {ckpt} does not exist: give the path of the run to resume's checkpoint "
+                "(RUN/checkpoints/last.ckpt, or the best one `stamlane fit` printed) or --ckpt_path last"
+            )
         return (
-            f"checkpoint {ckpt} does not exist: give the path of {what}'s checkpoint (RUN/checkpoints/last.ckpt, or "
-            f"the best one `stamlane fit` printed)" + (" or --ckpt_path last" if command == "fit" else "")
+            f"checkpoint {ckpt} does not exist: give the path of a trained run's checkpoint (RUN/checkpoints/last.ckpt, "
+            f"or the best one `stamlane fit` printed) or a shipped model's name ({_shipped_names()})"
         )
     for config in configs:
         if not Path(config).exists():
@@ -246,6 +254,42 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
         "give --ckpt_path CKPT (a trained run's checkpoint; its config travels inside it) or --config CONFIG "
         f"(see stamlane {command} --help)"
     )
+
+
+def _shipped_names() -> str:
+    from stamlane.weights import SHIPPED
+
+    return ", ".join(m.name for m in SHIPPED)
+
+
+def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
+    """``rest`` with a shipped model's name given to ``--ckpt_path`` replaced by its file (`stamlane.weights`), and
+    ``stamlane predict --source X`` given no checkpoint, no config and no model option run with the default shipped
+    model (said in one line on stderr)."""
+    from stamlane.weights import DEFAULT, resolve
+
+    out = []
+    for i, arg in enumerate(rest):
+        if arg.startswith("--ckpt_path="):
+            arg = "--ckpt_path=" + resolve(arg.split("=", 1)[1])
+        elif i and rest[i - 1] == "--ckpt_path":
+            arg = resolve(arg)
+        out.append(arg)
+    given = _option(out, "--ckpt_path") is not None or any(
+        a in ("--config", "-c") or a.startswith(("--config=", "-c=", "--model.")) for a in out
+    )
+    if command == "predict" and _option(out, "--source") is not None and not given and not _asks_help(out):
+        print(
+            f"stamlane predict: no --ckpt_path given: running the shipped {DEFAULT} (trained on synthetic clips "
+            "only; what it can and cannot do: docs/models.md)",
+            file=sys.stderr,
+        )
+        out = ["--ckpt_path", resolve(DEFAULT), *out]
+    return out
+
+
+def _asks_help(rest: list[str]) -> bool:
+    return any(arg.split("=", 1)[0] in _NO_RUN for arg in rest)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -265,6 +309,9 @@ def main(argv: list[str] | None = None) -> int:
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
+        shipped = _with_shipped_weights(command, rest)
+        if shipped != rest:  # LightningCLI reads the rewritten arguments, not sys.argv's
+            rest, argv = shipped, [command, *shipped]
         missing = _missing_input(command, rest)
         if missing is not None:  # said in a fraction of a second, before torch and Lightning are imported
             print(f"stamlane {command}: {missing}", file=sys.stderr)

@@ -20,7 +20,8 @@ from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
 from stamlane.synth.cli import main as synth_main
 from stamlane.synth.cli import split_counts
-from stamlane.synth.generator import SynthConfig, generate_dataset
+from stamlane.synth.config import SynthConfig
+from stamlane.synth.dataset import generate_dataset
 
 TINY_SYNTH = SynthOptions(
     train=2,

@@ -9,8 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
+from stamlane.synth.clip import generate_clip
+from stamlane.synth.config import FACTORS, SynthConfig
+from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.effects import Windscreen
-from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, generate_dataset
+from stamlane.synth.statistics import clip_statistics
 
 GEOM = SynthConfig(width=320, height=180, num_frames=6, occluder_prob=0.0)
 

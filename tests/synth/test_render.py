@@ -8,7 +8,8 @@ import numpy as np
 from stamlane.align import estimate_clip
 from stamlane.align.camera import Camera, Pose
 from stamlane.align.homography import default_horizon_row, ground_corners
-from stamlane.synth.generator import SynthConfig, generate_clip
+from stamlane.synth.clip import generate_clip
+from stamlane.synth.config import SynthConfig
 from stamlane.synth.render import GrainLayer, GroundRenderer
 
 CAMERA = Camera.for_size(320, 180)

@@ -10,15 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stamlane.synth.generator import (
-    REVEAL,
-    REVEAL_FRAMES,
-    REVEAL_TRAFFIC,
-    SPLITS,
-    SynthConfig,
-    generate_clip,
-    generate_dataset,
-)
+from stamlane.synth.clip import generate_clip
+from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC, SynthConfig
+from stamlane.synth.dataset import generate_dataset
+from stamlane.synth.layout import REVEAL_FRAMES, SPLITS
 from stamlane.synth.visibility import visibility_class
 
 SMALL = SynthConfig(width=160, height=96)
@@ -115,7 +110,7 @@ def test_synth_writes_the_reveal_splits_by_default_and_refuses_negative_counts(t
 
 def test_synth_demo_writes_the_set_the_data_options_generate():
     from stamlane.data.options import SynthOptions
-    from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
+    from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
 
     options = SynthOptions()
     assert options.splits() == DEMO_SPLITS

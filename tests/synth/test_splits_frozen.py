@@ -18,7 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stamlane.synth.generator import SPLITS, SynthConfig, clip_kinds, generate_clip
+from stamlane.synth.clip import generate_clip
+from stamlane.synth.config import SynthConfig, clip_kinds
+from stamlane.synth.layout import SPLITS
 
 FROZEN = {
     "test-0000": "0c811e28476326ea7b6475347c4a3c221682be28c892a7437924ee1aeba24d14",

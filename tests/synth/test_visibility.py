@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from stamlane.synth import SynthConfig, generate_clip, generate_dataset
-from stamlane.synth.generator import VISIBILITY_DIR, key_frame_visibility
+from stamlane.synth.layout import VISIBILITY_DIR
+from stamlane.synth.statistics import key_frame_visibility
 from stamlane.synth.visibility import ABSENT, VISIBLE_CONTRAST, paint_visibility, visibility_class
 
 

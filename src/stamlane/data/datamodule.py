@@ -17,7 +17,8 @@ from stamlane.data.collate import collate_clips
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
-from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION, generate_dataset
+from stamlane.synth.dataset import generate_dataset
+from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION
 from stamlane.training.lightning_compat import plain_hyperparameters
 
 __all__ = [

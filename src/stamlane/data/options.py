@@ -27,7 +27,8 @@ from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
 from stamlane.safety.budget import check_clip, check_size, check_workers
-from stamlane.synth.generator import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SynthConfig
+from stamlane.synth.config import SynthConfig
+from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
@@ -166,10 +167,10 @@ class SynthOptions:
         challenging: clips of the challenging split, one challenging factor each (>= 0).
         train_factors: clips with a challenging factor added to the train split after its clean clips (>= 0).
         val_factors: clips with a challenging factor added to the val split after its clean clips (>= 0).
-        reveal: clips of the ``reveal`` split (>= 0; `stamlane.synth.generator.REVEAL`).
-        reveal_traffic: clips of the ``reveal-traffic`` split (>= 0; `stamlane.synth.generator.REVEAL_TRAFFIC`).
+        reveal: clips of the ``reveal`` split (>= 0; `stamlane.synth.config.REVEAL`).
+        reveal_traffic: clips of the ``reveal-traffic`` split (>= 0; `stamlane.synth.config.REVEAL_TRAFFIC`).
         train_motion: clips with the reveal splits' ego motion added to the train split after its factor clips.
-        train_key_step: labelled key frames per train clip (`stamlane.synth.generator.key_frames`: 0 = the last
+        train_key_step: labelled key frames per train clip (`stamlane.synth.layout.key_frames`: 0 = the last
             frame only, 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         eval_key_step: labelled key frames per clip of the val, test and challenging splits (as ``train_key_step``).
         seed: master seed of the set.
@@ -205,7 +206,7 @@ class SynthOptions:
 
     def splits(self) -> dict[str, int]:
         """Clips per split as ``dataset.json`` records them (the arguments of
-        `stamlane.synth.generator.generate_dataset`)."""
+        `stamlane.synth.dataset.generate_dataset`)."""
         names = ("train", "val", "test", "challenging", "reveal", "reveal_traffic")
         names += ("train_factors", "val_factors", "train_motion")
         return {name: getattr(self, name) for name in names}

@@ -33,7 +33,7 @@ __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
     p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0])
     p.add_argument("--table", nargs="+", metavar="N", help="table number(s): 1 2 3 4 7 8")
@@ -170,7 +170,7 @@ def _data(root: Path | None) -> Path:
             raise ValueError(f"--data {root} is not a folder")
         return root
     from stamlane.data.datamodule import ClipDataModule
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
     ClipDataModule(root=None).prepare_data()
     return Path(DEFAULT_SYNTHETIC_ROOT)

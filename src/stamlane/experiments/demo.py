@@ -65,7 +65,7 @@ def pairs(rows: list[Row]) -> list[tuple[str, str]]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
     p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
     p.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder (default outputs/demo)")
@@ -117,7 +117,8 @@ def _check_data(root: Path | None, quick: bool) -> None:
 def _data(root: Path | None, out: Path, quick: bool) -> Path:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
-    from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT, REVEAL, REVEAL_TRAFFIC
+    from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
     _check_data(root, quick)
     if quick:

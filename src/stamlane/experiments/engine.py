@@ -491,7 +491,7 @@ class Experiment:
 
     def temporal_split(self) -> str | None:
         """The label file (stem) of frame-after-frame predictions, where the set has one and it is wanted."""
-        from stamlane.synth.generator import TEMPORAL_LABELS
+        from stamlane.synth.layout import TEMPORAL_LABELS
 
         stem = TEMPORAL_LABELS.removesuffix(".json")
         return stem if self.temporal and (self.root / TEMPORAL_LABELS).is_file() else None
@@ -506,7 +506,7 @@ class Experiment:
 
         from stamlane.experiments.history import oracle_predictions, read_visibility
         from stamlane.predict.postprocess import PostprocessConfig
-        from stamlane.synth.generator import FIRST_KEY
+        from stamlane.synth.layout import FIRST_KEY
 
         config = PostprocessConfig(**postprocess)
         reach = _visibility_reach(self.root)

@@ -33,7 +33,7 @@ import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
 from stamlane.predict.postprocess import PostprocessConfig, fit_curve, sample_lanes
-from stamlane.synth.generator import VISIBILITY_DIR
+from stamlane.synth.layout import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
 
 __all__ = [

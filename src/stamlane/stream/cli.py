@@ -51,6 +51,7 @@ from stamlane.stream.eval_outputs import (
     folder_temporaries,
     frame_namer,
 )
+from stamlane.weights import resolve
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
@@ -65,7 +66,7 @@ class StreamError(Exception):
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
     parser.add_argument("video", help="a video file or a folder of frames (in name order, numbers compared as numbers)")
-    parser.add_argument("--ckpt", help="checkpoint written by `stamlane fit`")
+    parser.add_argument("--ckpt", type=resolve, help="checkpoint written by `stamlane fit`, or a shipped model's name")
     parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
     parser.add_argument("--out", help="output folder (default outputs/stream/<VIDEO name>)")
     parser.add_argument("--num-frames", type=int, help="T, frames fused (default: as trained)")

@@ -25,6 +25,7 @@ from stamlane_eval.cli_tools import OneLineParser, check_input_file, format_wxh,
 
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
+from stamlane.weights import resolve
 
 __all__ = ["EXPORT_PACKAGES", "ONNX_HINT", "build_parser", "main", "parity"]
 
@@ -41,8 +42,15 @@ STREAMING_GRAPHS = ("encoder", "fuse_decode")
 
 def build_parser() -> OneLineParser:
     p = OneLineParser(prog="stamlane export", description=__doc__.split("\n")[0])
-    p.add_argument("--ckpt_path", required=True, type=Path, help="a checkpoint of `stamlane fit`")
-    p.add_argument("--output", type=Path, default=None, help="the .onnx file (default: the checkpoint's, .onnx)")
+    p.add_argument(
+        "--ckpt_path", required=True, type=Path, help="a checkpoint of `stamlane fit`, or a shipped model's name"
+    )
+    p.add_argument(
+        "--output",
+        type=Path,
+        default=None,
+        help="the .onnx file (default: the checkpoint's, .onnx; a shipped model's: NAME.onnx here)",
+    )
     p.add_argument("--opset", type=int, default=None, help="ONNX opset (default 17; >= 16 for GridSample)")
     p.add_argument("--streaming", type=Path, default=None, help="also write encoder/fuse_decode graphs here")
     return p
@@ -89,6 +97,10 @@ def _export(args: Any) -> int:
     opset = args.opset if args.opset is not None else DEFAULT_OPSET
     if not 16 <= opset <= 21:
         raise ValueError(f"--opset must be in 16..21, got {opset}")
+    shipped = resolve(str(args.ckpt_path))
+    if shipped != str(args.ckpt_path):  # a shipped model: its .onnx here, never inside the installed package
+        args.output = args.output or Path(f"{args.ckpt_path}.onnx")
+        args.ckpt_path = Path(shipped)
     output = args.output or args.ckpt_path.with_suffix(".onnx")
     check_input_file(args.ckpt_path, "checkpoint")  # before torch is imported: a missing file said at once
     outputs = [output]

@@ -1,25 +1,34 @@
 """Make clips: the synthetic road-clip generator (``stamlane synth``), beside ``stamlane.data`` which reads clips.
 
-A flat road (``road``) seen by a pinhole camera (``camera``) that drives along it; box vehicles (``vehicles``)
-drive on the road; the ground texture is rendered once per clip and sampled through each frame's exact ground
-homography (``render``); the challenging factors' image effects (``effects``); clips and splits in the TuSimple
-layout with the true homographies (``generator``). Needs numpy and OpenCV only (no torch, no Lightning).
+One module per job:
+
+- ``layout``: what a set looks like on disk (splits, files, format version, key frames); the standard library only;
+- ``config``: `SynthConfig`, the challenging factors (`FACTORS`) and the reveal kinds; no OpenCV;
+- ``clip``: `generate_clip` draws a clip: a flat road (``road``) seen by a pinhole camera (`stamlane.align.camera`)
+  that drives along it, box vehicles (``vehicles``), the ground texture rendered once per clip and sampled through
+  each frame's exact ground homography (``render``), the challenging factors' image effects (``effects``) and the
+  reveal splits' transient occluders (``transient``);
+- ``visibility`` and ``statistics``: where the paint of a labelled point is visible, what a clip offers the history;
+- ``writer``: `write_clip` stores a clip; ``dataset``: `generate_dataset` writes a whole set; ``cli``:
+  ``stamlane synth``.
+
+Needs numpy and OpenCV only (no torch, no Lightning). The names below are imported from their modules on first
+use, so that ``import stamlane.synth.layout`` (what ``stamlane.data`` and ``stamlane.experiments`` read a set by)
+loads neither numpy nor the renderer. ``stamlane.synth.generator`` gathers every name the generator module had
+before the split.
 """
 
 from __future__ import annotations
 
-from stamlane.synth.generator import (
-    FACTORS,
-    FORMAT_VERSION,
-    SPLITS,
-    Factor,
-    SynthClip,
-    SynthConfig,
-    generate_clip,
-    generate_dataset,
-    key_frames,
-    write_clip,
-)
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from stamlane.synth.clip import SynthClip, generate_clip
+    from stamlane.synth.config import FACTORS, Factor, SynthConfig
+    from stamlane.synth.dataset import generate_dataset
+    from stamlane.synth.layout import FORMAT_VERSION, SPLITS, key_frames
+    from stamlane.synth.writer import write_clip
 
 __all__ = [
     "FACTORS",
@@ -33,3 +42,23 @@ __all__ = [
     "key_frames",
     "write_clip",
 ]
+
+_HOMES = {
+    "FACTORS": "stamlane.synth.config",
+    "FORMAT_VERSION": "stamlane.synth.layout",
+    "SPLITS": "stamlane.synth.layout",
+    "Factor": "stamlane.synth.config",
+    "SynthClip": "stamlane.synth.clip",
+    "SynthConfig": "stamlane.synth.config",
+    "generate_clip": "stamlane.synth.clip",
+    "generate_dataset": "stamlane.synth.dataset",
+    "key_frames": "stamlane.synth.layout",
+    "write_clip": "stamlane.synth.writer",
+}
+"""The module each exported name lives in, imported when the name is first asked for."""
+
+
+def __getattr__(name: str) -> object:
+    if name in _HOMES:
+        return getattr(importlib.import_module(_HOMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -12,14 +12,9 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
-from stamlane.synth.generator import (
-    DEMO_SPLITS,
-    EVAL_KEY_STEP,
-    REVEAL_FRAMES,
-    TRAIN_KEY_STEP,
-    SynthConfig,
-    generate_dataset,
-)
+from stamlane.synth.config import SynthConfig
+from stamlane.synth.dataset import generate_dataset
+from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP
 
 __all__ = ["build_parser", "main"]
 

@@ -5,7 +5,8 @@ at 20 fps has little to find in its history (docs/results.md). A `KeyOccluder` s
 with ``frames=2``, the frame before it), while the history frames stay clean: the paint it hides is visible in
 every aligned history frame, so perfect use of the history recovers it and the key frame alone cannot.
 
-Kinds (`KEY_OCCLUDERS`), each drawn once per clip (the same pixels in every occluded frame):
+Kinds (`KEY_OCCLUDERS`, the values of ``SynthConfig.key_occluder``), each drawn once per clip (the same pixels in
+every occluded frame):
 
 - ``"spray"``: an opaque textured band over the near road, the full width (spray thrown up by a truck ahead);
   never seen in training in this appearance;
@@ -16,7 +17,7 @@ Kinds (`KEY_OCCLUDERS`), each drawn once per clip (the same pixels in every occl
 
 Training sees transient occluders of other appearances only: the CPU recipe's key-frame corruption (the near road
 in one flat colour, overexposure; `stamlane.data.corruption`) on clips with the same ego motion
-(``train_motion`` clips of `stamlane.synth.generator.generate_dataset`).
+(``train_motion`` clips of `stamlane.synth.dataset.generate_dataset`).
 
 The opaque kinds return a mask (255 where the road is hidden), which the generator adds to the frame's
 occluder mask; ``flash`` hides nothing opaquely (its effect on the paint is measured by the paint contrast,
@@ -30,9 +31,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["KEY_OCCLUDERS", "KeyOccluder"]
+from stamlane.synth.config import KEY_OCCLUDERS
 
-KEY_OCCLUDERS = ("spray", "blobs", "flash")
+__all__ = ["KEY_OCCLUDERS", "KeyOccluder"]
 
 
 def _noise(rng: np.random.Generator, height: int, width: int) -> np.ndarray:

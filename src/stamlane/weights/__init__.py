@@ -1,0 +1,72 @@
+"""Weights shipped with stamlane: trained models a user can run right after the install, loaded by name.
+
+``stamlane predict --ckpt_path stam4-synthetic --source my.mp4`` (and ``validate``, ``test``, ``export
+--ckpt_path``, ``stream --ckpt``) takes a name of `SHIPPED` where it takes a checkpoint file; ``stamlane predict
+--source VIDEO`` with neither ``--ckpt_path`` nor ``--config`` runs `DEFAULT`. The files are ordinary stamlane
+checkpoints without optimiser state (`stamlane.training.release`), read like any other: through the closed
+registry, with ``weights_only=True``. What they were trained on and what they score: docs/models.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+
+__all__ = ["DEFAULT", "SHIPPED", "ShippedModel", "resolve", "shipped_path"]
+
+
+@dataclass(frozen=True)
+class ShippedModel:
+    """A model shipped with the package.
+
+    Attributes:
+        name: what ``--ckpt_path`` takes.
+        file: its file in this package.
+        sha256: the file's SHA-256 (checked by the tests: the card's numbers are those of these bytes).
+        summary: one line for ``stamlane --help``.
+    """
+
+    name: str
+    file: str
+    sha256: str
+    summary: str
+
+
+SHIPPED = (
+    ShippedModel(
+        "stam4-synthetic",
+        "stam4-synthetic.ckpt",
+        "51c2eda055a392a6fe289ff2a8e0560d4b70473d2ff836b1fb4894275a847a64",
+        "the demo's 4-frame pre-aligned STAM model (synthetic clips, seed 0, float32)",
+    ),
+    ShippedModel(
+        "single-synthetic",
+        "single-synthetic.ckpt",
+        "0ce20c1eac25ddbae25770e70a0233700fe5dd0528037d0932a5c06152be89f0",
+        "the demo's single-frame baseline (the same recipe, seed 0, float32)",
+    ),
+)
+"""The models shipped, in the order ``stamlane --help`` lists them (docs/models.md has their cards)."""
+DEFAULT = SHIPPED[0].name
+"""What ``stamlane predict --source VIDEO`` runs when given no checkpoint and no config."""
+
+
+def shipped_path(name: str) -> Path:
+    """The file of the shipped model ``name``.
+
+    Raises:
+        KeyError: ``name`` is not a shipped model (the message lists them).
+    """
+    for model in SHIPPED:
+        if model.name == name:
+            return Path(str(files(__name__) / model.file))
+    raise KeyError(f"no shipped model {name!r}; shipped: {', '.join(m.name for m in SHIPPED)}")
+
+
+def resolve(value: str) -> str:
+    """What ``--ckpt_path VALUE`` means: a shipped model's file where ``VALUE`` is one's name and no file or folder
+    of that name exists here (a file of yours always wins), else ``VALUE`` unchanged."""
+    if any(value == m.name for m in SHIPPED) and not Path(value).exists():
+        return str(shipped_path(value))
+    return value
