@@ -85,6 +85,22 @@ def test_tusimple_swapped_files_are_named(capsys: pytest.CaptureFixture[str]) ->
     assert code == 2 and "look swapped" not in err and "h_samples" in err  # read as given: the pred has no rows
 
 
+def test_a_frame_labels_list_is_pointed_to_the_video_command(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """The generator's ``frame_labels/<clip>.json`` is one JSON list of records, which lane.py cannot read either:
+    refused in one line that names the command that reads it."""
+    records = [json.loads(line) for line in TS_GT.read_text().splitlines()[:3]]
+    labels = tmp_path / "challenging-0000.json"
+    labels.write_text(json.dumps(records))
+    code, out, err = _run(capsys, "tusimple", TS_PRED, str(labels))
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "a list of records" in err and "stamlane-eval video" in err
+    labels.write_text(json.dumps([[1, 2]]))  # any other list: no such hint
+    code, _, err = _run(capsys, "tusimple", TS_PRED, str(labels))
+    assert code == 2 and "expected a JSON object, got list" in err and "stamlane-eval video" not in err
+
+
 def test_culane_swapped_folders_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """A dataset root (images beside the .lines.txt) given as PRED and a prediction folder as GT: refused in one
     line (P and R would be exchanged silently); --as-given scores them as given; the right order is unchanged."""

@@ -217,3 +217,20 @@ def test_export_bad_input_is_one_line(checkpoint: Path, tmp_path: Path, capsys, 
     bad.write_text("text")
     assert stamlane(["export", "--ckpt_path", str(bad)]) == 2
     assert "not a readable torch checkpoint" in capsys.readouterr().err
+
+
+def test_the_device_is_checked_in_one_line(checkpoint: Path, frames_dir: Path, capsys: pytest.CaptureFixture) -> None:
+    """``--device``: the network where the user asks (cpu here; the GPU path was run on an H200), a device this
+    machine lacks answered in one line, exit status 2."""
+    import torch
+
+    from stamlane.stream.cli import build_parser, load_predictor
+
+    argv = [str(frames_dir), "--ckpt", str(checkpoint)]
+    assert load_predictor(build_parser().parse_args([*argv, "--device", "cpu"])).device == torch.device("cpu")
+    for device, message in (("tpu9", "is not a device"), ("meta", "runs on cpu or cuda")):
+        assert main([*argv, "--device", device]) == 2
+        assert message in capsys.readouterr().err
+    if not torch.cuda.is_available():
+        assert main([*argv, "--device", "cuda"]) == 2
+        assert "CUDA device(s)" in capsys.readouterr().err

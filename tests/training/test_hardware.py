@@ -31,3 +31,21 @@ def test_the_module_resolves_auto() -> None:
 
     module = StamLaneModule(VGGEncoder(width=0.125), STAM, LaneDecoder, bf16="auto")
     assert module.bf16 is native_bf16("cpu") and module.hparams["bf16"] == "auto"
+
+
+def test_auto_is_asked_again_on_the_device_the_module_is_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A module built on a CPU without native bf16 and trained on a GPU that has it runs bf16 there (the H200
+    check found "auto" resolved once, from the CPU, at construction)."""
+    import torch
+
+    from stamlane.models import STAM, LaneDecoder, VGGEncoder
+    from stamlane.training import hardware
+    from stamlane.training.module import StamLaneModule
+
+    module = StamLaneModule(VGGEncoder(width=0.125), STAM, LaneDecoder, bf16="auto")
+    monkeypatch.setattr(hardware, "native_bf16", lambda device_type="cpu": device_type == "cuda")
+    assert module.bf16 is False  # on the CPU
+    monkeypatch.setattr(type(module), "device", property(lambda self: torch.device("cuda", 0)))
+    assert module.bf16 is True
+    module.bf16 = False  # an explicit value stays, on every device
+    assert module.bf16 is False

@@ -79,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")
     parser.add_argument("--fps", type=float, help="frame rate of overlay.mp4 (default: the video's, else 10)")
     parser.add_argument(
+        "--device",
+        default="auto",
+        help="where the network runs: cpu, cuda, cuda:N (default auto: the GPU where there is one); alignment and "
+        "decoding stay on the CPU",
+    )
+    parser.add_argument(
         "--bf16",
         choices=["auto", "true", "false"],
         help="bfloat16 autocast (default: the model's; auto: where the CPU runs it natively; false: float32, as the "
@@ -199,6 +205,23 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     return module, clip
 
 
+def _device(name: str) -> Any:
+    """The ``--device`` as a ``torch.device`` that this machine has (``auto``: the first GPU where there is one)."""
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise StreamError(f"--device {name!r} is not a device: give cpu, cuda, cuda:N or auto") from None
+    if device.type not in ("cpu", "cuda"):
+        raise StreamError(f"--device {name!r}: stamlane stream runs on cpu or cuda")
+    if device.type == "cuda" and not (torch.cuda.is_available() and (device.index or 0) < torch.cuda.device_count()):
+        raise StreamError(f"--device {name!r}: this machine has {torch.cuda.device_count()} CUDA device(s)")
+    return device
+
+
 def load_predictor(args: argparse.Namespace) -> Any:
     """The `StreamingPredictor` the command line asks for."""
     from stamlane.stream.metadata import trained_crop_top
@@ -206,13 +229,14 @@ def load_predictor(args: argparse.Namespace) -> Any:
 
     if args.ckpt and not Path(args.ckpt).is_file():
         raise StreamError(f"checkpoint {args.ckpt} does not exist")
+    device = _device(args.device)
     module, clip = _load_module(args)
-    module.eval()
+    module.eval().to(device)
     overrides: dict[str, Any] = {"align": not args.no_align}
     if args.bf16 is not None:
         from stamlane.training.hardware import resolve_bf16
 
-        overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16))
+        overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16), device.type)
     num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
     image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
     if num_frames is None or image_size is None:

@@ -177,8 +177,13 @@ class StreamingPredictor:
         """Frames currently cached as history (at most ``num_frames - 1``)."""
         return len(self._cache) if self.num_frames > 1 else 0
 
+    @property
+    def device(self) -> torch.device:
+        """Where the network runs (its parameters' device); frames are moved there, outputs come back to the CPU."""
+        return next(self.net.parameters()).device
+
     def _autocast(self) -> Any:
-        return torch.autocast("cpu", dtype=torch.bfloat16) if self.bf16 else nullcontext()
+        return torch.autocast(self.device.type, dtype=torch.bfloat16) if self.bf16 else nullcontext()
 
     @torch.inference_mode()
     def step(
@@ -197,6 +202,7 @@ class StreamingPredictor:
         """
         if frame.ndim == 3:
             frame = frame[None]
+        frame = frame.to(self.device)
         if frame.ndim != 4 or frame.shape[0] != 1 or tuple(frame.shape[-2:]) != self.image_size:
             raise ValueError(
                 f"expected a frame of shape (3, {self.image_size[0]}, {self.image_size[1]}), got {tuple(frame.shape)}"
@@ -271,6 +277,7 @@ class StreamingPredictor:
 
         start = time.perf_counter()
         logits, embedding = self.step(frame, mats, self._net_from_orig if mats is not None else None)
+        logits, embedding = logits.cpu(), embedding.cpu()  # waits for an accelerator: its time counts here
         timings["network"] = _ms(start)
         if prep is not None:
             self._cache[-1].prep = prep

@@ -107,8 +107,9 @@ class StamLaneModule(LightningModule):
         crop_top: fraction of the frame height cut off above the network input (linked from ``data.clip.crop_top``);
             recorded so that streaming and export feed the network as it was trained.
         bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
-            ``"auto"`` (default): where the CPU runs bf16 natively (AMX / AVX512-BF16, ~3x faster than
-            float32), float32 elsewhere (emulated bf16 is ~15x slower); see `stamlane.training.hardware`.
+            ``"auto"`` (default): where the device the module is on runs bf16 natively (CPU: AMX / AVX512-BF16,
+            ~3x faster than float32; CUDA: ``torch.cuda.is_bf16_supported``), float32 elsewhere (emulated bf16
+            is ~15x slower); asked again when the module moves (`bf16`); see `stamlane.training.hardware`.
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
@@ -164,7 +165,8 @@ class StamLaneModule(LightningModule):
         self.postprocess = postprocess if postprocess is not None else PostprocessConfig()
         self.num_frames = num_frames
         self.crop_top = float(crop_top)
-        self.bf16 = resolve_bf16(bf16)
+        resolve_bf16(bf16)  # a bad value fails here, at construction
+        self.bf16 = bf16
         self.channels_last = channels_last
         self.report_run_time = report_run_time
         self.init_weights = init_weights
@@ -181,6 +183,16 @@ class StamLaneModule(LightningModule):
             self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
         if channels_last:
             self.net.to(memory_format=torch.channels_last)
+
+    @property
+    def bf16(self) -> bool:
+        """Whether the network runs under bfloat16 autocast on the device the module is on NOW: ``"auto"`` is
+        resolved per device, so a module built on a CPU without native bf16 and trained on a GPU uses it there."""
+        return resolve_bf16(self._bf16, self.device.type)
+
+    @bf16.setter
+    def bf16(self, value: bool | Literal["auto"]) -> None:
+        self._bf16 = value
 
     def setup(self, stage: str) -> None:
         """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""

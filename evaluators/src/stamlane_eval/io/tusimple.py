@@ -154,7 +154,14 @@ def iter_tusimple(
             yield i, LaneFileError(f"{p}: line {i}: JSON nested too deeply")
             continue
         if not isinstance(rec, dict):
-            yield i, LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}")
+            hint = ""
+            if i == 1 and isinstance(rec, list) and rec and all(isinstance(r, dict) and "raw_file" in r for r in rec):
+                # a list of records on one line: a generator's frame_labels/<clip>.json, which lane.py cannot read either
+                hint = (
+                    "; this is a list of records (a frame_labels/<clip>.json?): score a clip's frames with "
+                    "`stamlane-eval video PRED FRAME_LABELS_FOLDER`, or write one record per line"
+                )
+            yield i, LaneFileError(f"{p}: line {i}: expected a JSON object, got {type(rec).__name__}{hint}")
             continue
         if role is not None and ("true" in line or "false" in line):
             try:
