@@ -105,6 +105,7 @@ class LanePredictionWriter(BasePredictionWriter):
         self._video: cv2.VideoWriter | None = None
         self._video_fps: float | None = None
         self.written = {"tusimple": 0, "culane": 0, "overlays": 0, "video frames": 0}
+        self._done = False  # on_predict_end was reached: teardown says what was written
 
     def use_output_dir(self, output_dir: str | Path) -> None:
         """Write under ``output_dir`` (``stamlane predict``'s choice when none was given)."""
@@ -116,6 +117,7 @@ class LanePredictionWriter(BasePredictionWriter):
 
     def on_predict_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
         self.written = dict.fromkeys(self.written, 0)
+        self._done = False
         self._json = None
         self._data_root = Path(getattr(trainer.datamodule, "root", ".") or ".")
         is_video = bool(getattr(trainer.datamodule, "is_video", False))
@@ -212,6 +214,13 @@ class LanePredictionWriter(BasePredictionWriter):
             self._json.close()
             self._json = None
         self._close_video(keep=True)
+        self._done = True
+
+    def teardown(self, trainer: pl.Trainer, pl_module: pl.LightningModule, stage: str) -> None:
+        """Say what was written, after the progress bar has closed its line (a failed run says nothing)."""
+        if stage != "predict" or not self._done:
+            return
+        self._done = False
         if trainer.is_global_zero and self.verbose:
             parts = [f"{n} {k}" for k, n in self.written.items() if n and k != "video frames"]
             if self.written["video frames"]:

@@ -156,6 +156,8 @@ class StamLaneCLI(LightningCLI):
     _parse_ckpt_path = keep_command_line_hparams
 
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:
+        if self.subcommand == "predict":  # its files go to its output folder: no config.yaml where it is run
+            self.save_config_callback = None
         trainer = super().instantiate_trainer(**kwargs)
         trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
         trainer.callbacks.append(FinalCheckpoint())  # last.ckpt = the weights training ended with
@@ -291,9 +293,8 @@ class StamLaneCLI(LightningCLI):
 
     def before_predict(self) -> None:
         source = self.config["predict"].get("source")
-        if (
-            source
-        ):  # read as the model was trained; a folder has no alignment cache nor true homographies: ORB on the fly
+        if source:
+            # read as the model was trained; a folder has no alignment cache nor true homographies: ORB on the fly
             data = self.datamodule
             clip = data.clip if data.clip.align in ("fly", "none") else replace(data.clip, align="fly", cache_dir=None)
             self.datamodule = FramesDataModule(source, clip, data.loader, history_source=data.history_source)
