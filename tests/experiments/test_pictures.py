@@ -26,6 +26,10 @@ def test_the_frames_where_models_differ_most_come_first() -> None:
     assert differing_frames([a, b, c], 3) == ["y.jpg", "z.jpg", "w.jpg"]  # spreads 0.8, 0.3, 0.3 (by name), 0.1
     assert differing_frames([a, b, c], 10) == ["y.jpg", "z.jpg", "w.jpg", "x.jpg"]  # none some model lacks
     assert differing_frames([], 3) == []
+    d = {"clips/1/5.jpg": 0.0, "clips/1/9.jpg": 0.1, "clips/2/9.jpg": 0.6, "clips/3/9.jpg": 1.0}
+    e = dict.fromkeys(d, 1.0)  # spreads 1.0, 0.9, 0.4, 0.0: clip 1's second frame after the other clips' first
+    assert differing_frames([d, e], 3) == ["clips/1/5.jpg", "clips/2/9.jpg", "clips/3/9.jpg"]
+    assert differing_frames([d, e], 4) == ["clips/1/5.jpg", "clips/2/9.jpg", "clips/3/9.jpg", "clips/1/9.jpg"]
 
 
 @pytest.fixture(scope="module")

@@ -148,7 +148,8 @@ def _data(root: Path | None, out: Path, quick: bool) -> Path:
 
 def differing_frames(accuracy: Sequence[dict[str, float]], count: int) -> list[str]:
     """The ``count`` key frames where models differ most: the largest spread (best minus worst) of their per-image
-    accuracy, ties by name; frames some model lacks are left out.
+    accuracy, ties by name, one frame per clip (folder) before a clip's second; frames some model lacks are left
+    out.
 
     Args:
         accuracy: per model, key frame name -> its per-image accuracy.
@@ -156,7 +157,12 @@ def differing_frames(accuracy: Sequence[dict[str, float]], count: int) -> list[s
     """
     common = set.intersection(*(set(a) for a in accuracy)) if accuracy else set()
     spread = {name: max(a[name] for a in accuracy) - min(a[name] for a in accuracy) for name in common}
-    return sorted(spread, key=lambda name: (-spread[name], name))[:count]
+    ranked = sorted(spread, key=lambda name: (-spread[name], name))
+    firsts: dict[str, str] = {}  # clip -> its frame where the models differ most
+    for name in ranked:
+        firsts.setdefault(name.rpartition("/")[0], name)
+    chosen = list(firsts.values())
+    return (chosen + [name for name in ranked if name not in chosen])[:count]
 
 
 def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int = 3) -> Path | None:
