@@ -298,9 +298,9 @@ class StamLaneCLI(LightningCLI):
             data = self.datamodule
             clip = data.clip if data.clip.align in ("fly", "none") else replace(data.clip, align="fly", cache_dir=None)
             self.datamodule = FramesDataModule(source, clip, data.loader, history_source=data.history_source)
-        self._safe_load("predict")
         self._name_predictions(source)
-        self._check_outputs("predict")
+        self._check_outputs("predict")  # before the checkpoint is read: an output named like it is refused first
+        self._safe_load("predict")
         if source:
             self._check_sequence()
 
