@@ -215,22 +215,22 @@ def _plot(results: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    colours = plt.cm.tab20(np.linspace(0, 1, max(len(results), 2)))
-    for r, colour in zip(results, colours):
+    from stamlane.experiments.report import series_style
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4))
+    for k, r in enumerate(results):  # colour-blind-safe colours, then markers and line styles: no two alike
         points = [p for p in r["curve"] if "history_use_f1" in p]
         steps = [p["step"] for p in points]
-        axes[0].plot(steps, [100 * p["history_use_f1"] for p in points], "o-", color=colour, label=r["name"])
-        axes[1].plot(steps, [100 * p["f1"] for p in points], "o-", color=colour, label=r["name"])
+        axes[0].plot(steps, [100 * p["history_use_f1"] for p in points], **series_style(k), label=r["name"])
+        axes[1].plot(steps, [100 * p["f1"] for p in points], **series_style(k), label=r["name"])
     axes[0].axhline(0, color="grey", linewidth=0.8)
     axes[0].set_ylabel("history use: val F1 real - key frame copied (points)")
     axes[1].set_ylabel("val F1 (TuSimple, %)")
     for ax in axes:
         ax.set_xlabel("training step (stage 1 + stage 2)")
         ax.grid(alpha=0.3)
-    axes[1].legend(fontsize=8)
+    axes[1].legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))  # beside the curves, not on them
     fig.suptitle("4 frames, pre-aligned STAM: what makes the fusion read its history (synthetic val split)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -65,7 +65,9 @@ def test_config_loads(config: Path, capsys: pytest.CaptureFixture) -> None:
     assert "class_path: stamlane.models.VGGEncoder" in out and "num_frames:" in out
 
 
-def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+def test_fit_predict_then_stamlane_eval(
+    tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
     assert main(["fit", *_args(tiny_set, tmp_path, "--trainer.max_steps=4", "--trainer.val_check_interval=2")]) == 0
     version = tmp_path / "stam4" / "version_0"
     said = capsys.readouterr().out  # where the model went and how good it is
@@ -90,27 +92,76 @@ def test_fit_predict_then_stamlane_eval(tiny_set: Path, tmp_path: Path, capsys: 
     assert eval_main(["tusimple", str(pred), str(tiny_set / "test.json"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["images"] == 2
 
-    # a folder of frames instead of the split: CULane text, one file per frame
+    # a folder of frames instead of the split: CULane text, one file per frame, in a folder of its own by default
+    monkeypatch.chdir(tmp_path)
     frames = tiny_set / "clips" / "val-0000"
-    out = tmp_path / "folder"
-    args = ["--config", config, f"--ckpt_path={ckpt}", "--trainer.logger=false", f"--predictions.output_dir={out}"]
+    args = [f"--ckpt_path={ckpt}", "--trainer.logger=false"]  # the run's config from the checkpoint
+    capsys.readouterr()
     assert main(["predict", *args, f"--source={frames}"]) == 0
+    out = Path("outputs/predict/stam4-version_0/val-0000")  # the run, the source
     assert sorted(p.name for p in (out / "lines").iterdir()) == [f"{i}.lines.txt" for i in range(1, 5)]
+    said = capsys.readouterr()
+    assert f"wrote 4 culane, 4 overlays under {out}\n" in said.out and "warning" not in said.err  # one sequence
 
-    # a video file: decoded to frames beside it, then the same
+    # a video file: decoded into a temporary folder, then the same, and every frame in overlay.mp4
     video = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5, (256, 144))
     for i in range(1, 5):
         writer.write(cv2.imread(str(frames / f"{i}.jpg")))
     writer.release()
-    out = tmp_path / "video"
-    args[-1] = f"--predictions.output_dir={out}"
     assert main(["predict", *args, f"--source={video}"]) == 0
+    out = Path("outputs/predict/stam4-version_0/clip")
     assert len(list((out / "lines").iterdir())) == 4 and len(list((out / "overlays").iterdir())) == 4
+    assert capsys.readouterr().out.endswith(f"overlay.mp4 (4 frames) under {out}\n")
+    overlay = cv2.VideoCapture(str(out / "overlay.mp4"))
+    shown = []
+    while (frame := overlay.read())[0]:
+        shown.append(frame[1])
+    assert len(shown) == 4 and shown[0].shape == (144, 256, 3) and overlay.get(cv2.CAP_PROP_FPS) == 5
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("clip")) == ["clip.avi"]  # nothing beside
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary left
 
-    # predict from the checkpoint alone: the run's config travels inside it
-    alone = tmp_path / "alone"
-    assert main(["predict", f"--ckpt_path={ckpt}", "--trainer.logger=false", f"--predictions.output_dir={alone}"]) == 0
+    # images that are not one sequence, used as history: one line says so
+    unrelated = tmp_path / "unrelated"
+    unrelated.mkdir()
+    for i in (1, 2, 3):  # three frames, each upside down from the one before: the content jumps at every pair
+        image = cv2.imread(str(frames / f"{i}.jpg"))
+        cv2.imwrite(str(unrelated / f"{i}.jpg"), image[::-1] if i == 2 else image)
+    assert main(["predict", *args, f"--source={unrelated}"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warned) == 1 and warned[0].startswith(
+        f"stamlane predict: warning: {unrelated} is not one sequence: the content jumps between 2 of 2 frame pairs"
+    )
+    assert warned[0].endswith(
+        "every frame is read with the frame before it as history (--data.history_source key: each frame alone)"
+    )
+    assert main(["predict", *args, f"--source={unrelated}", "--data.history_source=key"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    mixed = tmp_path / "mixed"  # two sizes: refused before a frame is predicted
+    mixed.mkdir()
+    for i in (1, 2):
+        image = cv2.imread(str(frames / f"{i}.jpg"))
+        cv2.imwrite(str(mixed / f"{i}.jpg"), image if i < 2 else cv2.resize(image, (128, 72)))
+    assert main(["predict", *args, f"--source={mixed}"]) == 2
+    assert capsys.readouterr().err == (
+        f"stamlane predict: {mixed} is not one sequence: 2 image sizes (1 of 256x144, 1 of 128x72); a clip's frames "
+        "share one size (--data.history_source key: each frame alone)\n"
+    )
+    assert main(["predict", *args, f"--source={mixed}", "--data.history_source=key"]) == 0
+    # the new options, given nonsense: one line, status 2
+    for bad, message in (
+        ("--data.history_source=other_clip", "history_source must be one of ('real', 'key') for a folder or video"),
+        ("--predictions.video=maybe", "predictions.video"),
+    ):
+        assert main(["predict", *args, f"--source={unrelated}", bad]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and message in err, err
+
+    # predict from the checkpoint alone: the run's config travels inside it; the split's own folder by default
+    assert main(["predict", f"--ckpt_path={ckpt}", "--trainer.logger=false"]) == 0
+    alone = Path(f"outputs/predict/stam4-version_0/{tiny_set.name}-test")
+    assert (alone / "predictions.json").is_file() and len(list((alone / "overlays").rglob("*.jpg"))) == 2
+    assert not (tmp_path / "outputs" / "demo").exists()  # the config's old prediction folder is not used
 
     def lanes(path: Path) -> list:
         return [(r["raw_file"], r["lanes"]) for r in map(json.loads, path.read_text().splitlines())]

@@ -66,6 +66,34 @@ def test_predict_on_a_folder_with_no_checkpoint_runs_the_default_model(tiny_synt
 
 
 @pytest.mark.usefixtures("plain_argv")
+def test_predict_on_a_video_with_no_other_argument_keeps_its_folder_clean(
+    tiny_synthetic, tmp_path, capsys, monkeypatch
+):
+    """``stamlane predict --source drive.mp4`` right after the install: the shipped model, the lines, overlays and an
+    overlay video in a folder of the model and the video; nothing written beside the video (no decoded frames, no
+    config.yaml)."""
+    import cv2
+
+    root = tiny_synthetic(320, 180, 5, train=0, val=0, test=1, challenging=0)
+    (clip,) = (root / "clips").iterdir()
+    monkeypatch.chdir(tmp_path)
+    writer = cv2.VideoWriter("drive.mp4", cv2.VideoWriter_fourcc(*"mp4v"), 8, (320, 180))
+    for frame in sorted(clip.glob("*.jpg"), key=lambda p: int(p.stem)):
+        writer.write(cv2.imread(str(frame)))
+    writer.release()
+    assert main(["predict", "--source", "drive.mp4"]) == 0
+    out = Path("outputs/predict") / DEFAULT / "drive"
+    said = capsys.readouterr()
+    assert f"running the shipped {DEFAULT}" in said.err and "warning" not in said.err  # one sequence
+    assert said.out.endswith(f"wrote 5 culane, 5 overlays, overlay.mp4 (5 frames) under {out}\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.mp4", "outputs"]  # nothing beside the input
+    video = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert video.get(cv2.CAP_PROP_FRAME_COUNT) == 5 and video.get(cv2.CAP_PROP_FPS) == 8
+    assert video.read()[1].shape == (180, 320, 3)
+    assert sorted(p.name for p in out.iterdir()) == ["lines", "overlay.mp4", "overlays"]  # no temporary left
+
+
+@pytest.mark.usefixtures("plain_argv")
 def test_export_of_a_shipped_model_writes_here_not_into_the_package(tmp_path: Path, monkeypatch) -> None:
     pytest.importorskip("onnxruntime")
     monkeypatch.chdir(tmp_path)

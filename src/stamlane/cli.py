@@ -115,8 +115,9 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the config stored in the
     checkpoint (written to a temporary file while the command runs), else the run's ``config.yaml`` beside
     ``checkpoints/``; with it, the run's data root when it was recorded relative to the folder the run was started
-    in (`_data_root_args`). Yields the arguments to put in front (none when a config is given or nothing is
-    needed)."""
+    in (`_data_root_args`); for ``predict``, no output folder (the run's config may name one: the command chooses
+    one per model and source, `stamlane.predict.prediction_writer.default_output_dir`). Yields the arguments to put
+    in front (none when a config is given or nothing is needed)."""
     given = any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
     ckpt = _option(rest, "--ckpt_path")
     if command == "fit" or given or ckpt in (None, "last", "best"):
@@ -141,8 +142,10 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
         config, source = read_text(beside, limit=_MAX_CONFIG_BYTES), beside
     # data, not the user's code: checked against the closed registry, then a copy read
     root = _data_root_args(check_run_config(config, source), ckpt, start if isinstance(start, str) else None, rest)
+    # where the run's config wrote predictions is not where this call's go: one folder per model and source
+    fresh = ["--predictions.output_dir=null"] if command == "predict" else []
     with safe_config_file(config, source) as path:
-        yield ["--config", str(path), *root]
+        yield ["--config", str(path), *root, *fresh]
 
 
 def _option(rest: list[str], name: str) -> str | None:

@@ -96,7 +96,8 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     for name in ("val_f1.png", "history_use.png", "history_use_vs_headroom.png", "comparison.jpg"):
         picture = cv2.imread(str(quick / name))
         assert picture is not None and picture.std() > 10, name
-    assert cv2.imread(str(quick / "comparison.jpg")).shape == (3 * 144, 2 * 256, 3)  # 3 key frames x 2 models
+    comparison = cv2.imread(str(quick / "comparison.jpg"))  # 3 key frames x 2 models, under labels
+    assert comparison.shape[1] == 2 * 256 and 3 * 144 < comparison.shape[0] < 3 * 144 + 200
     table = (quick / "tables.md").read_text()
     assert "| 1 frame (baseline) | 1 |" in table and "History use" in table and "headroom" in table
 

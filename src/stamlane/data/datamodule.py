@@ -14,14 +14,30 @@ from torch.utils.data import DataLoader
 
 from stamlane.data.clips import FORMATS, HISTORY_SOURCES, ClipDataset, make_clips
 from stamlane.data.collate import collate_clips
-from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, decode_video
+from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION
 from stamlane.training.lightning_compat import plain_hyperparameters
 
-__all__ = ["DEFAULT_SYNTHETIC_ROOT", "FORMATS", "ClipDataModule", "FramesDataModule"]
+__all__ = [
+    "DEFAULT_SYNTHETIC_ROOT",
+    "FORMATS",
+    "FRAMES_HISTORY_SOURCES",
+    "ClipDataModule",
+    "FramesDataModule",
+    "SequenceWarning",
+]
+
+FRAMES_HISTORY_SOURCES = ("real", "key")
+"""What fills the history slots of a folder's or a video's clips (the other `HISTORY_SOURCES` need clips with
+homographies or several clips)."""
+
+
+class SequenceWarning(UserWarning):
+    """The frames of a ``--source`` folder or video are not one sequence, and the history is used anyway."""
+
 
 _DEFAULT_LABELS = {"train": ["train.json"], "val": ["val.json"], "test": ["test.json"], "predict": ["test.json"]}
 
@@ -214,6 +230,12 @@ class FramesDataModule(LightningDataModule):
     frames, key frame last, read as the model was trained (``stamlane predict --source`` passes the run's ``clip``
     and ``loader`` options).
 
+    When the history is used (``clip.num_frames > 1`` and ``history_source="real"``), ``setup`` compares every
+    frame with the one its history is read from (`stamlane.data.frames.check_sequence`, kept in ``sequence``):
+    content that jumps between many frame pairs (unrelated pictures) is warned about (`SequenceWarning`), images of
+    several sizes refused at once (`DataError`: a clip's frames must share one size; before, the first clip that
+    mixed them stopped the prediction midway).
+
     Args:
         source: a folder of images or a video file.
         clip: how a clip is read and resized; ``stride`` counts positions of the sorted listing, ``align`` is
@@ -221,6 +243,8 @@ class FramesDataModule(LightningDataModule):
         loader: batch size and DataLoader workers.
         frames_dir: where a video is decoded (default: a fresh temporary folder, removed with the module: frames
             are never written beside the input, nor frames of an earlier decoding reused).
+        history_source: ``"real"`` (each frame's predecessors) or ``"key"`` (each frame its own history: for
+            pictures that are not one sequence).
     """
 
     def __init__(
@@ -229,6 +253,7 @@ class FramesDataModule(LightningDataModule):
         clip: ClipOptions = ClipOptions(),
         loader: LoaderOptions = LoaderOptions(),
         frames_dir: str | None = None,
+        history_source: str = "real",
     ) -> None:
         super().__init__()
         path = Path(source)
@@ -236,6 +261,10 @@ class FramesDataModule(LightningDataModule):
             raise DataError(f"prediction source {path} does not exist")
         if clip.align not in ("fly", "none"):
             raise ValueError(f"align must be 'fly' or 'none' for a folder or video, got {clip.align!r}")
+        if history_source not in FRAMES_HISTORY_SOURCES:
+            raise ValueError(
+                f"history_source must be one of {FRAMES_HISTORY_SOURCES} for a folder or video, got {history_source!r}"
+            )
         self.source = path
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
         if path.is_file() and not self.is_video:
@@ -245,16 +274,40 @@ class FramesDataModule(LightningDataModule):
             self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
             frames_dir = self._decoded.name
         self.root = Path(frames_dir) if frames_dir else path
-        self.clip, self.loader = clip, loader
+        self.clip, self.loader, self.history_source = clip, loader, history_source
+        self.video_fps: float | None = None
+        """The video's frame rate (None for a folder, or a video that declares none): the overlay video's."""
         self.dataset: FolderClips | None = None
+        self.sequence: SequenceCheck | None = None
 
     def prepare_data(self) -> None:
-        if self.is_video and not any(self.root.glob("*.jpg")):
-            decode_video(self.source, self.root)
+        if self.is_video:
+            self.video_fps = video_rate(self.source)
+            if not any(self.root.glob("*.jpg")):
+                decode_video(self.source, self.root)
 
     def setup(self, stage: str | None = None) -> None:
-        if self.dataset is None:
-            self.dataset = FolderClips(self.root, clip=self.clip)
+        if self.dataset is not None:
+            return
+        self.dataset = FolderClips(self.root, clip=self.clip, history_source=self.history_source)
+        if self.clip.num_frames > 1 and self.history_source == "real":
+            names = [entry.raw_file for entry in self.dataset.entries]
+            self.sequence = check_sequence(self.root, names, self.clip.stride)
+            problem = self.sequence.problem()
+            alone = "--data.history_source key: each frame alone"
+            if not self.sequence.one_size:  # a clip of two sizes cannot be read: said now, not at its turn
+                raise DataError(
+                    f"{self.source} is not one sequence: {problem}; a clip's frames share one size ({alone})"
+                )
+            if problem is not None:
+                n = self.clip.num_frames - 1
+                before = "the frame" if n == 1 else f"the {n} frames"
+                warnings.warn(
+                    f"{self.source} is not one sequence: {problem}; every frame is read with {before} before it as "
+                    f"history ({alone})",
+                    SequenceWarning,
+                    stacklevel=2,
+                )
 
     def predict_dataloader(self) -> DataLoader:
         self.setup("predict")

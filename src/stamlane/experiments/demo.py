@@ -12,17 +12,19 @@ two reveal splits in TuSimple F1 and IoU F1 with intervals over clips and seeds,
 history (the key frame copied into every history slot everywhere; on the reveal splits also the matched null,
 the history reversed, another clip's history and exact alignment; ``--all-probes``: another clip's history on
 every split), and writes ``summary.json``, ``tables.md``, ``val_f1.png``, ``history_use.png``,
-``history_use_vs_headroom.png`` and ``comparison.jpg`` (the same challenging key frames, one column per model) to
-``--out``, and prints the tables. ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean
-nothing; the tests run it).
+``history_use_vs_headroom.png`` and ``comparison.jpg`` (the challenging key frames where the models differ most,
+one column per model, with the ground truth and each model's score) to ``--out``, and prints the tables.
+``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean nothing; the tests run it).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -34,6 +36,7 @@ from stamlane.experiments.recipes import RECIPES, Recipe, Row
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
 from stamlane.safety.boundary import run_command
+from stamlane.safety.guard import atomic_path
 
 __all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "build_parser", "main", "pairs"]
 
@@ -93,24 +96,83 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def differing_frames(accuracy: Sequence[dict[str, float]], count: int) -> list[str]:
+    """The ``count`` key frames where models differ most: the largest spread (best minus worst) of their per-image
+    accuracy, ties by name, one frame per clip (folder) before a clip's second; frames some model lacks are left
+    out.
+
+    Args:
+        accuracy: per model, key frame name -> its per-image accuracy.
+        count: how many frames.
+    """
+    common = set.intersection(*(set(a) for a in accuracy)) if accuracy else set()
+    spread = {name: max(a[name] for a in accuracy) - min(a[name] for a in accuracy) for name in common}
+    ranked = sorted(spread, key=lambda name: (-spread[name], name))
+    firsts: dict[str, str] = {}  # clip -> its frame where the models differ most
+    for name in ranked:
+        firsts.setdefault(name.rpartition("/")[0], name)
+    chosen = list(firsts.values())
+    return (chosen + [name for name in ranked if name not in chosen])[:count]
+
+
 def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int = 3) -> Path | None:
-    """The same ``count`` challenging key frames with each seed-0 model's lanes, one column per model."""
+    """``count`` challenging key frames with each seed-0 model's lanes, one column per model (named in the header),
+    one row per frame (named with its factor and the accuracies' spread above it): the frames where the models'
+    per-image TuSimple accuracies (``per_image.jsonl``) differ most, drawn with the ground truth and each model's
+    score (`stamlane.predict.overlay`); None when a model's predictions are missing."""
     import cv2
+    from stamlane_eval.io import read_tusimple, tusimple_points
+
+    from stamlane.experiments.scoring import PER_IMAGE
+    from stamlane.predict.overlay import draw_lanes, draw_legend, label_strip, text_scale
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.guard import read_inside
+    from stamlane.safety.images import read_image
+    from stamlane.synth import FACTORS
 
     store = experiment.store
-    folders = [store.pred_dir(store.run_name(r.name, experiment.seeds[0]), "challenging") / "overlays" for r in rows]
-    frames = sorted(p.relative_to(folders[0]) for p in folders[0].rglob("*.jpg"))[:count]
-    grid = []
-    for frame in frames:
-        cells = [cv2.imread(str(folder / frame)) for folder in folders]
-        if any(c is None for c in cells):
-            return None
-        for cell, row in zip(cells, rows):
-            cv2.putText(cell, row.label, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 2, cv2.LINE_AA)
-        grid.append(np.concatenate(cells, axis=1))
-    if not grid:
+    folders = [store.pred_dir(store.run_name(r.name, experiment.seeds[0]), "challenging") for r in rows]
+    if not all((f / PER_IMAGE).is_file() and (f / "predictions.json").is_file() for f in folders):
         return None
-    cv2.imwrite(str(path), np.concatenate(grid, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    scored = [  # records of the run folders: read only inside them, bounded
+        {r["raw_file"]: r for r in map(json.loads, read_inside(f / PER_IMAGE, f, MAX_RECORD_BYTES).splitlines())}
+        for f in folders
+    ]
+    frames = differing_frames([{name: r["acc"] for name, r in s.items()} for s in scored], count)
+    if not frames:
+        return None
+    predicted = [{p["raw_file"]: p for p in read_tusimple(f / "predictions.json")} for f in folders]
+    truth = {g["raw_file"]: g for g in read_tusimple(experiment.root / "challenging.json")}
+    factor_of = {}
+    for factor in FACTORS:
+        labels = experiment.root / f"challenging-{factor}.json"
+        if labels.is_file() and labels.stat().st_size:  # a factor without a clip has an empty label file
+            factor_of.update({g["raw_file"]: factor for g in read_tusimple(labels)})
+    grid = []
+    for name in frames:
+        image = read_image(experiment.root / name)
+        if image is None:
+            return None
+        gt = truth[name]
+        gt_lanes = [lane for lane in tusimple_points(gt["lanes"], gt["h_samples"]) if len(lane) >= 2]
+        cells = []
+        for pred, score in zip(predicted, scored):
+            lanes = [lane for lane in tusimple_points(pred[name]["lanes"], pred[name]["h_samples"]) if len(lane) >= 2]
+            result = score[name]
+            text = f"TuSimple acc {100 * result['acc']:.1f} %, {result['matched']}/{result['n_gt']} lanes"
+            cells.append(draw_legend(draw_lanes(image, lanes, gt_lanes), score=text, predictions=False))
+        accs = [100 * s[name]["acc"] for s in scored]
+        what = f"{name}  ({factor_of[name]})" if name in factor_of else name
+        scale = text_scale(image)
+        row_label = f"{what}: accuracy {min(accs):.0f}-{max(accs):.0f} % across the models"
+        strip = label_strip(image.shape[1] * len(cells), [row_label], round(60 * scale), scale)
+        grid += [strip, np.concatenate(cells, axis=1)]
+    scale = text_scale(image)
+    header = label_strip(image.shape[1] * len(rows), [r.label for r in rows], round(70 * scale), 1.2 * scale)
+    legend = "coloured lines: each model's lanes (one colour per lane);  yellow band in black: the ground truth"
+    key = label_strip(header.shape[1], [legend], round(60 * scale), scale)
+    with atomic_path(path) as tmp:
+        cv2.imwrite(str(tmp), np.concatenate([header, key, *grid], axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
     return path
 
 

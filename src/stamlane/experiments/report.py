@@ -30,6 +30,7 @@ __all__ = [
     "plot_val_curves",
     "reads_history",
     "replication",
+    "series_style",
     "tables",
     "write_csv",
 ]
@@ -51,6 +52,29 @@ SPAN_COLUMNS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
 NO_HEADROOM = 0.01
 """Below this headroom (1 F1 point, history oracle minus key-frame oracle) a factor is marked as one where history
 cannot show: the fitted lines already bridge what the key frame does not show."""
+
+
+SERIES_COLOURS = ("blue", "orange", "bluish green", "vermillion", "sky blue", "reddish purple", "black")
+"""The Okabe-Ito colours plots give their series, in order (`stamlane.predict.overlay.OKABE_ITO`; its yellow is
+left out: faint on white)."""
+SERIES_MARKERS = ("o", "s", "^", "D")
+SERIES_LINES = ("-", "--", ":", "-.")
+NEUTRAL = "#888888"
+"""The colour of what is not a model's series (an oracle's headroom, a reference line)."""
+
+
+def series_style(k: int) -> dict[str, str]:
+    """The matplotlib ``color``, ``marker`` and ``linestyle`` of the ``k``-th series of a plot: a colour-blind-safe
+    colour (`SERIES_COLOURS`), a marker of its own beside its neighbours' (series that overlap stay apart), and
+    past the colours another line style: no two of the first 28 series look alike."""
+    from stamlane.predict.overlay import OKABE_ITO
+
+    r, g, b = OKABE_ITO[SERIES_COLOURS[k % len(SERIES_COLOURS)]]
+    return {
+        "color": f"#{r:02x}{g:02x}{b:02x}",
+        "marker": SERIES_MARKERS[k % len(SERIES_MARKERS)],
+        "linestyle": SERIES_LINES[k // len(SERIES_COLOURS) % len(SERIES_LINES)],
+    }
 
 
 def value_text(v: Value | None) -> str:
@@ -343,11 +367,11 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
             x, y = 100 * h.diff, 100 * d.diff
             err = [[100 * (d.diff - d.ci95[0])], [100 * (d.ci95[1] - d.diff)]]
             marker = "o" if view.startswith("challenging") else "s"
-            ax.errorbar(x, y, yerr=err, fmt=marker, color=f"C{colour}", capsize=2, alpha=0.85)
+            ax.errorbar(x, y, yerr=err, fmt=marker, color=series_style(colour)["color"], capsize=2, alpha=0.85)
             ax.annotate(view.split(":")[1], (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
             top = max(top, x, y)
-        ax.plot([], [], "s", color=f"C{colour}", label=m.label)
-    ax.plot([0, top], [0, top], color="grey", linestyle="--", linewidth=0.8, label="history use = headroom")
+        ax.plot([], [], "s", color=series_style(colour)["color"], label=m.label)
+    ax.plot([0, top], [0, top], color=NEUTRAL, linestyle="--", linewidth=0.8, label="history use = headroom")
     ax.axhline(0, color="grey", linewidth=0.6)
     ax.set_xlabel(f"headroom of the labels, {frames} frames (F1 points)")
     ax.set_ylabel("history use: real − key copied (F1 points)")
@@ -573,7 +597,8 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
         x = np.arange(len(views)) + (k - (len(series) - 1) / 2) * width
         y = [100 * d.diff if d else np.nan for d in diffs]
         err = np.array([[100 * (d.diff - d.ci95[0]), 100 * (d.ci95[1] - d.diff)] if d else [0, 0] for d in diffs]).T
-        ax.bar(x, y, width, yerr=err, capsize=2, label=name)
+        colour = NEUTRAL if k == 0 else series_style(k - 1)["color"]  # the headroom first, then each model
+        ax.bar(x, y, width, yerr=err, capsize=2, label=name, color=colour, hatch="//" if k == 0 else None)
     ax.axhline(0, color="grey", linewidth=0.8)
     ax.set_xticks(np.arange(len(views)), [v.split(":")[-1] for v in views], rotation=20)
     ax.set_ylabel("F1 points: real history − key frame copied")
@@ -613,12 +638,10 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
             points = [(int(r["step"]) + 1 + first, float(r[f1])) for r in rows if r.get(f1)]
             if points:
                 seeds_label = f"{label} ({len(seeds)} seeds)" if len(seeds) > 1 else label
-                ax.plot(
-                    *zip(*points), marker="o", color=f"C{colour}", alpha=0.8, label=None if labelled else seeds_label
-                )
+                ax.plot(*zip(*points), **series_style(colour), alpha=0.8, label=None if labelled else seeds_label)
                 labelled = True
     for start in {first for _, _, first in runs if first}:
-        ax.axvline(start, color="grey", linestyle=":", linewidth=1)
+        ax.axvline(start, color=NEUTRAL, linestyle=":", linewidth=1)
     ax.set(xlabel="training step (a second stage right of the dotted line)", ylabel="validation F1 (TuSimple)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)

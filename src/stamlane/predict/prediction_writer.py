@@ -6,16 +6,23 @@
   ``stamlane-eval tusimple predictions.json <gt.json>``;
 - ``lines/<raw_file stem>.lines.txt`` — CULane text, one per key frame without ``h_samples`` (CULane,
   ApolloScape, VIL-100, folders, videos), scored by ``stamlane-eval culane <output_dir>/lines <gt_dir>``;
-- ``overlays/<raw_file stem>.jpg`` — the original key frame with the predicted lanes (and the annotated
-  ones in white when the split has labels), at most ``max_overlays`` of them.
+- ``overlays/<raw_file stem>.jpg`` — the original key frame with the predicted lanes and a legend (the model's
+  name; where the split has labels, the annotated lanes and the image's score: `stamlane.predict.scores`), at most
+  ``max_overlays`` of them;
+- ``overlay.mp4`` — for a video source, every frame with its lanes and legend, at the video's frame rate (mp4v),
+  written under a temporary name and renamed when prediction ends.
 
-With several processes (DDP) every rank writes ``predictions.rank<r>.json``.
+``stamlane predict`` chooses ``output_dir`` when it is not given: one folder per model and source
+(`default_output_dir`), so that a split's json and a video's lines never mix. With several processes (DDP) every
+rank writes ``predictions.rank<r>.json`` (and no overlay video: the frames are split between the ranks).
 
 The data of ``stamlane predict --source FOLDER|VIDEO`` is ``stamlane.data.datamodule.FramesDataModule``.
 """
 
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -25,33 +32,60 @@ import numpy as np
 from lightning.pytorch.callbacks import BasePredictionWriter
 from stamlane_eval.io import culane_lines_path
 
-from stamlane.predict.overlay import draw_lanes
+from stamlane.predict.overlay import draw_lanes, draw_legend
+from stamlane.predict.scores import image_score
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
+from stamlane.safety.guard import temporary_name
 from stamlane.safety.images import read_image
 
-__all__ = ["LanePredictionWriter"]
+__all__ = ["DEFAULT_ROOT", "VIDEO_NAME", "LanePredictionWriter", "default_output_dir", "folder_name"]
 
 _FORMATS = ("auto", "tusimple", "culane")
+DEFAULT_ROOT = Path("outputs/predict")
+"""Where ``stamlane predict`` writes when no ``--predictions.output_dir`` is given (`default_output_dir`)."""
+VIDEO_NAME = "overlay.mp4"
+"""The overlay video of a video source, in the output folder."""
+FALLBACK_FPS = 10.0
+"""Frame rate of the overlay video of a video that declares none (as ``stamlane stream``)."""
+
+
+def folder_name(text: str) -> str:
+    """``text`` as one folder name: every character but letters, digits, ``.``, ``_``, ``-`` and ``+`` becomes
+    ``_``, leading dots are dropped (never ``..`` nor a hidden folder), at most 100 characters."""
+    name = re.sub(r"[^A-Za-z0-9._+-]", "_", text).lstrip(".")[:100]
+    return name or "_"
+
+
+def default_output_dir(model: str, source: str) -> Path:
+    """``outputs/predict/<model>/<source>``: one folder per model and per source (`folder_name` of each)."""
+    return DEFAULT_ROOT / folder_name(model) / folder_name(source)
 
 
 class LanePredictionWriter(BasePredictionWriter):
-    """Write ``predict_step`` outputs as benchmark files and overlay pictures (see the module docstring).
+    """Write ``predict_step`` outputs as benchmark files, overlay pictures and, for a video, an overlay video (see
+    the module docstring).
 
     Args:
-        output_dir: the output folder.
+        output_dir: the output folder; None: ``stamlane predict`` chooses one per model and source
+            (`default_output_dir`), ``outputs/predict/predictions`` when the callback is used alone.
         format: ``"auto"`` (TuSimple json for frames with ``h_samples``, CULane text otherwise),
             ``"tusimple"`` (frames without ``h_samples`` are an error) or ``"culane"`` (always text).
-        overlays: write overlay pictures.
-        max_overlays: write at most this many overlays (``None``: all).
+        overlays: write overlay pictures (and the overlay video).
+        max_overlays: write at most this many overlay pictures (``None``: all); the overlay video has every frame.
+        video: write ``overlay.mp4`` when the source is a video (the data module says so with ``is_video`` and
+            ``video_fps``, as `stamlane.data.datamodule.FramesDataModule` does).
+        model_name: the name in the overlays' legend (None: ``stamlane predict`` names the checkpoint's run).
         verbose: print what was written when prediction ends (the experiment engine turns it off).
     """
 
     def __init__(
         self,
-        output_dir: str = "outputs/predictions",
+        output_dir: str | None = None,
         format: str = "auto",
         overlays: bool = True,
         max_overlays: int | None = None,
+        video: bool = True,
+        model_name: str | None = None,
         verbose: bool = True,
     ) -> None:
         super().__init__(write_interval="batch")
@@ -60,17 +94,35 @@ class LanePredictionWriter(BasePredictionWriter):
             raise ValueError(f"format must be one of {_FORMATS}, got {format!r}")
         if max_overlays is not None and max_overlays < 0:
             raise ValueError(f"max_overlays must be >= 0 or None, got {max_overlays}")
-        self.output_dir = Path(output_dir)
+        self.given_output_dir = output_dir is not None  # stamlane predict chooses one otherwise
+        self.output_dir = Path(output_dir) if output_dir is not None else DEFAULT_ROOT / "predictions"
         self.format = format
         self.overlays = overlays
         self.max_overlays = max_overlays
+        self.video = video
+        self.model_name = model_name
         self._json: TusimpleWriter | None = None
-        self.written = {"tusimple": 0, "culane": 0, "overlays": 0}
+        self._video: cv2.VideoWriter | None = None
+        self._video_fps: float | None = None
+        self.written = {"tusimple": 0, "culane": 0, "overlays": 0, "video frames": 0}
+        self._done = False  # on_predict_end was reached: teardown says what was written
+
+    def use_output_dir(self, output_dir: str | Path) -> None:
+        """Write under ``output_dir`` (``stamlane predict``'s choice when none was given)."""
+        self.output_dir = Path(output_dir)
+
+    @property
+    def video_path(self) -> Path:
+        return self.output_dir / VIDEO_NAME
 
     def on_predict_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
-        self.written = {"tusimple": 0, "culane": 0, "overlays": 0}
+        self.written = dict.fromkeys(self.written, 0)
+        self._done = False
         self._json = None
         self._data_root = Path(getattr(trainer.datamodule, "root", ".") or ".")
+        is_video = bool(getattr(trainer.datamodule, "is_video", False))
+        fps = getattr(trainer.datamodule, "video_fps", None) or FALLBACK_FPS
+        self._video_fps = fps if is_video and trainer.world_size == 1 else None
 
     def _json_writer(self, trainer: pl.Trainer) -> TusimpleWriter:
         if self._json is None:
@@ -102,24 +154,75 @@ class LanePredictionWriter(BasePredictionWriter):
             else:
                 write_culane_lines(self.output_dir / "lines", raw_file, lanes)
                 self.written["culane"] += 1
-            if self.overlays and (self.max_overlays is None or self.written["overlays"] < self.max_overlays):
-                self._write_overlay(meta, lanes, gts[i] if gts is not None else None)
+            picture = self.overlays and (self.max_overlays is None or self.written["overlays"] < self.max_overlays)
+            frame = self.overlays and self.video and self._video_fps is not None
+            if picture or frame:
+                overlay = self._overlay(meta, lanes, gts[i] if gts is not None else None)
+                if overlay is not None and picture:
+                    self._write_picture(raw_file, overlay)
+                if overlay is not None and frame:
+                    self._write_frame(overlay)
 
-    def _write_overlay(self, meta: dict, lanes: list[np.ndarray], gt_lanes: list[np.ndarray] | None) -> None:
+    def _overlay(self, meta: dict, lanes: list[np.ndarray], gt_lanes: list[np.ndarray] | None) -> np.ndarray | None:
+        """The key frame with its lanes and legend; None when the frame cannot be read."""
         key_path = self._data_root / meta["frame_paths"][-1] if meta.get("frame_paths") else None
         image = read_image(key_path) if key_path is not None else None  # a FIFO or a bomb: no overlay, no hang
         if image is None:
-            return
-        path = culane_lines_path(self.output_dir / "overlays", str(meta["raw_file"])).with_suffix("")
+            return None
+        # a folder or a video has no labels; a split's frame without h_samples and without lanes may have none
+        labelled = gt_lanes is not None and meta.get("format") != "frames"
+        labelled = labelled and (meta.get("h_samples") is not None or len(gt_lanes) > 0)
+        picture = draw_lanes(image, lanes, gt_lanes if labelled else None)
+        score = image_score(lanes, gt_lanes, meta.get("h_samples"), image.shape[:2]) if labelled else None
+        return draw_legend(picture, model=self.model_name, score=score, ground_truth=labelled)
+
+    def _write_picture(self, raw_file: str, overlay: np.ndarray) -> None:
+        path = culane_lines_path(self.output_dir / "overlays", raw_file).with_suffix("")
         path = path.with_suffix(".jpg")  # <stem>.lines -> <stem>.jpg
         path.parent.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(output_path(self.output_dir, path)), draw_lanes(image, lanes, gt_lanes))
+        cv2.imwrite(str(output_path(self.output_dir, path)), overlay)
         self.written["overlays"] += 1
+
+    def _write_frame(self, overlay: np.ndarray) -> None:
+        if self._video is None:
+            self.output_dir.mkdir(parents=True, exist_ok=True)
+            tmp = output_path(self.output_dir, temporary_name(self.video_path))
+            size = (overlay.shape[1], overlay.shape[0])  # OpenCV's (W, H)
+            self._video = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), self._video_fps, size)
+            self._video_size = size
+        if (overlay.shape[1], overlay.shape[0]) != self._video_size:  # a video's frames share one size
+            overlay = cv2.resize(overlay, self._video_size, interpolation=cv2.INTER_AREA)
+        self._video.write(overlay)
+        self.written["video frames"] += 1
+
+    def _close_video(self, keep: bool) -> None:
+        if self._video is None:
+            return
+        self._video.release()
+        self._video = None
+        tmp = temporary_name(self.video_path)
+        if keep and tmp.is_file():
+            os.replace(tmp, output_path(self.output_dir, self.video_path))
+        elif os.path.lexists(tmp):
+            tmp.unlink()
+
+    def on_exception(self, trainer: pl.Trainer, pl_module: pl.LightningModule, exception: BaseException) -> None:
+        self._close_video(keep=False)  # a failed run leaves the previous overlay video whole
 
     def on_predict_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
         if self._json is not None:
             self._json.close()
             self._json = None
+        self._close_video(keep=True)
+        self._done = True
+
+    def teardown(self, trainer: pl.Trainer, pl_module: pl.LightningModule, stage: str) -> None:
+        """Say what was written, after the progress bar has closed its line (a failed run says nothing)."""
+        if stage != "predict" or not self._done:
+            return
+        self._done = False
         if trainer.is_global_zero and self.verbose:
-            parts = [f"{n} {k}" for k, n in self.written.items() if n]
-            print(f"stamlane predict: wrote {', '.join(parts) or 'nothing'} under {self.output_dir}")
+            parts = [f"{n} {k}" for k, n in self.written.items() if n and k != "video frames"]
+            if self.written["video frames"]:
+                parts.append(f"{self.video_path.name} ({self.written['video frames']} frames)")
+            print(f"stamlane predict: wrote {', '.join(parts) or 'nothing'} under {self.output_dir}", flush=True)

@@ -7,8 +7,10 @@ version (the flat data options, a moved class, a renamed option) is read in toda
 from __future__ import annotations
 
 import dataclasses
+import re
 import sys
 import typing
+import warnings
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -19,10 +21,10 @@ from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.data.datamodule import ClipDataModule, FramesDataModule
-from stamlane.predict.prediction_writer import LanePredictionWriter
+from stamlane.data.datamodule import ClipDataModule, FramesDataModule, SequenceWarning
+from stamlane.predict.prediction_writer import LanePredictionWriter, default_output_dir
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-from stamlane.safety.guard import check_outputs
+from stamlane.safety.guard import check_outputs, temporary_name
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
@@ -30,7 +32,7 @@ from stamlane.training.lightning_compat import keep_command_line_hparams
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
 
-__all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI"]
+__all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI", "checkpoint_name"]
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
@@ -154,6 +156,8 @@ class StamLaneCLI(LightningCLI):
     _parse_ckpt_path = keep_command_line_hparams
 
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:
+        if self.subcommand == "predict":  # its files go to its output folder: no config.yaml where it is run
+            self.save_config_callback = None
         trainer = super().instantiate_trainer(**kwargs)
         trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
         trainer.callbacks.append(FinalCheckpoint())  # last.ckpt = the weights training ended with
@@ -239,7 +243,7 @@ class StamLaneCLI(LightningCLI):
             for cb in self.trainer.callbacks:
                 if isinstance(cb, LanePredictionWriter):
                     folders += [cb.output_dir, cb.output_dir / "lines", cb.output_dir / "overlays"]
-                    files.append(cb.output_dir / "predictions.json")
+                    files += [cb.output_dir / "predictions.json", cb.video_path, temporary_name(cb.video_path)]
         check_outputs(files, reads, folders=folders, protected=inputs)
 
     def _safe_load(self, subcommand: str) -> None:
@@ -288,13 +292,65 @@ class StamLaneCLI(LightningCLI):
         return found[-1]
 
     def before_predict(self) -> None:
-        self._check_outputs("predict")
-        self._safe_load("predict")
         source = self.config["predict"].get("source")
-        if not source:
-            return
-        # read as the model was trained; a folder has no alignment cache nor true homographies: ORB on the fly
-        clip = self.datamodule.clip
-        if clip.align not in ("fly", "none"):
-            clip = replace(clip, align="fly", cache_dir=None)
-        self.datamodule = FramesDataModule(source, clip, self.datamodule.loader)
+        if source:
+            # read as the model was trained; a folder has no alignment cache nor true homographies: ORB on the fly
+            data = self.datamodule
+            clip = data.clip if data.clip.align in ("fly", "none") else replace(data.clip, align="fly", cache_dir=None)
+            self.datamodule = FramesDataModule(source, clip, data.loader, history_source=data.history_source)
+        self._name_predictions(source)
+        self._check_outputs("predict")  # before the checkpoint is read: an output named like it is refused first
+        self._safe_load("predict")
+        if source:
+            self._check_sequence()
+
+    def _name_predictions(self, source: str | None) -> None:
+        """Give the prediction writer its folder when none was given, ``outputs/predict/<model>/<source>``
+        (`stamlane.predict.prediction_writer.default_output_dir`: the checkpoint's run, and the source's name or the
+        data root and split), and the name its legends show when none was given (the checkpoint's run)."""
+        ckpt = self.config_init["predict"].get("ckpt_path")
+        configs = [str(c) for c in self.config["predict"].get("config") or []]
+        model = checkpoint_name(ckpt, configs)
+        if source:
+            path = Path(source).resolve()
+            what = path.stem if path.is_file() else path.name
+        else:
+            labels = "+".join(Path(f).stem for f in self.datamodule.split_labels("predict"))
+            what = f"{Path(self.datamodule.root).resolve().name}-{labels}"
+        for writer in self.trainer.callbacks:
+            if isinstance(writer, LanePredictionWriter):
+                if not writer.given_output_dir:
+                    writer.use_output_dir(default_output_dir(model, what))
+                if writer.model_name is None:
+                    writer.model_name = model
+
+    def _check_sequence(self) -> None:
+        """Read the source now (a video is decoded) and say in one line, on stderr, when its frames are not one
+        sequence and the history is used anyway (`stamlane.data.datamodule.SequenceWarning`)."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", SequenceWarning)
+            self.datamodule.prepare_data()
+            self.datamodule.setup("predict")
+        for warning in caught:
+            if issubclass(warning.category, SequenceWarning):
+                if self.trainer.is_global_zero:
+                    print(f"stamlane predict: warning: {warning.message}", file=sys.stderr, flush=True)
+            else:  # anything else is shown as it would have been
+                warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+
+
+def checkpoint_name(ckpt: str | None, configs: list[str]) -> str:
+    """The name of a model for its prediction folder and legends: the run a checkpoint belongs to
+    (``outputs/demo/stam4-s0/run/checkpoints/last.ckpt`` -> ``stam4-s0``, ``runs/stam4/version_3/checkpoints/
+    last.ckpt`` -> ``stam4-version_3``), with the checkpoint's name unless it is ``last`` (``...-best-step=400``);
+    a checkpoint outside a run folder by its file name; without one, the config's name and ``-untrained``."""
+    if not ckpt:
+        return f"{Path(configs[-1]).stem}-untrained" if configs else "untrained"
+    path = Path(ckpt)
+    if path.parent.name != "checkpoints":
+        return path.stem
+    run = path.parent.parent
+    name = run.parent.name if run.name == "run" else run.name
+    if re.fullmatch(r"version_\d+", run.name):
+        name = f"{run.parent.name}-{run.name}"
+    return name if path.stem == "last" else f"{name}-{path.stem}"
