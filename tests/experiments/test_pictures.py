@@ -13,9 +13,10 @@ import pytest
 from stamlane_eval.io import read_tusimple, tusimple_points
 
 from stamlane.experiments.demo import _comparison, differing_frames
-from stamlane.experiments.engine import Row
+from stamlane.experiments.recipes import Row
 from stamlane.experiments.report import SERIES_COLOURS, series_style
 from stamlane.experiments.scoring import score_split
+from stamlane.experiments.store import RunStore
 from stamlane.predict.overlay import LANE_COLOURS, OKABE_ITO, draw_lanes, text_scale
 
 
@@ -44,11 +45,9 @@ def test_the_comparison_shows_the_frames_where_models_differ(challenging: Path, 
     worst, second = gts[2]["raw_file"], gts[0]["raw_file"]
     rows = [Row("stam4", "4 frames", ("demo.yaml",)), Row("single", "1 frame", ("demo_single.yaml",))]
 
-    def pred_dir(name: str, split: str, source: str = "real") -> Path:
-        return tmp_path / "predictions" / name / split
-
+    store = RunStore(tmp_path)  # the run layout, as the engine's
     for row in rows:
-        folder = pred_dir(f"{row.name}-s0", "challenging")
+        folder = store.pred_dir(store.run_name(row.name, 0), "challenging")
         folder.mkdir(parents=True)
         records = []
         for gt in gts:
@@ -58,7 +57,7 @@ def test_the_comparison_shows_the_frames_where_models_differ(challenging: Path, 
             records.append({"raw_file": gt["raw_file"], "lanes": lanes, "h_samples": gt["h_samples"], "run_time": 1})
         (folder / "predictions.json").write_text("".join(json.dumps(r) + "\n" for r in records))
         score_split(folder, challenging, "challenging", 4)
-    experiment = SimpleNamespace(pred_dir=pred_dir, seeds=[0], root=challenging)
+    experiment = SimpleNamespace(store=store, seeds=[0], root=challenging)
     picture = cv2.imread(str(_comparison(experiment, rows, tmp_path / "comparison.jpg", count=2)))
     # layout: a header naming the models, a legend line, then per frame a line naming it and its row of cells
     scale = text_scale(np.zeros((144, 256, 3)))
