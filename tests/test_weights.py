@@ -12,7 +12,7 @@ import torch
 import yaml
 
 from stamlane.cli import main
-from stamlane.experiments.store import file_sha256
+from stamlane.safety.guard import file_sha256
 from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
 from stamlane.training.module import StamLaneModule
 from stamlane.training.release import KEPT, release

@@ -27,9 +27,9 @@ from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT, Runner, aligns, postprocess_of
 from stamlane.experiments.scores import Scores, views
 from stamlane.experiments.scoring import image_size, iou_width, read_per_image, read_visibility, score_split
-from stamlane.experiments.store import ExperimentError, RunStore, file_sha256
+from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
-from stamlane.safety.guard import write_atomic
+from stamlane.safety.guard import file_sha256, write_atomic
 from stamlane.training.quiet import quiet_libraries
 
 __all__ = [

@@ -31,7 +31,8 @@ import yaml
 
 from stamlane.experiments.recipes import CONFIG_DIR, Row, Stage
 from stamlane.experiments.scoring import SCORING, clip_of, read_per_clip, read_per_image, score_split, score_temporal
-from stamlane.experiments.store import ExperimentError, RunStore, file_sha256
+from stamlane.experiments.store import ExperimentError, RunStore
+from stamlane.safety.guard import file_sha256
 from stamlane.synth.layout import TEMPORAL_LABELS
 
 __all__ = [

@@ -28,15 +28,14 @@ and its predictions stand for the frames found when it is next scored) and ``sco
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 from typing import Any
 
 from stamlane.safety.budget import MAX_RECORD_BYTES
-from stamlane.safety.guard import GuardError, read_inside, write_atomic
+from stamlane.safety.guard import GuardError, file_sha256, read_inside, write_atomic
 
-__all__ = ["DONE", "ExperimentError", "RunStore", "file_sha256", "upgrade_record"]
+__all__ = ["DONE", "ExperimentError", "RunStore", "upgrade_record"]
 
 DONE = "done.json"
 RUN = "run"
@@ -46,15 +45,6 @@ PREDICTIONS = "predictions"
 
 class ExperimentError(Exception):
     """A known failure of an experiment (bad rows, a used ``--out``, a broken run folder): one line, exit 2."""
-
-
-def file_sha256(path: Path) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 RECORD_TYPES: dict[str, tuple[type, ...]] = {

@@ -19,6 +19,7 @@ folder at once.
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
 import stat
 from collections.abc import Iterable, Iterator
@@ -33,6 +34,7 @@ __all__ = [
     "atomic_path",
     "check_outputs",
     "exclusive",
+    "file_sha256",
     "is_inside",
     "read_input",
     "read_inside",
@@ -201,3 +203,12 @@ def exclusive(folder: PathLike, what: str = "--out") -> Iterator[None]:
         yield
     finally:
         os.close(fd)
+
+
+def file_sha256(path: PathLike) -> str:
+    """SHA-256 of a file's bytes, hexadecimal, read in 1 MiB blocks (a checkpoint's, a label file's)."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -36,11 +36,12 @@ Keys (`METADATA_KEYS`; docs/streaming.md "What the .onnx carries"):
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from stamlane.safety.guard import file_sha256
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
@@ -51,7 +52,6 @@ __all__ = [
     "METADATA_KEYS",
     "annotate",
     "deployment_metadata",
-    "file_sha256",
     "read_metadata",
     "trained_crop_top",
 ]
@@ -103,15 +103,6 @@ METADATA_KEYS = (
     "opset",
 )
 """Every key `deployment_metadata` writes, in order."""
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file's bytes, hexadecimal, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def trained_crop_top(module: Any, clip: ClipOptions | None) -> float:
