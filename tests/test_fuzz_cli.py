@@ -415,6 +415,27 @@ def test_stream_evaluator_outputs(
             assert not list(target.glob(".*tmp*")), list(target.iterdir())
 
 
+@_settings(25)
+@given(
+    device=st.one_of(
+        st.sampled_from(["cpu", "auto", "cuda", "cuda:9", "cuda:-1", "meta", "tpu", ""]), st.text(max_size=12)
+    )
+)
+@example(device="cpu")  # succeeds
+def test_stream_device(stream_inputs: dict[str, Path], capsys: pytest.CaptureFixture[str], device: str) -> None:
+    """``--device``: any string is a device this machine has (the network runs there) or one line, exit 2, nothing
+    written."""
+    with tempfile.TemporaryDirectory() as folder:
+        target = Path(folder) / "run"
+        argv = ["stream", str(stream_inputs["frames"]), "--ckpt", str(stream_inputs["good"]), "--out", str(target)]
+        argv += ["--max-frames", "2", "--no-video", f"--device={device}"]
+        code = _contract(capsys, argv, [stream_inputs[k] for k in ("frames", "good")])
+        if device in ("cpu", "auto"):
+            assert code == 0, argv
+        if code == 2:
+            assert not target.exists()
+
+
 # ---------------------------------------------------------------------------------------------- synth
 @_settings(60)
 @given(
