@@ -145,12 +145,51 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
         (["--seeds", "0"], "--seeds must be >= 1, got 0"),
         (["--rows", "f4_nope"], "no paper row 'f4_nope'; known rows: f1_cbam"),
         (["--quick", "--out", __file__], "is a file, not a folder"),
+        (["--splits", "challenging-frames"], "--splits must name a split besides challenging-frames"),
+        (["--quick", "--splits", "test", "nope"], "has no nope.json"),
+        (["--reveal-probes", "key", "future"], "argument --reveal-probes: invalid choice: 'future'"),
     ],
 )
 def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["demo", "--out", str(tmp_path), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_the_paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--splits", "test", "--reveal-probes", "key", "--out", str(out)]) == 0
+    summary = Summary.read(out / "summary.json")
+    assert set(summary.splits_sha256) == {"test", "reveal", "reveal-traffic"}  # the reveal splits always
+    stam4 = summary.model("stam4")
+    assert set(stam4.probes) == {"key"} and set(stam4.runs[0].scores) == {
+        f"{split}{probe}" for split in ("test", "reveal", "reveal-traffic") for probe in ("", "@key")
+    }
+    assert not (out / "predictions" / "stam4-s0" / "challenging").exists()
+    assert not (out / "predictions" / "stam4-s0" / "challenging-frames").exists()  # no frame-after-frame scoring
+    # the runs are reused with every probe: the summary holds what the call asked for, no more
+    assert main(["demo", "--quick", "--splits", "test", "--out", str(out)]) == 0
+    summary = Summary.read(out / "summary.json")
+    assert set(summary.model("stam4").probes) == {"key", "warped_key", "reversed", "other_clip", "exact"}
+    assert main(["demo", "--quick", "--splits", "test", "--reveal-probes", "key", "--out", str(out)]) == 0
+    summary = Summary.read(out / "summary.json")
+    assert set(summary.model("stam4").probes) == {"key"}
+    assert not any(d.kind == "history_reversed" for d in summary.differences)
+    # Table 1 with the reveal splits as its columns, history use beside each row
+    capsys.readouterr()
+    report = ["report", str(out / "summary.json"), "--paper", "--tables", "1", "--splits", "reveal", "reveal-traffic"]
+    assert main(report) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[2].startswith("| row | paper F1 | reveal | reveal-traffic | − 1 frame (reveal / reveal-traffic) |")
+    stam = next(line for line in table if "`f4_mixed_cs_features`" in line)
+    cells = [c.strip() for c in stam.strip("|").split("|")]
+    assert len(cells) == len(table[2].strip("|").split("|")) and cells[-1].count(" / ") == 1 and "[" in cells[-1]
+    value = summary.value("stam4", "tusimple_f1", "reveal")
+    assert cells[2].startswith(f"{100 * value.mean:.1f}")
+    not_run = next(line for line in table if "`f2_mixed_cs_features`" in line)
+    assert "| not run |" in not_run and not_run.count("|") == table[2].count("|")
 
 
 def test_single_clean_is_the_single_frame_trained_without_the_key_frame_corruption(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
     stamlane demo [--out outputs/demo] [--data DIR] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
                   [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--all-probes]
+                  [--splits test challenging challenging-frames] [--reveal-probes key warped_key ...]
                   [--max-overlays 12] [--quick]
 
 Generates the default synthetic set when missing, then runs `stamlane.experiments.engine` with the CPU recipe
@@ -14,6 +15,9 @@ the history reversed, another clip's history and exact alignment; ``--all-probes
 every split), and writes ``summary.json``, ``tables.md``, ``val_f1.png``, ``history_use.png``,
 ``history_use_vs_headroom.png`` and ``comparison.jpg`` (the challenging key frames where the models differ most,
 one column per model, with the ground truth and each model's score) to ``--out``, and prints the tables.
+``--splits`` scores fewer splits (the reveal splits always, where the set has them; ``challenging-frames`` is the
+frame-after-frame scoring) and ``--reveal-probes`` fewer probes on the reveal splits: the paper's tables on
+``reveal`` need ``--splits reveal --reveal-probes key`` (docs/results.md).
 ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean nothing; the tests run it).
 """
 
@@ -31,14 +35,15 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
-from stamlane.experiments.engine import Experiment
+from stamlane.experiments.engine import REVEAL_PROBES, Experiment
 from stamlane.experiments.recipes import RECIPES, Recipe, Row
+from stamlane.experiments.runner import TEMPORAL_SPLIT
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path
 
-__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "build_parser", "main", "pairs"]
+__all__ = ["MODELS", "OUTPUTS", "PAIRS", "SINGLE_CLEAN", "SPLITS", "build_parser", "main", "pairs"]
 
 MODELS = (
     Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",), paper="f4_mixed_cs_features"),
@@ -51,6 +56,9 @@ PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noal
 PAIRS += (("stam4", "single_clean"), ("single", "single_clean"))
 """The demo's comparisons, A against B: what the history frames bring, with and without alignment; what the
 key-frame corruption costs a single frame and whether STAM is ahead of one trained without it."""
+SPLITS = ("test", "challenging", TEMPORAL_SPLIT)
+"""The splits the demo scores by default besides the reveal splits: the clean and the challenging key frames, and
+the challenging clips frame after frame (temporal stability)."""
 OUTPUTS = ("summary.json", "tables.md", "val_f1.png", "history_use.png", "comparison.jpg")
 """The files the demo writes at the top of ``--out`` (the runs and predictions go in folders beside them)."""
 
@@ -90,6 +98,21 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="probe the history with another clip's on the test and challenging splits too (the reveal splits "
         "always are): a third prediction of their key frames by every multi-frame model",
+    )
+    p.add_argument(
+        "--splits",
+        nargs="+",
+        default=list(SPLITS),
+        metavar="SPLIT",
+        help="label files scored besides the reveal splits (default: test challenging challenging-frames)",
+    )
+    p.add_argument(
+        "--reveal-probes",
+        nargs="+",
+        choices=REVEAL_PROBES,
+        default=list(REVEAL_PROBES),
+        metavar="PROBE",
+        help=f"history probes on the reveal splits (default all: {' '.join(REVEAL_PROBES)})",
     )
     p.add_argument("--max-overlays", type=int, default=12, help="overlay pictures per model and split")
     p.add_argument("--quick", action="store_true", help="a seconds-long smoke run on a tiny set (tests)")
@@ -200,6 +223,10 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) 
     start = time.perf_counter()
     root = prepare_data(args.data, args.out, quick=args.quick)
     print(f"[stamlane] synthetic set {root} ready in {(time.perf_counter() - start) / 60:.1f} min", flush=True)
+    splits = tuple(s for s in dict.fromkeys(args.splits) if s != TEMPORAL_SPLIT)
+    missing = [s for s in splits if not (root / f"{s}.json").is_file()]
+    if missing:
+        raise ExperimentError(f"--splits: {root} has no {missing[0]}.json")
     experiment = Experiment(
         rows,
         recipe,
@@ -207,9 +234,12 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) 
         root,
         args.out,
         bf16=bf16,
+        splits=splits,
+        reveal_probes=tuple(dict.fromkeys(args.reveal_probes)),
+        all_probes=args.all_probes,
+        temporal=TEMPORAL_SPLIT in args.splits,
         quick=args.quick,
         max_overlays=args.max_overlays,
-        all_probes=args.all_probes,
     )
     summary = experiment.run(pairs(rows))
     runs = [("pretrain", "stage 1 (1 frame)", 0), *((r.name, r.label, recipe.pretrain_steps) for r in rows)]
@@ -236,6 +266,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
+    if not set(args.splits) - {TEMPORAL_SPLIT}:
+        print(f"stamlane demo: --splits must name a split besides {TEMPORAL_SPLIT}", file=sys.stderr)
+        return 2
     for option in ("seeds", "pretrain_steps", "finetune_steps"):
         if getattr(args, option) < 1:
             print(

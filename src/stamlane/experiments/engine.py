@@ -74,6 +74,8 @@ class Experiment:
         bf16: bfloat16 autocast in every run.
         splits: the label files scored.
         probes: score multi-frame runs with their history probed too.
+        reveal_probes: the probes of multi-frame runs on the reveal splits (`REVEAL_PROBES`, or some of them: the
+            paper's tables need only ``key``, the history use).
         all_probes: `ALL_PROBES` instead of `PROBES` on ``splits`` (another clip's history too: a third prediction of
             every clean and challenging key frame).
         temporal: predict the frames of `stamlane.synth.layout.TEMPORAL_LABELS` one after the other (each
@@ -93,6 +95,7 @@ class Experiment:
     bf16: bool = False
     splits: tuple[str, ...] = ("test", "challenging")
     probes: bool = True
+    reveal_probes: tuple[str, ...] = REVEAL_PROBES
     all_probes: bool = False
     temporal: bool = True
     extra: tuple[str, ...] = ()
@@ -144,7 +147,7 @@ class Experiment:
         return TEMPORAL_SPLIT if self.temporal and (self.root / f"{TEMPORAL_SPLIT}.json").is_file() else None
 
     def probes_of(self, split: str, record: dict[str, Any]) -> tuple[str, ...]:
-        """The history probes of a run on ``split``: none for a single frame; `REVEAL_PROBES` on the reveal splits,
+        """The history probes of a run on ``split``: none for a single frame; ``reveal_probes`` on the reveal splits,
         `PROBES` (`ALL_PROBES` with ``all_probes``) elsewhere. A run that does not align predicts neither ``exact``
         (there is no alignment to make exact) nor ``warped_key``: without alignment the key frame warped out comes
         back unwarped, the very input of ``key`` (`stamlane.data.clips.warped_key`), so its scores are ``key``'s
@@ -154,8 +157,8 @@ class Experiment:
         if split not in REVEAL_SPLITS:
             return ALL_PROBES if self.all_probes else PROBES
         if aligns(Path(record["run"])):
-            return REVEAL_PROBES
-        return tuple(p for p in REVEAL_PROBES if p != "exact")
+            return self.reveal_probes
+        return tuple(p for p in self.reveal_probes if p != "exact")
 
     def scored(self, record: dict[str, Any]) -> dict[str, tuple[str, ...]]:
         """Every split a run is scored on, with its probes: `scored_splits`, then the frame-after-frame split with
@@ -198,10 +201,13 @@ class Experiment:
                 if base is not None:
                     record.setdefault("pretrain_minutes", base["train_minutes"])
                 name = self.store.run_name(row.name, seed)
-                if self.runner.score(name, record, self.scored(record)):
+                scored = self.scored(record)
+                if self.runner.score(name, record, scored):
                     self.store.mark(name, record)
-                for key in record["scores"]:
+                for key in record["scores"]:  # what this experiment scores (a reused run may hold more)
                     split, _, source = key.partition("@")
+                    if split not in scored or (source and source not in scored[split]):
+                        continue
                     per_image, clips = self.runner.scored(name, record, key)
                     scores.add(row.name + (f"@{source}" if source else ""), split, seed, per_image, clips)
                 records[row.name].append(record)

@@ -430,25 +430,28 @@ def _by_row(summary: Summary) -> dict[str, str]:
     return {m.paper_row or m.name: m.name for m in summary.models}
 
 
-def paper_tables(summaries: Sequence[Summary], index: TableIndex, which: Sequence[str]) -> str:
+def paper_tables(
+    summaries: Sequence[Summary], index: TableIndex, which: Sequence[str], splits: Sequence[str] = SPLITS
+) -> str:
     """The paper's tables ``which`` from summaries holding its rows (several summaries: run sets, each row taken
-    from the first that has it and compared with one frame and STAM of THAT run set). An IoU table (7, 8) comes
+    from the first that has it and compared with one frame and STAM of THAT run set), one column per split of
+    ``splits`` (``reveal reveal-traffic``: the splits where the history reveals lanes). An IoU table (7, 8) comes
     twice, at IoU 0.5 and 0.3; every row carries its history use where it was probed."""
     lines: list[str] = []
     for name in which:
         table = index.table(name)
         metrics = (TUSIMPLE.key,) if table.kind == "tusimple" else tuple(m.key for m in CULANE)
         for metric in metrics:
-            lines += _paper_table(table, summaries, metric)
+            lines += _paper_table(table, summaries, metric, splits)
     return "\n".join(lines)
 
 
-def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str) -> list[str]:
+def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str, splits: Sequence[str]) -> list[str]:
     rows_in = [_by_row(s) for s in summaries]
     where = {}  # row -> the first run set that measured it in this metric
     for i, found in enumerate(rows_in):
         for row, name in found.items():
-            if any(summaries[i].value(name, metric, s) for s in SPLITS):
+            if any(summaries[i].value(name, metric, s) for s in splits):
                 where.setdefault(row, i)
     several = len(summaries) > 1
     what = "F1" if metric == TUSIMPLE.key else f"IoU F1 @{parse_metric_name(metric).threshold:g}"
@@ -457,26 +460,27 @@ def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str) -
         a, b = rows_in[i].get(row), rows_in[i].get(other) if other else None
         if a is None or b is None or a == b:
             return "–"
-        return " / ".join(diff_text(summaries[i].difference(a, b, s, metric)) for s in SPLITS)
+        return " / ".join(diff_text(summaries[i].difference(a, b, s, metric)) for s in splits)
 
     def history(i: int, row: str) -> str:
         name = rows_in[i][row]
-        found = [summaries[i].difference(name, f"{name}@key", s, metric) for s in SPLITS]
+        found = [summaries[i].difference(name, f"{name}@key", s, metric) for s in splits]
         return " / ".join(diff_text(d) for d in found) if any(found) else "–"
 
     run = [r for r in table.rows if r.id in where]
     seeds = sorted({len(s.seeds) for s in summaries})
-    header = ["row", f"paper {what}", *(["run set"] if several else []), "test", "challenging"]
-    header += ["− 1 frame (test / chall.)", "− STAM (test / chall.)"]
-    header += ["− baseline (test / chall.)"] if table.baseline else []
-    header += ["history use (test / chall.)"]
+    columns = " / ".join({"challenging": "chall."}.get(s, s) for s in splits)
+    header = ["row", f"paper {what}", *(["run set"] if several else []), *splits]
+    header += [f"− 1 frame ({columns})", f"− STAM ({columns})"]
+    header += [f"− baseline ({columns})"] if table.baseline else []
+    header += [f"history use ({columns})"]
     rows = []
     references = {SINGLE_ROW, STAM_ROW, table.baseline} - {None}
     used = {where[r.id] for r in run if r.id not in references}
     for r in table.rows:
         paper = f"{100 * r.paper[metric]:.2f}" if metric in r.paper else "–"
         if r.id not in where:
-            blanks = [""] * (len(header) - 4 - several)
+            blanks = [""] * (len(header) - 3 - several)
             rows.append([f"{r.label} (`{r.id}`)", paper, *([""] if several else []), "not run", *blanks])
             continue
         places = [where[r.id]]
@@ -486,7 +490,7 @@ def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str) -
         for i in places:
             name = rows_in[i][r.id]
             cells = [f"{r.label} (`{r.id}`)", paper, *([str(i + 1)] if several else [])]
-            cells += [value_text(summaries[i].value(name, metric, s)) for s in SPLITS]
+            cells += [value_text(summaries[i].value(name, metric, s)) for s in splits]
             cells += [versus(i, r.id, SINGLE_ROW), versus(i, r.id, STAM_ROW)]
             cells += [versus(i, r.id, table.baseline)] if table.baseline else []
             cells.append(history(i, r.id))

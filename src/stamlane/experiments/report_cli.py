@@ -3,6 +3,7 @@
     stamlane report SUMMARY                                    # one summary's tables (markdown)
     stamlane report SUMMARY --models stam4 single              # only these models and their differences
     stamlane report SUMMARY [SUMMARY ...] --paper [--tables 1 2 3 4 7 8]   # the paper's tables; several run sets
+    stamlane report SUMMARY --paper --tables 1 2 --splits reveal reveal-traffic   # ... on other splits
     stamlane report SUMMARY_1 SUMMARY_2 --replication          # rows trained in both sets, side by side
     stamlane report SUMMARY --csv summary.csv --plot history_use.png --out tables.md
 
@@ -26,6 +27,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--models", nargs="+", metavar="NAME", help="only these models of the summary")
     p.add_argument("--paper", action="store_true", help="the paper's tables (configs/paper/tables.yaml)")
     p.add_argument("--tables", nargs="+", default=["1", "2", "3", "4", "7", "8"], help="which of the paper's tables")
+    p.add_argument(
+        "--splits",
+        nargs="+",
+        default=["test", "challenging"],
+        metavar="SPLIT",
+        help="--paper: the splits of the tables' columns (default test challenging)",
+    )
     p.add_argument("--index", type=Path, help="table index (default configs/paper/tables.yaml)")
     p.add_argument("--replication", action="store_true", help="rows trained in several run sets, side by side")
     p.add_argument("--csv", type=Path, help="also write every value and difference of the (first) summary as csv")
@@ -63,7 +71,7 @@ def _report(args: argparse.Namespace) -> int:
         text = (
             replication(summaries, tables_index)
             if args.replication
-            else paper_tables(summaries, tables_index, args.tables)
+            else paper_tables(summaries, tables_index, args.tables, args.splits)
         )
     elif len(summaries) > 1:
         raise ValueError("several summaries go with --paper or --replication")
