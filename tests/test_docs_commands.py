@@ -43,25 +43,31 @@ LIGHTNING_TOP = {
 }
 
 
+SPAN = re.compile(r"`([^`\n]+(?:\n[^`\n]+)*)`")
+"""An inline code span; a hard-wrapped paragraph may break it over lines, never over a blank line."""
+
+
 def _snippets(page: Path) -> list[str]:
-    """Code-block lines and inline code spans of a markdown page (commands joined across ``\\`` line ends)."""
+    """Code-block lines and inline code spans of a markdown page (commands joined across ``\\`` line ends, spans
+    across the line breaks of a wrapped paragraph)."""
     text = page.read_text()
-    found, block = [], False
+    found, block, prose = [], False, []
     lines = text.splitlines()
     i = 0
     while i < len(lines):
         line = lines[i]
         if line.strip().startswith("```"):
             block = not block
+            prose.append("")  # a block ends the paragraph before it
         elif block:
             while line.rstrip().endswith("\\") and i + 1 < len(lines):
                 i += 1
                 line = line.rstrip()[:-1] + " " + lines[i].strip()
             found.append(line)
         else:
-            found += re.findall(r"`([^`]+)`", line)
+            prose.append(line)
         i += 1
-    return found
+    return found + [" ".join(span.split("\n")) for span in SPAN.findall("\n".join(prose))]
 
 
 def _commands() -> list[tuple[str, str, str, str]]:
