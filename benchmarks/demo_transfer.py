@@ -123,11 +123,15 @@ def main(argv: list[str] | None = None) -> int:
     if not _runs(args.demo):
         print(f"demo_transfer: no demo runs under {args.demo} (run `stamlane demo` first)", file=sys.stderr)
         return 2
+    from stamlane.safety.guard import write_atomic
+    from stamlane.training.quiet import quiet_libraries
+
+    quiet_libraries()  # as the demo: Lightning's per-call chatter would bury the progress lines
     args.out.mkdir(parents=True, exist_ok=True)
     results = unseen_seed(args.demo, args.out, args.seed, args.clips)
     if args.frames is not None:
         results["real_frames"] = str(real_frames(args.demo, args.frames, args.out))
-    (args.out / "transfer.json").write_text(json.dumps(results, indent=2))
+    write_atomic(args.out / "transfer.json", json.dumps(results, indent=2))
     print(f"clips of generator seed {args.seed} (never seen in training): TuSimple F1 %, [95 % interval]")
     for name, values in results["models"].items():
         cells = [

@@ -48,6 +48,9 @@ PROBE_COLUMNS = (
     ("other_clip", "real − another clip's"),
 )
 """The history probes of the reveal tables, real minus probe; beside them exact alignment minus ORB's."""
+QUIET_POINTS = 2.0
+"""`plot_reveal` names a challenging factor only where its headroom or a model's history use reaches this many F1
+points: the factors with neither crowd the origin, and their names would cover each other."""
 SPAN_COLUMNS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
 NO_HEADROOM = 0.01
 """Below this headroom (1 F1 point, history oracle minus key-frame oracle) a factor is marked as one where history
@@ -358,6 +361,8 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
     views = [v for v in summary.views() if ":" in v and v.split(":")[0] in ("challenging", *REVEAL_SPLITS)]
     fig, ax = plt.subplots(figsize=(7, 5))
     top = 5.0
+    named: set[str] = set()  # each view named once, beside its highest point; quiet challenging factors unnamed
+    labels: list[tuple[str, float, float]] = []
     for colour, m in enumerate(multi):
         for view in views:
             h = _headroom(summary, view, frames)
@@ -368,14 +373,32 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
             err = [[100 * (d.diff - d.ci95[0])], [100 * (d.ci95[1] - d.diff)]]
             marker = "o" if view.startswith("challenging") else "s"
             ax.errorbar(x, y, yerr=err, fmt=marker, color=series_style(colour)["color"], capsize=2, alpha=0.85)
-            ax.annotate(view.split(":")[1], (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            quiet = view.startswith("challenging") and x < QUIET_POINTS and abs(y) < QUIET_POINTS
+            if view not in named and not quiet:
+                highest = max(
+                    100 * found.diff
+                    for other in multi
+                    if (found := summary.difference(other.name, f"{other.name}@key", view, TUSIMPLE.key))
+                )
+                labels.append((view.split(":")[1], x, highest))
+                named.add(view)
             top = max(top, x, y)
         ax.plot([], [], "s", color=series_style(colour)["color"], label=m.label)
+    placed: list[tuple[float, float]] = []  # names that would cover one another are moved down, one line at a time
+    for text, x, y in sorted(labels, key=lambda label: -label[2]):
+        while any(abs(x - px) < 0.15 * top and abs(y - py) < 0.035 * top for px, py in placed):
+            y -= 0.04 * top
+        placed.append((x, y))
+        ax.annotate(text, (x, y), fontsize=7, xytext=(5, 2), textcoords="offset points")
     ax.plot([0, top], [0, top], color=NEUTRAL, linestyle="--", linewidth=0.8, label="history use = headroom")
     ax.axhline(0, color="grey", linewidth=0.6)
     ax.set_xlabel(f"headroom of the labels, {frames} frames (F1 points)")
     ax.set_ylabel("history use: real − key copied (F1 points)")
-    ax.set_title("History use against headroom (squares: reveal kinds, dots: challenging factors)", fontsize=9)
+    ax.set_title(
+        "History use against headroom (squares: reveal kinds, dots: challenging factors;\n"
+        f"unnamed dots: factors within {QUIET_POINTS:g} points of 0 on both axes)",
+        fontsize=9,
+    )
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
