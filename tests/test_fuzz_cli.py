@@ -496,6 +496,29 @@ def test_demo_quick(capsys: pytest.CaptureFixture[str], data: str, out: str, see
         assert _contract(capsys, argv, [tusimple, tmp / "file", tmp / "fifo"]) == 2
 
 
+# ---------------------------------------------------------------------------------------------- demo: --splits
+@_settings(40)
+@given(
+    command=st.sampled_from(["demo", "ablate"]),
+    split=st.sampled_from(["../outside", "/etc/passwd", "", "a/b", "x" * 300, "..", "-", "challenging-frames"]),
+    probe=st.sampled_from(["key", "../x", "", "future", "exact"]),
+)
+def test_splits_and_probes(capsys: pytest.CaptureFixture[str], command: str, split: str, probe: str) -> None:
+    """``--splits`` names a label file's stem in the data root (never a path out of it) and ``--reveal-probes`` one
+    of the probes: anything else is one line, exit status 2, before any data is read or made (the demo refuses the
+    frame-after-frame scoring alone too)."""
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        (tmp / "outside.json").write_text("{}\n")
+        argv = [command, "--out", str(tmp / "out"), "--splits", split]
+        if command == "demo":
+            argv += ["--reveal-probes", probe]
+        if command == "ablate" and split == "challenging-frames":
+            return  # a valid name for ablate, which goes on to its data root (tests/test_ablate.py)
+        assert _contract(capsys, argv, [tmp / "outside.json"]) == 2
+        assert not (tmp / "out").exists()
+
+
 # ---------------------------------------------------------------------------------------------- demo: records
 RECORD_VALUES = st.sampled_from([None, "x", 3, 2.5, True, [], {}, [1], {"a": 1}, "/etc/passwd", "../../outside"])
 RECORD_KINDS = st.sampled_from(["json", "link-outside", "fifo", "deep", "binary", "folder-linked", "truncated-ckpt"])

@@ -30,7 +30,7 @@ from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import RECIPES, Row
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.table_index import PaperRow, TableIndex, baseline_pairs, load_tables
-from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
+from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data, split_name
 
 __all__ = ["build_parser", "main"]
 
@@ -47,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pretrain-steps", type=int, help="cpu recipe: single-frame steps of stage 1 (default 1200)")
     p.add_argument("--data", type=Path, help=f"data root, a TuSimple-layout set (default {DEFAULT_SYNTHETIC_ROOT})")
     p.add_argument("--base", type=Path, help="base config (default: the index's, configs/demo.yaml)")
-    p.add_argument("--splits", nargs="+", default=["test", "challenging"], help="label files scored (stems)")
+    p.add_argument(
+        "--splits", nargs="+", type=split_name, default=["test", "challenging"], help="label files scored (stems)"
+    )
     add_bf16_argument(p)
     p.add_argument("--out", type=Path, default=Path("outputs/ablate"), help="results folder (default outputs/ablate)")
     p.add_argument("--tables", type=Path, help="table index (default configs/paper/tables.yaml)")

@@ -39,7 +39,7 @@ from stamlane.experiments.engine import REVEAL_PROBES, Experiment
 from stamlane.experiments.recipes import RECIPES, Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT
 from stamlane.experiments.store import ExperimentError
-from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data
+from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data, split_name
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path
 
@@ -102,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--splits",
         nargs="+",
+        type=split_name,
         default=list(SPLITS),
         metavar="SPLIT",
         help="label files scored besides the reveal splits (default: test challenging challenging-frames)",

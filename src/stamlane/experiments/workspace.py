@@ -18,10 +18,23 @@ from pathlib import Path
 
 from stamlane.experiments.store import ExperimentError
 
-__all__ = ["QUICK_DATA", "add_bf16_argument", "bf16_of", "check_data", "claimed_out", "prepare_data"]
+__all__ = ["QUICK_DATA", "add_bf16_argument", "bf16_of", "check_data", "claimed_out", "prepare_data", "split_name"]
 
 QUICK_DATA = "quick_data"
 """Where ``--quick`` generates its tiny set without ``--data``: in ``--out``."""
+
+
+def split_name(value: str) -> str:
+    """``--splits``: the stem of a label file in the data root (``reveal`` for ``<root>/reveal.json``); a path, a
+    parent reference or an odd name is refused (argparse: one line, exit status 2), so nothing is read outside the
+    root."""
+    import re
+
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}", value) or ".." in value:
+        raise argparse.ArgumentTypeError(
+            f"{value[:60]!r} is not a split name (the stem of a label file in the data root)"
+        )
+    return value
 
 
 def check_data(root: Path | None, *, quick: bool = False, must_exist: bool = False) -> None:
