@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from stamlane_eval.stats import seed_interval
 
-from stamlane.experiments.report import paper_tables, replication
-from stamlane.experiments.summary import FORMAT, Summary
+from stamlane.experiments.report import paper_tables, plot_reveal, replication, reveal_points
+from stamlane.experiments.summary import FORMAT, Difference, ModelEntry, Summary, Value
 from stamlane.experiments.table_index import load_tables
 
 SPLITS = ("test", "challenging")
@@ -158,3 +158,28 @@ def test_replication_says_how_far_two_run_sets_agree() -> None:
     assert last.startswith("Rows trained in run sets 1 and 2: 3.") and f"correlation {r:+.2f}" in last
     # the sum: claimed in both, same sign; the weighted sum: claimed in both, opposite signs; ST-PSA: in set 2 only
     assert "the same sign in 2 of 3, and 1 of 3 differences claimed in one set" in last
+
+
+def test_history_use_is_placed_against_the_headroom_of_each_models_own_clip_length(tmp_path) -> None:
+    view, metric = "reveal:key_flash", "tusimple_f1"
+
+    def difference(kind: str, a: str, b: str, diff: float) -> Difference:
+        return Difference(kind, a, b, view, metric, diff, [diff - 0.01, diff + 0.01])
+
+    def model(name: str, frames: int) -> ModelEntry:
+        values = {metric: {view: Value(0.8, None, None, 1, 30)}}
+        return ModelEntry(name, name, None, [], frames, 300, [], values, probes={"key": values})
+
+    summary = Summary("", {}, [0], {}, False, None, [model("two", 2), model("four", 4), model("single", 1)])
+    summary.models[2].probes = {}
+    summary.differences = [
+        difference("headroom", "oracle:history-2f", "oracle:key", 0.10),  # one history frame shows less
+        difference("headroom", "oracle:history-4f", "oracle:key", 0.30),
+        difference("history_key", "two", "two@key", 0.05),
+        difference("history_key", "four", "four@key", 0.20),
+    ]
+    points = {p.model: p for p in reveal_points(summary)}
+    assert set(points) == {"two", "four"}  # the single frame has no history to use
+    assert (points["two"].frames, points["two"].headroom.diff, points["two"].use.diff) == (2, 0.10, 0.05)
+    assert (points["four"].frames, points["four"].headroom.diff, points["four"].use.diff) == (4, 0.30, 0.20)
+    assert plot_reveal(summary, tmp_path / "reveal.png").stat().st_size > 0

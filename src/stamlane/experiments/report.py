@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +25,14 @@ from stamlane.experiments.table_index import PaperTable, TableIndex
 __all__ = [
     "SINGLE_ROW",
     "STAM_ROW",
+    "RevealPoint",
     "paper_tables",
     "plot_history_use",
     "plot_reveal",
     "plot_val_curves",
     "reads_history",
     "replication",
+    "reveal_points",
     "series_style",
     "tables",
     "write_csv",
@@ -345,10 +348,37 @@ def _recall(summary: Summary, models: list) -> list[str]:
     ]
 
 
+@dataclass(frozen=True)
+class RevealPoint:
+    """One point of `plot_reveal`: a multi-frame model's history use on a view against the labels' headroom at
+    THAT model's clip length (a 2-frame model is placed by what one history frame can show, not four)."""
+
+    model: str
+    view: str
+    frames: int
+    headroom: Difference
+    use: Difference
+
+
+def reveal_points(summary: Summary) -> list[RevealPoint]:
+    """Every (multi-frame model, reveal kind or challenging factor) with both its history use (real − key copied,
+    TuSimple F1) and the headroom of its own span (aligned history oracle of ``frames`` frames − key oracle)."""
+    views = [v for v in summary.views() if ":" in v and v.split(":")[0] in ("challenging", *REVEAL_SPLITS)]
+    found = []
+    for m in (m for m in summary.models if m.probes):
+        for view in views:
+            headroom = _headroom(summary, view, m.frames)
+            use = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)
+            if headroom is not None and use is not None:
+                found.append(RevealPoint(m.name, view, m.frames, headroom, use))
+    return found
+
+
 def plot_reveal(summary: Summary, path: Path) -> Path | None:
     """History use (real − key copied, TuSimple F1 points, clip intervals) of each multi-frame model per kind of
-    the reveal splits and per challenging factor, against the headroom of the labels (aligned history oracle − key
-    oracle): a model that reads what its history shows lies near the diagonal; None without probes."""
+    the reveal splits and per challenging factor, against the headroom of the labels at the model's own clip
+    length (`reveal_points`): a model that reads what its history shows lies near the diagonal; None without
+    probes."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -357,31 +387,22 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
     multi = [m for m in summary.models if m.probes]
     if not multi:
         return None
-    frames = max(m.frames for m in multi)
-    views = [v for v in summary.views() if ":" in v and v.split(":")[0] in ("challenging", *REVEAL_SPLITS)]
+    points = reveal_points(summary)
     fig, ax = plt.subplots(figsize=(7, 5))
     top = 5.0
     named: set[str] = set()  # each view named once, beside its highest point; quiet challenging factors unnamed
     labels: list[tuple[str, float, float]] = []
     for colour, m in enumerate(multi):
-        for view in views:
-            h = _headroom(summary, view, frames)
-            d = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)
-            if h is None or d is None:
-                continue
-            x, y = 100 * h.diff, 100 * d.diff
-            err = [[100 * (d.diff - d.ci95[0])], [100 * (d.ci95[1] - d.diff)]]
-            marker = "o" if view.startswith("challenging") else "s"
+        for p in (p for p in points if p.model == m.name):
+            x, y = 100 * p.headroom.diff, 100 * p.use.diff
+            err = [[100 * (p.use.diff - p.use.ci95[0])], [100 * (p.use.ci95[1] - p.use.diff)]]
+            marker = "o" if p.view.startswith("challenging") else "s"
             ax.errorbar(x, y, yerr=err, fmt=marker, color=series_style(colour)["color"], capsize=2, alpha=0.85)
-            quiet = view.startswith("challenging") and x < QUIET_POINTS and abs(y) < QUIET_POINTS
-            if view not in named and not quiet:
-                highest = max(
-                    100 * found.diff
-                    for other in multi
-                    if (found := summary.difference(other.name, f"{other.name}@key", view, TUSIMPLE.key))
-                )
-                labels.append((view.split(":")[1], x, highest))
-                named.add(view)
+            quiet = p.view.startswith("challenging") and x < QUIET_POINTS and abs(y) < QUIET_POINTS
+            if p.view not in named and not quiet:
+                highest = max(100 * q.use.diff for q in points if q.view == p.view)
+                labels.append((p.view.split(":")[1], x, highest))
+                named.add(p.view)
             top = max(top, x, y)
         ax.plot([], [], "s", color=series_style(colour)["color"], label=m.label)
     placed: list[tuple[float, float]] = []  # names that would cover one another are moved down, one line at a time
@@ -392,7 +413,9 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
         ax.annotate(text, (x, y), fontsize=7, xytext=(5, 2), textcoords="offset points")
     ax.plot([0, top], [0, top], color=NEUTRAL, linestyle="--", linewidth=0.8, label="history use = headroom")
     ax.axhline(0, color="grey", linewidth=0.6)
-    ax.set_xlabel(f"headroom of the labels, {frames} frames (F1 points)")
+    spans = sorted({m.frames for m in multi})
+    span = f"{spans[0]} frames" if len(spans) == 1 else "each model's clip length"
+    ax.set_xlabel(f"headroom of the labels, {span} (F1 points)")
     ax.set_ylabel("history use: real − key copied (F1 points)")
     ax.set_title(
         "History use against headroom (squares: reveal kinds, dots: challenging factors;\n"
