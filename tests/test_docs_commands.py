@@ -338,10 +338,10 @@ def _parse_error(argv: list[str], tmp: Path) -> str | None:
                 _build_parser().parse_args(argv[1:])
             elif command == "predict" and any(a == "--stream" or a.startswith("--stream=") for a in args):
                 importlib.import_module(TOOLS["stream"]).build_parser().parse_args(cli._stream_args(args))
-            elif command == "ablate" and "--" in args:  # what follows ``--`` is given to each row's `stamlane fit`
+            elif command in ("ablate", "demo") and "--" in args:  # what follows ``--`` goes to every run's fit
                 cut = args.index("--")
-                ablate = importlib.import_module(TOOLS[command]).build_parser().parse_args(args[:cut])
-                base = str(ablate.base or REPO / "configs" / "demo.yaml")
+                own = importlib.import_module(TOOLS[command]).build_parser().parse_args(args[:cut])
+                base = str(getattr(own, "base", None) or REPO / "configs" / "demo.yaml")
                 return _parse_error(["stamlane", "fit", "--config", base, *args[cut + 1 :]], tmp)
             elif command in TOOLS:
                 importlib.import_module(TOOLS[command]).build_parser().parse_args(args)

@@ -35,9 +35,9 @@ VIEWS += [
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One quick demo (seed 0): its output folder."""
+    """One quick demo (seed 0), with a ``stamlane fit`` argument for every run after ``--``: its output folder."""
     out = tmp_path_factory.mktemp("demo") / "demo"
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    assert main(["demo", "--quick", "--out", str(out), "--", "--trainer.log_every_n_steps=1"]) == 0
     return out
 
 
@@ -58,6 +58,10 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
     # stage 2 starts from the final weights of stage 1
     ckpt = quick / "pretrain-s0" / "run" / "checkpoints" / "last.ckpt"
     assert f"init_weights: {ckpt}" in (quick / "stam4-s0" / "run" / "config.yaml").read_text()
+    # what followed ``--`` reached every run's fit (the demo's trainer logs every 25 steps) and its record
+    for run in ("pretrain-s0", "stam4-s0", "single-s0"):
+        assert "log_every_n_steps: 1\n" in (quick / run / "run" / "config.yaml").read_text()
+        assert json.loads((quick / run / "done.json").read_text())["extra"] == ["--trainer.log_every_n_steps=1"]
     # the recipe corrupts the key frames of stage 2 only, the single frame's as the others'
     assert "key_corruption: 0.0" in (quick / "pretrain-s0" / "run" / "config.yaml").read_text()
     for name in ("stam4", "single"):
@@ -229,7 +233,8 @@ def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, ca
     use = summary.difference("stam4", "stam4@key", "test", "tusimple_f1")
     assert len(use.seed_diffs) == 2 and use.seed_ci95 is not None  # history use has its interval over seeds too
     # the same folder with another budget or precision: one line, exit 2, nothing overwritten
-    for other in (["--data", str(out / "quick_data"), "--finetune-steps", "7"], ["--quick", "--bf16", "true"]):
+    others = (["--data", str(out / "quick_data"), "--finetune-steps", "7"], ["--quick", "--bf16", "true"])
+    for other in (*others, ["--quick", "--", "--trainer.accelerator=cpu"]):
         assert main(["demo", "--out", str(out), *other]) == 2
         err = capsys.readouterr().err.strip()
         assert "was made with other settings" in err and len(err.splitlines()) == 1

@@ -30,7 +30,16 @@ from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import RECIPES, Row
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.table_index import PaperRow, TableIndex, baseline_pairs, load_tables
-from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data, split_name
+from stamlane.experiments.workspace import (
+    FIT_ARGUMENTS_HELP,
+    add_bf16_argument,
+    bf16_of,
+    check_data,
+    claimed_out,
+    fit_arguments,
+    prepare_data,
+    split_name,
+)
 
 __all__ = ["build_parser", "main"]
 
@@ -38,7 +47,7 @@ __all__ = ["build_parser", "main"]
 def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
-    p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0])
+    p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0], epilog=FIT_ARGUMENTS_HELP)
     p.add_argument("--table", nargs="+", metavar="N", help="table number(s): 1 2 3 4 7 8")
     p.add_argument("--rows", nargs="+", metavar="ID", help="only these rows of the tables (ids as in --list)")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="S", help="seeds (default 0 1 2)")
@@ -105,11 +114,7 @@ def _report(out: Path, index: TableIndex, tables: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stamlane ablate`` (``argv`` without the subcommand)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    extra: list[str] = []
-    if "--" in argv:
-        cut = argv.index("--")
-        argv, extra = argv[:cut], argv[cut + 1 :]
+    argv, extra = fit_arguments(list(sys.argv[1:] if argv is None else argv))
     args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args

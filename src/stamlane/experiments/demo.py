@@ -3,7 +3,7 @@
     stamlane demo [--out outputs/demo] [--data DIR] [--seeds 1] [--pretrain-steps 1200] [--finetune-steps 300]
                   [--bf16 auto|true|false] [--no-noalign] [--single-clean] [--rows ID ...] [--all-probes]
                   [--splits test challenging challenging-frames] [--reveal-probes key warped_key ...]
-                  [--max-overlays 12] [--quick]
+                  [--max-overlays 12] [--quick] [-- <stamlane fit arguments of every run>]
 
 Generates the default synthetic set when missing, then runs `stamlane.experiments.engine` with the CPU recipe
 (the single-frame network from scratch, then each model from its weights: every model gets the same steps on the
@@ -18,6 +18,8 @@ one column per model, with the ground truth and each model's score) to ``--out``
 ``--splits`` scores fewer splits (the reveal splits always, where the set has them; ``challenging-frames`` is the
 frame-after-frame scoring) and ``--reveal-probes`` fewer probes on the reveal splits: the paper's tables on
 ``reveal`` need ``--splits reveal --reveal-probes key`` (docs/results.md).
+Arguments after ``--`` go to every run's ``stamlane fit`` after the model's config (``-- --trainer.accelerator=gpu``
+trains and predicts on a GPU; the run store is locked to them like every setting).
 ``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean nothing; the tests run it).
 """
 
@@ -39,7 +41,16 @@ from stamlane.experiments.engine import REVEAL_PROBES, Experiment
 from stamlane.experiments.recipes import RECIPES, Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT
 from stamlane.experiments.store import ExperimentError
-from stamlane.experiments.workspace import add_bf16_argument, bf16_of, check_data, claimed_out, prepare_data, split_name
+from stamlane.experiments.workspace import (
+    FIT_ARGUMENTS_HELP,
+    add_bf16_argument,
+    bf16_of,
+    check_data,
+    claimed_out,
+    fit_arguments,
+    prepare_data,
+    split_name,
+)
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path
 
@@ -77,7 +88,7 @@ def pairs(rows: list[Row]) -> list[tuple[str, str]]:
 def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
-    p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0])
+    p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0], epilog=FIT_ARGUMENTS_HELP)
     p.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder (default outputs/demo)")
     p.add_argument("--data", type=Path, help=f"synthetic set (default {DEFAULT_SYNTHETIC_ROOT}; made if missing)")
     p.add_argument("--seeds", type=int, default=1, help="training seeds per model (default 1)")
@@ -200,7 +211,8 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
     return path
 
 
-def run(args: argparse.Namespace) -> None:
+def run(args: argparse.Namespace, extra: Sequence[str] = ()) -> None:
+    """The demo of ``args``; ``extra``: ``stamlane fit`` arguments of every run."""
     import torch
 
     torch.set_num_threads(1 if args.quick else max(1, os.cpu_count() or 1))
@@ -214,10 +226,10 @@ def run(args: argparse.Namespace) -> None:
     bf16 = bf16_of(args.bf16, quick=args.quick)
     outputs = [args.out / name for name in OUTPUTS]  # the experiment never writes among the frames and labels
     with claimed_out(args.out, outputs, [args.data], protected=[args.data]):  # a second demo on --out is refused
-        _run(args, rows, recipe, bf16)
+        _run(args, rows, recipe, bf16, tuple(extra))
 
 
-def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) -> None:
+def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool, extra: tuple[str, ...]) -> None:
     from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
     from stamlane.safety.guard import write_atomic
 
@@ -235,6 +247,7 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) 
         root,
         args.out,
         bf16=bf16,
+        extra=extra,
         splits=splits,
         reveal_probes=tuple(dict.fromkeys(args.reveal_probes)),
         all_probes=args.all_probes,
@@ -264,6 +277,8 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool) 
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``stamlane demo`` (``argv`` without the subcommand)."""
+    argv, extra = fit_arguments(list(sys.argv[1:] if argv is None else argv))
     args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
@@ -277,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-    return run_command("stamlane demo", lambda: run(args) or 0, ExperimentError)
+    return run_command("stamlane demo", lambda: run(args, extra) or 0, ExperimentError)
 
 
 if __name__ == "__main__":

@@ -18,10 +18,32 @@ from pathlib import Path
 
 from stamlane.experiments.store import ExperimentError
 
-__all__ = ["QUICK_DATA", "add_bf16_argument", "bf16_of", "check_data", "claimed_out", "prepare_data", "split_name"]
+__all__ = [
+    "FIT_ARGUMENTS_HELP",
+    "QUICK_DATA",
+    "add_bf16_argument",
+    "bf16_of",
+    "check_data",
+    "claimed_out",
+    "fit_arguments",
+    "prepare_data",
+    "split_name",
+]
 
 QUICK_DATA = "quick_data"
 """Where ``--quick`` generates its tiny set without ``--data``: in ``--out``."""
+
+
+FIT_ARGUMENTS_HELP = "arguments after -- go to every run's stamlane fit (-- --trainer.accelerator=gpu)"
+
+
+def fit_arguments(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``argv`` cut at its first ``--``: the command's own arguments, and those after it, which every run's
+    ``stamlane fit`` gets after the row's base config (``-- --trainer.accelerator=gpu``)."""
+    if "--" not in argv:
+        return argv, []
+    cut = argv.index("--")
+    return argv[:cut], argv[cut + 1 :]
 
 
 def split_name(value: str) -> str:
