@@ -19,7 +19,7 @@ from stamlane.experiments.demo import pairs
 from stamlane.experiments.recipes import KEY_CORRUPTION, Row
 from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
 from stamlane.experiments.store import file_sha256
-from stamlane.experiments.summary import Summary
+from stamlane.experiments.summary import DIFFERENCE_KINDS, Summary
 from stamlane.synth.generator import FACTORS, REVEAL, REVEAL_TRAFFIC
 
 torch.set_num_threads(1)
@@ -119,15 +119,18 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
     assert stam4.runs[0].scores["challenging@key"]["images"] == 2 * len(FACTORS)
     # another clip's history on the reveal splits only (--all-probes: everywhere)
     assert "challenging@other_clip" not in stam4.runs[0].scores and "reveal@other_clip" in stam4.runs[0].scores
-    for kind, b, split in (
-        ("history_key", "stam4@key", "challenging"),
-        ("history_other", "stam4@other_clip", "reveal"),
+    for kind, a, b, split in (
+        ("history_key", "stam4", "stam4@key", "challenging"),
+        ("history_other", "stam4", "stam4@other_clip", "reveal"),
+        ("history_key_exact", "stam4@exact", "stam4@key", "reveal"),  # history use with exact alignment
     ):
         found = {(d.view, d.metric) for d in summary.differences if d.kind == kind}
         assert (split, "tusimple_f1") in found and (split, "culane_f1@0.5") in found
-        d = summary.difference("stam4", b, split, "tusimple_f1")
-        real, probed = summary.value("stam4", "tusimple_f1", split), summary.value(b, "tusimple_f1", split)
+        d = summary.difference(a, b, split, "tusimple_f1")
+        real, probed = summary.value(a, "tusimple_f1", split), summary.value(b, "tusimple_f1", split)
         assert d.diff == pytest.approx(real.mean - probed.mean, abs=1e-12)
+    assert {d.kind for d in summary.differences} <= set(DIFFERENCE_KINDS)
+    assert "| exact − ORB alignment | exact − key copied |" in (quick / "tables.md").read_text()
     # the oracles of the labels: the quick set has visibility masks, so every view has a headroom
     assert {"oracle:key", "oracle:history-4f", "oracle:unaligned-4f", "oracle:history-8f"} <= set(summary.oracles)
     assert "oracle:history-8f-x2" not in summary.oracles  # 14 frames back: beyond every split's masks (7, 11)

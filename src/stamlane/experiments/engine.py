@@ -230,6 +230,8 @@ class Experiment:
             for probe in REVEAL_PROBES:  # real minus probe; exact alignment minus ORB's: exact - real
                 pair = (f"{name}@exact", name) if probe == "exact" else (name, f"{name}@{probe}")
                 differences += scores.differences(f"history_{probe.replace('other_clip', 'other')}", [pair], all_views)
+            # the history use of the history aligned by the generator's exact homographies: what ORB's errors hide
+            differences += scores.differences("history_key_exact", [(f"{name}@exact", f"{name}@key")], all_views)
             singles = [r.name for r in self.rows if r.name not in multi and records[r.name]]
             # the same weights without their history against a single frame trained alike: what the training did
             differences += scores.differences("key_copied", [(f"{name}@key", one) for one in singles], all_views)

@@ -50,7 +50,8 @@ PROBE_COLUMNS = (
     ("reversed", "real − reversed history"),
     ("other_clip", "real − another clip's"),
 )
-"""The history probes of the reveal tables, real minus probe; beside them exact alignment minus ORB's."""
+"""The history probes of the reveal tables, real minus probe; beside them the history aligned by the generator's
+exact homographies minus ORB's, and minus the key frame copied (history use with exact alignment)."""
 QUIET_POINTS = 2.0
 """`plot_reveal` names a challenging factor only where its headroom or a model's history use reaches this many F1
 points: the factors with neither crowd the origin, and their names would cover each other."""
@@ -224,11 +225,13 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
                     row += [
                         diff_text(summary.difference(m.name, f"{m.name}@{p}", view, metric)) for p, _ in PROBE_COLUMNS
                     ]
-                    row.append(diff_text(summary.difference(f"{m.name}@exact", m.name, view, metric)))
+                    exact = f"{m.name}@exact"  # minus ORB's alignment, minus the key frame copied
+                    row += [diff_text(summary.difference(exact, b, view, metric)) for b in (m.name, f"{m.name}@key")]
                 else:
-                    row += ["–"] * (len(PROBE_COLUMNS) + 1)
+                    row += ["–"] * (len(PROBE_COLUMNS) + 2)
                 rows.append(row)
-        header = ["model", "view", "real history", *(label for _, label in PROBE_COLUMNS), "exact − ORB alignment"]
+        header = ["model", "view", "real history", *(label for _, label in PROBE_COLUMNS)]
+        header += ["exact − ORB alignment", "exact − key copied"]
         lines += [
             f"Models on the reveal splits, {metric}: the same weights with their history probed (points); the key "
             "frame warped out through each history frame's homography and aligned back is the matched null (the "
@@ -244,7 +247,7 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
         lines += ["Paired differences between models on the reveal splits (points):", ""]
         lines += _md(["models", "metric", *(f"`{v}`" for v in views)], rows)
     kinds = sum(":" in v for v in views)
-    lines += [_multiple_note(kinds * (len(PROBE_COLUMNS) + 1) * max(len(multi), 1)), ""]
+    lines += [_multiple_note(kinds * (len(PROBE_COLUMNS) + 2) * max(len(multi), 1)), ""]
     return lines
 
 

@@ -34,10 +34,25 @@ __all__ = [
 FORMAT = 2
 """Format of ``summary.json``. Format 1 (no ``format`` key), the untyped summary ``stamlane demo`` wrote up to the
 IoU F1 and the baselines, is no longer read: the summaries kept in docs/results/ were converted once."""
-DIFFERENCE_KINDS = ("models", "history_key", "history_other", "headroom")
-"""``models``: two trained models on the same images; ``history_key`` / ``history_other``: a model with its real
-history minus the same weights with the key frame copied / another clip's history (its history use);
-``headroom``: the history oracle minus the key-frame oracle (what history can reveal)."""
+DIFFERENCE_KINDS = (
+    "models",
+    "history_key",
+    "history_warped_key",
+    "history_reversed",
+    "history_other",
+    "history_exact",
+    "history_key_exact",
+    "key_copied",
+    "headroom",
+    "alignment_oracle",
+)
+"""``models``: two trained models on the same images; ``history_<probe>``: a model with its real history minus the
+same weights with the history probed (the key frame copied, warped out and back, the history reversed, another
+clip's: its history use); ``history_exact``: the history aligned by the generator's exact homographies minus ORB's;
+``history_key_exact``: exactly aligned history minus the key frame copied (history use with exact alignment);
+``key_copied``: a multi-frame model with its key frame copied minus a single frame trained alike (what the
+training did, history aside); ``headroom``: the history oracle minus the key-frame oracle (what history can
+reveal); ``alignment_oracle``: the aligned minus the unaligned history oracle."""
 
 Values = dict[str, dict[str, "Value"]]
 """metric key -> view -> value."""
