@@ -172,11 +172,13 @@ def test_bad_input_is_one_line_status_2(capsys: pytest.CaptureFixture, tmp_path:
         ["--table", "1", "--seeds", "1", "1"],
         ["--report-only", "--table", "1", "--out", str(tmp_path / "empty")],
         [],
+        ["--table", "1", "--out", str(tmp_path / "bad-fit"), "--", "--trainer.nope=1"],  # before the data are made
     ):
         capsys.readouterr()
         assert ablate.main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and err.startswith("stamlane ablate"), (argv, err)
+    assert not (tmp_path / "bad-fit").exists()
 
 
 def test_index_covers_the_paper_tables() -> None:

@@ -519,6 +519,27 @@ def test_splits_and_probes(capsys: pytest.CaptureFixture[str], command: str, spl
         assert not (tmp / "out").exists()
 
 
+@_settings(40)
+@given(
+    command=st.sampled_from(["demo", "ablate"]),
+    section=st.sampled_from(["trainer", "model", "data", "eval", "zz"]),
+    key=st.text(alphabet="abcdefghijklmnopqrstuvwxyz_.", max_size=12),
+    value=st.text(max_size=12),
+    bare=st.booleans(),
+)
+def test_fit_arguments_after_the_double_dash(
+    capsys: pytest.CaptureFixture[str], command: str, section: str, key: str, value: str, bare: bool
+) -> None:
+    """What follows ``--`` goes to every run's ``stamlane fit``: an argument it would refuse (an unknown key, a bare
+    word) is one line, exit status 2, before any data is made or ``--out`` written."""
+    extra = [f"zz{value}"] if bare else [f"--{section}.zz{key}={value}"]  # ``zz``: no option starts so
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "out"
+        argv = [command, "--out", str(out), *(["--table", "2"] if command == "ablate" else ["--quick"]), "--", *extra]
+        assert _contract(capsys, argv, []) == 2
+        assert not out.exists()
+
+
 # ---------------------------------------------------------------------------------------------- demo: records
 RECORD_VALUES = st.sampled_from([None, "x", 3, 2.5, True, [], {}, [1], {"a": 1}, "/etc/passwd", "../../outside"])
 RECORD_KINDS = st.sampled_from(["json", "link-outside", "fifo", "deep", "binary", "folder-linked", "truncated-ckpt"])

@@ -155,12 +155,16 @@ def test_multi_frame_runs_are_scored_with_their_history_probed(quick: Path) -> N
         (["--splits", "challenging-frames"], "--splits must name a split besides challenging-frames"),
         (["--quick", "--splits", "test", "nope"], "has no nope.json"),
         (["--reveal-probes", "key", "future"], "argument --reveal-probes: invalid choice: 'future'"),
+        (["--", "--trainer.nope=1"], "the stamlane fit arguments after --: "),  # before any data are made
+        (["--quick", "--", "--trainer.max_steps=many"], "the stamlane fit arguments after --: "),
     ],
 )
 def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["demo", "--out", str(tmp_path), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    if "--" in argv:  # fit arguments are checked before the quick set is made
+        assert not list(tmp_path.iterdir())
 
 
 def test_the_paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(

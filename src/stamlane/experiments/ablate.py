@@ -28,6 +28,7 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import RECIPES, Row
+from stamlane.experiments.runner import check_fit_arguments
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.table_index import PaperRow, TableIndex, baseline_pairs, load_tables
 from stamlane.experiments.workspace import (
@@ -143,6 +144,8 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
     base = args.base.resolve() if args.base else index.default_base
     if not base.is_file():
         raise ValueError(f"--base {args.base} not found")
+    if extra:  # before the data are made: a fit argument every run would refuse is said now
+        check_fit_arguments(base, extra)
     rows = _rows(index, args.table, args.rows, base)
     recipe = RECIPES[args.recipe]
     if args.pretrain_steps and recipe.pretrain is None:

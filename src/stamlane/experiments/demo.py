@@ -38,8 +38,8 @@ import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.experiments.engine import REVEAL_PROBES, Experiment
-from stamlane.experiments.recipes import RECIPES, Recipe, Row
-from stamlane.experiments.runner import TEMPORAL_SPLIT
+from stamlane.experiments.recipes import CONFIG_DIR, RECIPES, Recipe, Row
+from stamlane.experiments.runner import TEMPORAL_SPLIT, check_fit_arguments
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.workspace import (
     FIT_ARGUMENTS_HELP,
@@ -221,6 +221,8 @@ def run(args: argparse.Namespace, extra: Sequence[str] = ()) -> None:
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
     check_data(args.data, quick=args.quick)
+    if extra:  # before the data are made: a fit argument every run would refuse is said now
+        check_fit_arguments(CONFIG_DIR / rows[0].configs[0], extra)
     steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     recipe = replace(RECIPES["cpu"], pretrain_steps=steps[0], steps=steps[1])
     bf16 = bf16_of(args.bf16, quick=args.quick)

@@ -41,6 +41,7 @@ __all__ = [
     "TEMPORAL_SPLIT",
     "Runner",
     "aligns",
+    "check_fit_arguments",
     "frame_files_digest",
     "frames_of",
     "postprocess_of",
@@ -384,12 +385,35 @@ def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
             raise ExperimentError(f"{folder}: its checkpoint holds no weights; delete the folder to run it again")
 
 
-def _cli(args: list[str], **kwargs: Any) -> Any:
+def check_fit_arguments(config: Path, extra: Sequence[str]) -> None:
+    """Parse ``stamlane fit --config CONFIG EXTRA`` and build nothing: fit arguments that every run would refuse
+    are said at once, in one line (ExperimentError), not after the data are made and a stage has started."""
+    from jsonargparse import ArgumentError
+
+    from stamlane.safety.boundary import one_line
+    from stamlane.training.lightning_cli import StamLaneCLI
+
+    class Parsed(Exception):
+        """Raised once the arguments parsed: nothing is built."""
+
+    class ParseOnly(StamLaneCLI):
+        def before_instantiate_classes(self) -> None:
+            raise Parsed
+
+    try:
+        _cli(["fit", "--config", str(config), *extra], cli=ParseOnly, parser_kwargs={"exit_on_error": False})
+    except Parsed:
+        return
+    except (ValueError, ArgumentError) as err:
+        raise ExperimentError(f"the stamlane fit arguments after --: {one_line(err)}") from None
+
+
+def _cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
     from stamlane.training.lightning_cli import StamLaneCLI
 
     argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
     try:
-        return StamLaneCLI(args=args, report=False, **kwargs)
+        return (cli or StamLaneCLI)(args=args, report=False, **kwargs)
     finally:
         sys.argv = argv
 
