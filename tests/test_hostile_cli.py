@@ -319,3 +319,17 @@ def test_prediction_writers_never_write_through_links(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="leads out of the output folder"):
         write_culane_lines(out / "lines", "e/label.jpg", [])
     assert labels.read_text() == "the labels\n"
+
+
+@pytest.mark.parametrize("argv", [["fit", "--config"], ["demo", "--quick", "--out", "OUT", "--", "--config"]])
+def test_a_config_that_is_no_mapping_is_not_echoed(
+    argv: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """jsonargparse quotes a ``--config`` that is no mapping whole: the line keeps its start, not the file."""
+    text = tmp_path / "notes.yaml"
+    text.write_text("".join(f"word{i} " for i in range(2000)) + "END-OF-FILE")  # a YAML string, no mapping
+    out = tmp_path / "out"
+    assert main([*(str(out) if a == "OUT" else a for a in argv), str(text)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("stamlane")]
+    assert len(err) == 1 and len(err[0]) < 600 and "END-OF-FILE" not in err[0] and "characters more" in err[0]
+    assert not out.exists()

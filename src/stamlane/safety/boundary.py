@@ -13,9 +13,13 @@ import sys
 from collections.abc import Callable
 from typing import TypeVar
 
-__all__ = ["expected_errors", "one_line", "run_command"]
+__all__ = ["MAX_MESSAGE", "expected_errors", "one_line", "run_command"]
 
 T = TypeVar("T")
+
+MAX_MESSAGE = 400
+"""Characters of an error message kept on its line: a library may quote a whole input in its message (jsonargparse
+quotes a ``--config`` file that is no mapping), which a bad input must not turn into a page of stderr."""
 
 
 def expected_errors(*extra: type[BaseException]) -> tuple[type[BaseException], ...]:
@@ -37,9 +41,9 @@ def expected_errors(*extra: type[BaseException]) -> tuple[type[BaseException], .
 
 
 def one_line(err: BaseException) -> str:
-    """An error's message on one line. An error raised in a DataLoader worker comes back with the worker's
-    traceback as its message ("Caught DataError in DataLoader worker process 0. Original Traceback ..."): its
-    last line is the original message; other multi-line messages are joined."""
+    """An error's message on one line, at most `MAX_MESSAGE` characters of it. An error raised in a DataLoader
+    worker comes back with the worker's traceback as its message ("Caught DataError in DataLoader worker process 0.
+    Original Traceback ..."): its last line is the original message; other multi-line messages are joined."""
     lines = [line.strip() for line in str(err).splitlines() if line.strip()]
     if not lines:
         return type(err).__name__
@@ -50,6 +54,8 @@ def one_line(err: BaseException) -> str:
     text = lines[0]
     for line in lines[1:]:  # a line ending in ":" introduces the next one (jsonargparse's nested messages)
         text += (" " if text.endswith(":") else "; ") + line
+    if len(text) > MAX_MESSAGE:
+        text = f"{text[:MAX_MESSAGE]} … ({len(text) - MAX_MESSAGE} characters more)"
     return text
 
 
