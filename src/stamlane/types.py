@@ -39,9 +39,13 @@ Samples (what a dataset returns, what the LightningModule consumes)
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import TypeVar
+
 import numpy as np
 
-__all__ = ["NET_HOMOGRAPHIES", "Lane", "Lanes"]
+__all__ = ["NET_HOMOGRAPHIES", "Lane", "Lanes", "nameable", "nameable_objects"]
 
 NET_HOMOGRAPHIES = "key_from_hist_net"
 """Sample / batch key of the history -> key homographies in network pixels (``warp="feature"`` data only)."""
@@ -51,3 +55,26 @@ Lane = np.ndarray
 
 Lanes = list[Lane]
 """All lanes of one image."""
+
+
+_T = TypeVar("_T")
+_NAMEABLE: dict[str, object] = {}
+
+
+def nameable(obj: _T) -> _T:
+    """Register a class (or function) that a stored run may name, where it is defined (a decorator).
+
+    A checkpoint's hyper_parameters or a run folder's ``config.yaml`` may build only what is registered, by its
+    exact defining name (``stamlane.models.stam.STAM``); the closed registry (`stamlane.training.registry`) adds the
+    name its package exports it under (``stamlane.models.STAM``). Registering imports nothing: the registry imports
+    the packages that define such classes itself, never because a file names one.
+    """
+    name = f"{obj.__module__}.{obj.__qualname__}"  # type: ignore[attr-defined]
+    if _NAMEABLE.setdefault(name, obj) is not obj:
+        raise ValueError(f"{name} is registered twice")
+    return obj
+
+
+def nameable_objects() -> Mapping[str, object]:
+    """Exact defining name -> object, of everything `nameable` registered so far (a read-only view)."""
+    return MappingProxyType(_NAMEABLE)

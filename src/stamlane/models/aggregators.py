@@ -12,6 +12,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from stamlane.models._checks import check_clip_features
+from stamlane.types import nameable
 
 __all__ = ["STPSA", "ConvLSTMFusion", "CosineWeightedSum", "KeyFrameOnly", "STDANet", "SimpleAdd"]
 
@@ -37,6 +38,7 @@ class _ParameterFree(nn.Module):
         raise NotImplementedError
 
 
+@nameable
 class KeyFrameOnly(_ParameterFree):
     """The single-frame baseline: returns the key frame's features, ignores history. No parameters.
 
@@ -48,6 +50,7 @@ class KeyFrameOnly(_ParameterFree):
         return feats[:, -1]
 
 
+@nameable
 class SimpleAdd(_ParameterFree):
     """Table 4 "simple add": the sum of all frames' features, ``out = sum_t F_t``. No parameters.
 
@@ -78,6 +81,7 @@ class _ConvLSTMCell(nn.Module):
         return h, c
 
 
+@nameable
 class ConvLSTMFusion(nn.Module):
     """Table 4 ConvLSTM: a stacked ConvLSTM (Shi et al. 2015) run over the frames oldest first; the output is
     the last layer's hidden state after the key frame. Zero initial state.
@@ -122,6 +126,7 @@ class ConvLSTMFusion(nn.Module):
         return self.project(sequence[-1])
 
 
+@nameable
 class CosineWeightedSum(_ParameterFree):
     """Table 4 cosine-similarity weighted sum: per pixel, the cosine similarity of each frame's feature vector
     to the key frame's, softmax over frames, weighted sum of the frames. No parameters (the key frame's
@@ -137,6 +142,7 @@ class CosineWeightedSum(_ParameterFree):
         return (weights * feats).sum(dim=1)
 
 
+@nameable
 class STDANet(nn.Module):
     """Table 4 ST-DANet: DANet's position and channel attention (Fu et al., CVPR 2019) stretched over time,
     queries from the key frame K, keys and values from all T frames.
@@ -186,6 +192,7 @@ class STDANet(nn.Module):
         return key_frame + self.gamma_position * position + self.gamma_channel * channel
 
 
+@nameable
 class STPSA(nn.Module):
     """Table 4 ST-PSA: polarized self-attention (Liu et al. 2021, parallel layout) with the key frame as query.
 

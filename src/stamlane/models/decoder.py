@@ -8,6 +8,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from stamlane.types import nameable
+
 __all__ = ["LaneDecoder"]
 
 
@@ -19,6 +21,7 @@ def _conv_bn_relu(in_channels: int, out_channels: int) -> nn.Sequential:
     )
 
 
+@nameable
 class LaneDecoder(nn.Module):
     """FCN decoder with additive skips from the key frame's encoder stages, and two heads.
 

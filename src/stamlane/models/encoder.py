@@ -13,6 +13,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from stamlane.types import nameable
+
 __all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "VGG16_BLOCKS", "VGGEncoder"]
 
 VGG16_BLOCKS: tuple[tuple[int, int], ...] = ((64, 2), (128, 2), (256, 3), (512, 3), (512, 3))
@@ -32,6 +34,7 @@ def _conv_bn_relu(in_channels: int, out_channels: int) -> list[nn.Module]:
     ]
 
 
+@nameable
 class VGGEncoder(nn.Module):
     """VGG16-BN conv blocks with a width multiplier; trained from scratch.
 

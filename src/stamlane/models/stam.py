@@ -49,6 +49,7 @@ from torch import Tensor, nn
 
 from stamlane.models._checks import check_clip_features
 from stamlane.models.attention import ChannelAttention, SpatialAttention
+from stamlane.types import nameable
 
 __all__ = ["STAM", "StamMode", "StamOrder", "StamReading"]
 
@@ -62,6 +63,7 @@ _ORDERS = ("cs", "sc")
 _READINGS = ("gates", "features")
 
 
+@nameable
 class STAM(nn.Module):
     """Spatial-temporal attention module: (B, T, C, h, w) -> (B, C, h, w), key frame last.
 

@@ -25,7 +25,7 @@ from lightning.pytorch import Callback
 from stamlane_eval.integrations.torchmetrics import TuSimpleMetric
 from stamlane_eval.tusimple import lanes_to_xs
 
-from stamlane.types import NET_HOMOGRAPHIES
+from stamlane.types import NET_HOMOGRAPHIES, nameable
 
 __all__ = ["HistoryUseMonitor", "key_copied"]
 
@@ -49,6 +49,7 @@ def key_copied(batch: dict[str, Any]) -> tuple[torch.Tensor, torch.Tensor | None
     return probe, homs
 
 
+@nameable
 class HistoryUseMonitor(Callback):
     """Log how much validation scores depend on the history frames (see the module docstring).
 

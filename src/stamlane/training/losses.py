@@ -23,6 +23,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from stamlane.types import nameable
+
 __all__ = ["CE_WEIGHT_OFFSET", "LaneLoss", "class_weights", "discriminative_loss"]
 
 CE_WEIGHT_OFFSET = 1.02
@@ -122,6 +124,7 @@ def discriminative_loss(
     }
 
 
+@nameable
 class LaneLoss(nn.Module):
     """Total LaneNet loss: ``seg_weight * CE + embed_weight * (alpha L_var + beta L_dist + gamma L_reg)``.
 

@@ -42,7 +42,7 @@ from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.training.hardware import resolve_bf16
 from stamlane.training.lightning_compat import drop_hyperparameters
 from stamlane.training.losses import LaneLoss
-from stamlane.types import NET_HOMOGRAPHIES
+from stamlane.types import NET_HOMOGRAPHIES, nameable
 
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
 
@@ -51,12 +51,14 @@ OptimizerCallable = Callable[[Iterable], Optimizer]
 SchedulerCallable = Callable[[Optimizer, int], LRScheduler]
 
 
+@nameable
 def paper_sgd(params: Iterable) -> Optimizer:
     """SGD as in the paper: momentum 0.9. The paper's base learning rate was lost from our copy of the text;
     0.05 (with weight decay 5e-4) is the reference LaneNet implementation's (MaybeShewill-CV/lanenet)."""
     return torch.optim.SGD(params, lr=0.05, momentum=0.9, weight_decay=5e-4)
 
 
+@nameable
 class PolyLR(LRScheduler):
     """Poly learning-rate policy: ``base_lr * (1 - step / total_steps) ** power``, stepped every iteration.
 

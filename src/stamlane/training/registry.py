@@ -3,7 +3,8 @@
 A checkpoint's ``hyper_parameters``, the run config it carries, a run folder's ``config.yaml`` are data. A check
 by prefix (``stamlane.``) is not enough: jsonargparse resolves a name by importing its module and walking
 attributes, so ``stamlane.experiments.demo.os.system`` reaches the shell. Here every name is looked up in `registry` — a table
-of exact dotted names to classes, written out below — and nothing is imported or resolved from the file's text.
+of exact dotted names to classes: stamlane's, registered where each is defined (``@nameable``, `stamlane.types`), and the
+allow-lists of torch and Lightning below — and nothing is imported or resolved from the file's text.
 Every value is checked against the type the receiving parameter declares:
 
 - a ``class_path`` (or a bare name where a class or a callable goes) must be a key of the table, of the declared
@@ -28,8 +29,10 @@ from __future__ import annotations
 import collections.abc
 import dataclasses
 import datetime
+import importlib
 import inspect
 import os
+import pkgutil
 import re
 import tempfile
 import types
@@ -41,6 +44,7 @@ from pathlib import Path, PurePath
 from typing import Any
 
 from stamlane.safety.checkpoints import INSTANTIATOR, CheckpointError
+from stamlane.types import nameable_objects
 
 __all__ = [
     "CALLBACKS",
@@ -110,38 +114,42 @@ _DOTTED = re.compile(r"[^\W\d]\w*(\.[^\W\d]\w*)+")
 _NOT_KEYS = ("__path__", "dict_kwargs", "class_path", "init_args")
 
 
+_DEFINING_PACKAGES = ("stamlane.models", "stamlane.training")
+"""The packages whose modules register (`stamlane.types.nameable`) what a stored run may name: every module of
+them is imported by `registry`, a fixed list, never a name read from a file."""
+
+
+def _import_defining_modules() -> None:
+    for package_name in _DEFINING_PACKAGES:
+        package = importlib.import_module(package_name)
+        for found in pkgutil.iter_modules(package.__path__, f"{package_name}."):
+            importlib.import_module(found.name)
+
+
 @cache
 def registry() -> Mapping[str, Any]:
     """Exact dotted name -> class (or function) that a checkpoint or a run folder may name.
 
-    stamlane's own classes (``stamlane.models.STAM``, ...), the optimisers and schedulers of `OPTIMIZERS` and
-    `SCHEDULERS`, Lightning's `CALLBACKS` and `LOGGERS`; each also under its defining module's name
-    (``stamlane.models.stam.STAM``), as jsonargparse may write either; and under the names of before a move
-    (`stamlane.training.compat.RENAMED_CLASSES`: ``stamlane.losses.LaneLoss``), so that every earlier run and
-    checkpoint still reads.
+    stamlane's own classes, registered where they are defined (`stamlane.types.nameable`), under their defining
+    module's name (``stamlane.models.stam.STAM``) and the name their package exports (``stamlane.models.STAM``), as
+    jsonargparse may write either; the optimisers and schedulers of `OPTIMIZERS` and `SCHEDULERS`, Lightning's
+    `CALLBACKS` and `LOGGERS`; and the names of before a move (`stamlane.training.compat.RENAMED_CLASSES`:
+    ``stamlane.losses.LaneLoss``), so that every earlier run and checkpoint still reads.
     """
     import torch.optim
     import torch.optim.lr_scheduler
     from lightning.pytorch import callbacks, loggers
 
-    from stamlane import models
-    from stamlane.training import losses, module
     from stamlane.training.compat import RENAMED_CLASSES
 
-    own = {
-        "stamlane.models.VGGEncoder": models.VGGEncoder,
-        "stamlane.models.LaneDecoder": models.LaneDecoder,
-        "stamlane.models.STAM": models.STAM,
-        "stamlane.models.STPSA": models.STPSA,
-        "stamlane.models.STDANet": models.STDANet,
-        "stamlane.models.ConvLSTMFusion": models.ConvLSTMFusion,
-        "stamlane.models.CosineWeightedSum": models.CosineWeightedSum,
-        "stamlane.models.KeyFrameOnly": models.KeyFrameOnly,
-        "stamlane.models.SimpleAdd": models.SimpleAdd,
-        "stamlane.training.losses.LaneLoss": losses.LaneLoss,
-        "stamlane.training.module.PolyLR": module.PolyLR,
-        "stamlane.training.module.paper_sgd": module.paper_sgd,
-    }
+    _import_defining_modules()
+    own = dict(nameable_objects())
+    registered = {id(obj) for obj in own.values()}
+    for package_name in _DEFINING_PACKAGES:  # the public names: ``stamlane.models.STAM``
+        package = importlib.import_module(package_name)
+        for name in getattr(package, "__all__", ()):
+            if id(getattr(package, name)) in registered:
+                own[f"{package_name}.{name}"] = getattr(package, name)
     groups = (
         ("torch.optim", torch.optim, OPTIMIZERS),
         ("torch.optim.lr_scheduler", torch.optim.lr_scheduler, SCHEDULERS),
@@ -149,8 +157,8 @@ def registry() -> Mapping[str, Any]:
         ("lightning.pytorch.loggers", loggers, LOGGERS),
     )
     for prefix, where, names in groups:
-        own |= {f"{prefix}.{name}": getattr(where, name) for name in names if hasattr(where, name)}
-    own |= {f"{obj.__module__}.{obj.__qualname__}": obj for obj in own.values()}
+        found = {f"{prefix}.{name}": getattr(where, name) for name in names if hasattr(where, name)}
+        own |= found | {f"{obj.__module__}.{obj.__qualname__}": obj for obj in found.values()}
     # the names of before a class moved (checkpoints and run folders written then): one table, in compat
     return types.MappingProxyType(own | {old: own[new] for old, new in RENAMED_CLASSES.items() if new in own})
 
