@@ -216,7 +216,7 @@ def _plot(results: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from stamlane.experiments.report import series_style
+    from stamlane.experiments.plots import series_style
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 4))
     for k, r in enumerate(results):  # colour-blind-safe colours, then markers and line styles: no two alike

@@ -66,7 +66,7 @@ def test_clips_followed_frame_after_frame(tiny_synthetic, tmp_path: Path) -> Non
 def test_frame_after_frame_with_the_key_frame_copied_into_the_history(tiny_synthetic, tmp_path: Path) -> None:
     """History use of temporal stability: the clips followed again with the key frame in every history slot (not
     with another clip's history, which would be one clip's for every frame), compared with the real history."""
-    from stamlane.experiments.report import tables
+    from stamlane.experiments.tables import tables
 
     root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=2, challenging=8)
     row = Row.paper_row("f2_mixed_cs_features")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from stamlane_eval.stats import seed_interval
 
-from stamlane.experiments.report import paper_tables, plot_reveal, replication, reveal_points
+from stamlane.experiments.paper_report import paper_tables, replication
+from stamlane.experiments.plots import plot_reveal, reveal_points
 from stamlane.experiments.summary import FORMAT, Difference, ModelEntry, Summary, Value
 from stamlane.experiments.table_index import load_tables
 

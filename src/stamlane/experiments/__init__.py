@@ -12,7 +12,8 @@
 - `stamlane.experiments.oracles`: the oracles of the labels (what history can reveal: the headroom);
 - `stamlane.experiments.scores`: values and differences with intervals over clips and seeds;
 - `stamlane.experiments.summary`: the typed ``summary.json``;
-- `stamlane.experiments.report`: markdown tables, the paper's tables, csv, plots (``stamlane report``);
+- `stamlane.experiments.tables` (markdown tables and csv of one summary), `stamlane.experiments.paper_report`
+  (the paper's tables, replication), `stamlane.experiments.plots` (the pictures): what ``stamlane report`` writes;
 - `stamlane.experiments.table_index`: the paper's table index (``configs/paper/tables.yaml``);
 - `stamlane.experiments.workspace`: the data, precision and output folder ``demo`` and ``ablate`` set up;
 - `stamlane.experiments.demo`, `stamlane.experiments.ablate`: ``stamlane demo`` and ``stamlane ablate``.

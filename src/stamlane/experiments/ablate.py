@@ -91,7 +91,7 @@ def _rows(index: TableIndex, tables: list[str], only: list[str] | None, base: Pa
 
 def _pairs(rows: list[Row]) -> list[tuple[str, str]]:
     """Every row against one frame and pre-aligned STAM (where trained), and against its table's baseline."""
-    from stamlane.experiments.report import SINGLE_ROW, STAM_ROW
+    from stamlane.experiments.paper_report import SINGLE_ROW, STAM_ROW
 
     names = {r.name for r in rows}
     found = [(r.name, ref) for r in rows for ref in (SINGLE_ROW, STAM_ROW) if ref in names and ref != r.name]
@@ -100,9 +100,11 @@ def _pairs(rows: list[Row]) -> list[tuple[str, str]]:
 
 
 def _report(out: Path, index: TableIndex, tables: list[str]) -> str:
-    from stamlane.experiments.report import paper_tables, plot_history_use, write_csv
-    from stamlane.experiments.report import tables as detail_tables
+    from stamlane.experiments.paper_report import paper_tables
+    from stamlane.experiments.plots import plot_history_use
     from stamlane.experiments.summary import Summary
+    from stamlane.experiments.tables import tables as detail_tables
+    from stamlane.experiments.tables import write_csv
     from stamlane.safety.guard import write_atomic
 
     summary = Summary.read(out / "summary.json")

@@ -232,7 +232,8 @@ def run(args: argparse.Namespace, extra: Sequence[str] = ()) -> None:
 
 
 def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool, extra: tuple[str, ...]) -> None:
-    from stamlane.experiments.report import plot_history_use, plot_reveal, plot_val_curves, tables
+    from stamlane.experiments.plots import plot_history_use, plot_reveal, plot_val_curves
+    from stamlane.experiments.tables import tables
     from stamlane.safety.guard import write_atomic
 
     start = time.perf_counter()

@@ -53,9 +53,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from stamlane.experiments.report import paper_tables, plot_history_use, replication, tables, write_csv
+    from stamlane.experiments.paper_report import paper_tables, replication
+    from stamlane.experiments.plots import plot_history_use
     from stamlane.experiments.summary import Summary
     from stamlane.experiments.table_index import default_index_path, load_tables
+    from stamlane.experiments.tables import tables, write_csv
     from stamlane.safety.guard import atomic_path, check_outputs, temporary_name, write_atomic
 
     outputs = [p for p in (args.out, args.csv, args.plot) if p is not None]

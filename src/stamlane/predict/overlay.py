@@ -41,7 +41,7 @@ OKABE_ITO: dict[str, tuple[int, int, int]] = {
     "black": (0, 0, 0),
 }
 """RGB colours of Okabe & Ito's colour-blind-safe palette (2008), in the order plots take them
-(`stamlane.experiments.report.series_style`)."""
+(`stamlane.experiments.plots.series_style`)."""
 
 
 def _bgr(name: str) -> tuple[int, int, int]:
