@@ -8,19 +8,21 @@ models find the same images hard.
 
 Images of one video clip are not independent (the synthetic test splits label 5 key frames per clip), so
 ``groups`` resamples whole clips: every image of a drawn clip enters the resample, as often as the clip
-was drawn (the cluster bootstrap). Without ``groups`` every image is its own group.
+was drawn (the cluster bootstrap). Without ``groups`` every image is its own group::
 
-    >>> a = tusimple_rates(evaluate(preds_a, gts).per_image)
-    >>> b = tusimple_rates(evaluate(preds_b, gts).per_image)
-    >>> paired_bootstrap(a, b, f1_of_rates, groups=clip_ids).interval   # (low, high) of F1(a) - F1(b)
+    a = tusimple_rates(evaluate(preds_a, gts).per_image)
+    b = tusimple_rates(evaluate(preds_b, gts).per_image)
+    paired_bootstrap(a, b, f1_of_rates, groups=clip_ids).interval   # (low, high) of F1(a) - F1(b)
 
 Both intervals hold the trained weights fixed: they say how much a number would move on other test images, not
 on another training run. Where two models were trained with several seeds, `seed_interval` of the per-seed
 differences (the Student-t interval of their mean) says how much training randomness moves the difference; on
 the synthetic benchmark it was the larger of the two (docs/results.md), so a difference is claimed there only
-when both intervals exclude 0.
+when both intervals exclude 0. Three seeds whose differences are +2, +3 and +4 points:
 
-    >>> seed_interval([f1_a[s] - f1_b[s] for s in seeds]).interval
+    >>> low, high = seed_interval([0.02, 0.03, 0.04]).interval
+    >>> round(low, 4), round(high, 4)
+    (0.0052, 0.0548)
 
 The CULane / ApolloScape F1 is a function of the summed lane counts: ``culane_counts(result.per_image, 0.5)`` with
 ``f1_of_counts`` goes through the same functions; so are RVLD's Rs, Rj, Rm of the summed Ns, Nj, Nm:
