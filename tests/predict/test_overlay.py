@@ -81,4 +81,5 @@ def test_the_score_is_the_official_per_image_one() -> None:
     assert image_score(shifted, GT, rows, (H, W)).endswith(", 0/2 lanes")  # a few crossing points still count
     assert image_score(GT, GT, None, (H, W)) == "IoU F1@0.5 1.00 (2 of 2 lanes, 0 false)"
     assert image_score(shifted[:1] + GT[1:], GT, None, (H, W)) == "IoU F1@0.5 0.50 (1 of 2 lanes, 1 false)"
+    assert image_score([], [], None, (H, W)) == "IoU F1@0.5 0.00 (0 of 0 lanes, 0 false)"  # prf's 0, as stamlane-eval
     assert iou_width((590, 1640)) == 30 and iou_width((360, 640)) == 12
