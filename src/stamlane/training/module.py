@@ -15,7 +15,8 @@ test and prediction alike.
 
 Optimisation (paper 4.1.2): SGD with momentum 0.9 and a poly learning rate ``lr * (1 - step / total)^0.9``
 stepped every iteration; ``total`` is the trainer's ``estimated_stepping_batches`` (``max_steps`` when
-set), so the schedule length is never written twice.
+set), so the schedule length is never written twice; a run resumed with ``--ckpt_path`` and a larger ``max_steps``
+follows the new length from the step it resumes at (`PolyLR.load_state_dict`).
 """
 
 from __future__ import annotations
@@ -76,6 +77,18 @@ class PolyLR(LRScheduler):
     def get_lr(self) -> list[float]:
         factor = max(0.0, 1.0 - min(self.last_epoch, self.total_steps) / self.total_steps) ** self.power
         return [base_lr * factor for base_lr in self.base_lrs]
+
+    def load_state_dict(self, state_dict: dict[str, Any]) -> None:
+        """Restore the position in the schedule (``last_epoch``, ``base_lrs``) but keep THIS run's length: a run
+        resumed with a larger ``max_steps`` follows ``base_lr * (1 - step / new_total) ** power`` from the step it
+        resumes at, as a run of ``new_total`` steps from the start would (the checkpoint's length would leave every
+        added step at learning rate 0). The optimizer's rates, restored before the schedule, are set anew."""
+        total = self.total_steps
+        super().load_state_dict(state_dict)
+        self.total_steps = total
+        self._last_lr = self.get_lr()
+        for group, lr in zip(self.optimizer.param_groups, self._last_lr, strict=True):
+            group["lr"] = lr
 
 
 def _is_plain(value: Any) -> bool:
