@@ -15,7 +15,7 @@ def tiny_args(root: Path, out: Path, *extra: str) -> list[str]:
         str(REPO / "configs" / "demo.yaml"),
         f"--data.root={root}",
         "--data.clip.num_frames=2",
-        "--data.clip.image_size=[32, 64]",
+        "--data.clip.image_size=[32,64]",
         "--data.loader.batch_size=2",
         "--data.loader.num_workers=0",
         "--data.clip.align=none",

@@ -32,10 +32,12 @@ import numpy as np
 import torch
 from lightning.pytorch import LightningModule
 from lightning.pytorch.utilities import rank_zero_info
+from stamlane_eval.integrations.distributed import gather_records, is_distributed
 from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from stamlane.data.datamodule import INDEX_KEY
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.safety.budget import check_clip, check_frames
@@ -196,6 +198,8 @@ class StamLaneModule(LightningModule):
             self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
         if channels_last:
             self.net.to(memory_format=torch.channels_last)
+        self._eval_losses: list[tuple[Any, float]] = []  # (image key, loss) of this evaluation epoch
+        self._eval_seen = 0
 
     @property
     def bf16(self) -> bool:
@@ -336,10 +340,15 @@ class StamLaneModule(LightningModule):
 
     def _eval_step(self, batch: dict, stage: str) -> dict[str, Any]:
         logits, embedding, lanes, run_time = self._detect(batch)
-        if "binary" in batch and "instance" in batch:
-            terms = self._losses(batch, logits, embedding)
-            self.log(f"{stage}/loss", terms["loss"], batch_size=len(lanes), sync_dist=True)
         metas = batch["meta"]
+        keys = [self._image_key(meta, i) for i, meta in enumerate(metas)]
+        if "binary" in batch and "instance" in batch:
+            # per image (its own class weights), so that the loss is the images', not the batches' nor the processes'
+            for i, key in enumerate(keys):
+                one = {"binary": batch["binary"][i : i + 1], "instance": batch["instance"][i : i + 1]}
+                terms = self._losses(one, logits[i : i + 1], embedding[i : i + 1])
+                self._eval_losses.append((key, float(terms["loss"])))
+        self._eval_seen += len(metas)
         return {
             "pred_lanes": lanes,
             "gt_lanes": batch["lanes"],
@@ -347,7 +356,39 @@ class StamLaneModule(LightningModule):
             "orig_size": [tuple(m["orig_size"]) for m in metas],
             "run_time": run_time if self.report_run_time else None,
             "raw_file": [m.get("raw_file") for m in metas],
+            "image_id": keys,
         }
+
+    def _image_key(self, meta: dict, i: int) -> Any:
+        """An image's key in its split: its index (``meta["index"]``, `stamlane.data.datamodule.Indexed`), else its
+        position on this process with the rank (the order of a strided sampler)."""
+        index = meta.get(INDEX_KEY)
+        return int(index) if index is not None else (self._eval_seen + i, self.global_rank)
+
+    def on_validation_epoch_start(self) -> None:
+        self._eval_losses, self._eval_seen = [], 0
+
+    on_test_epoch_start = on_validation_epoch_start
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_eval_loss("val")
+
+    def on_test_epoch_end(self) -> None:
+        self._log_eval_loss("test")
+
+    def _log_eval_loss(self, stage: str) -> None:
+        """Log ``{stage}/loss``: the mean of every image's loss, summed in the order of the split on every process,
+        so that it is one process's number to the last bit whatever the number of processes (an image that came
+        twice is refused: `stamlane_eval.integrations.distributed.gather_records`)."""
+        losses = [loss for _, loss in gather_records(self._eval_losses, f"{stage} losses")]
+        self._eval_losses = []
+        if not losses:
+            return
+        mean = sum(losses) / len(losses)
+        if is_distributed():  # the same number on every process: max gives it back exactly (mean may not)
+            self.log(f"{stage}/loss", mean, sync_dist=True, reduce_fx="max")
+        else:
+            self.log(f"{stage}/loss", mean)
 
     def validation_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
         return self._eval_step(batch, "val")
