@@ -212,7 +212,11 @@ class StamLaneModule(LightningModule):
         self._bf16 = value
 
     def setup(self, stage: str) -> None:
-        """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""
+        """Load the encoder's ImageNet weights (``VGGEncoder(weights=...)``), then ``init_weights``, at the start of
+        ``fit`` (a resumed checkpoint is restored after this)."""
+        load = getattr(self.net.encoder, "load_weights", None)
+        if stage == "fit" and load is not None and load():
+            rank_zero_info(f"encoder: ImageNet weights from {self.net.encoder.weights}")
         if stage == "fit" and self.init_weights:
             try:
                 state = read_checkpoint(self.init_weights)["state_dict"]
