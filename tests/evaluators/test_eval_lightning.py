@@ -70,13 +70,13 @@ def _images(golden: ModuleType) -> list[dict]:
     return out
 
 
-def _expected(images: list[dict], prefix: str) -> dict[str, float]:
+def _expected(images: list[dict], prefix: str, time_limit: bool = True) -> dict[str, float]:
     ts = [im for im in images if im["h_samples"] is not None]
     res = tusimple.evaluate_batch(
         [tusimple.lanes_to_xs(im["pred_lanes"], im["h_samples"]) for im in ts],
         [tusimple.lanes_to_xs([np.asarray(x) for x in im["gt_lanes"]], im["h_samples"]) for im in ts],
         [im["h_samples"] for im in ts],
-        [im["run_time"] for im in ts],
+        [im["run_time"] for im in ts] if time_limit else None,
     )
     acc = sum(r.acc for r in res) / len(res)
     fp = sum(r.fp for r in res) / len(res)
@@ -122,18 +122,21 @@ def test_callback_in_trainer(golden: ModuleType) -> None:
         enable_progress_bar=False,
         enable_model_summary=False,
     )
-    with pytest.warns(UserWarning, match="run_time over 200 ms") as caught:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         trainer.fit(model, loader, loader)
-    late = [w for w in caught if "run_time over 200 ms" in str(w.message)]
-    assert len(late) == 1 and "1 of 22 images" in str(late[0].message)  # the golden image at 200.001 ms
-    assert "LaneEvalCallback(tusimple_time_limit=False)" in str(late[0].message)
-    want = _expected(images, "val")
+    assert not [w for w in caught if "run_time over 200 ms" in str(w.message)]  # validation: no 200 ms rule
+    want = _expected(images, "val", time_limit=False)
     got = {k: float(v) for k, v in trainer.callback_metrics.items() if k.startswith("val/")}
-    assert got["val/tusimple_late"] == 1.0
+    assert got["val/tusimple_late"] == 1.0  # counted, not applied
     assert set(got) == set(want)
     for k, v in want.items():
         assert got[k] == pytest.approx(v, rel=1e-6), k  # logged as float32
-    test = trainer.test(model, loader, verbose=False)[0]
+    with pytest.warns(UserWarning, match="run_time over 200 ms") as caught:
+        test = trainer.test(model, loader, verbose=False)[0]
+    late = [w for w in caught if "run_time over 200 ms" in str(w.message)]
+    assert len(late) == 1 and "1 of 22 images" in str(late[0].message)  # the golden image at 200.001 ms
+    assert "LaneEvalCallback(tusimple_time_limit=False)" in str(late[0].message)
     want = _expected(images, "test")
     assert set(test) == set(want)
     for k, v in want.items():
@@ -155,26 +158,31 @@ def test_callback_warns_about_late_images_once(golden: ModuleType) -> None:
         def log(self, name: str, value: float) -> None:
             self.logged[name] = value
 
-    for time_limit, said in ((True, 1), (False, 0)):
+    cases = [(True, "val", 1), (False, "val", 0), ("test", "val", 0), ("test", "test", 1), (False, "test", 0)]
+    for time_limit, stage, said in cases:
         cb, module = LaneEvalCallback(culane=False, tusimple_time_limit=time_limit), _Module()
+        applied = time_limit is True or (time_limit == "test" and stage == "test")
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             for _ in range(2):  # two validations
                 cb._reset(module)
-                cb._update(outputs)
-                cb._log(module, "val")
-        assert sum("run_time over 200 ms" in str(w.message) for w in caught) == said
-        assert module.logged["val/tusimple_late"] == 1.0
-        want = _expected(images, "val")["val/tusimple_accuracy"]
-        assert (module.logged["val/tusimple_accuracy"] == want) == time_limit  # the late image: missed, or not
+                cb._keep(outputs)
+                cb._log(module, stage)
+        assert sum("run_time over 200 ms" in str(w.message) for w in caught) == said, (time_limit, stage)
+        assert module.logged[f"{stage}/tusimple_late"] == 1.0  # counted whether the rule applies or not
+        want = _expected(images, stage)[f"{stage}/tusimple_accuracy"]  # with the rule
+        assert (module.logged[f"{stage}/tusimple_accuracy"] == want) == applied  # the late image: missed, or not
+    with pytest.raises(ValueError, match="tusimple_time_limit"):
+        LaneEvalCallback(tusimple_time_limit="val")  # type: ignore[arg-type]
 
 
 def test_callback_fixed_size_and_bad_outputs(golden: ModuleType) -> None:
     cb = LaneEvalCallback(tusimple=False, culane_size=(590, 1640))
     images = _images(golden)[-3:]
-    cb._update({k: [im[k] for im in images] for k in ("pred_lanes", "gt_lanes", "h_samples", "orig_size")})
+    cb._keep({k: [im[k] for im in images] for k in ("pred_lanes", "gt_lanes", "h_samples", "orig_size")})
+    cb._score([record for _, record in cb._records])
     assert int(cb.culane_metric.images) == 3 and int(cb.tusimple_metric.images) == 0
     with pytest.raises(ValueError, match="pred_lanes"):
-        cb._update({"loss": 1.0})
+        cb._keep({"loss": 1.0})
     with pytest.raises(ValueError, match="culane_size"):
         LaneEvalCallback(culane_size=(0, 5))

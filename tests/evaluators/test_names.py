@@ -109,7 +109,7 @@ def test_every_name_the_callback_logs_reads_back_to_itself() -> None:
     for stage in ("val", "test"):
         module = _Module()
         cb._reset(module)
-        cb._update(_clip())
+        cb._keep(_clip())
         cb._log(module, stage)
         expected = {metric_name("tusimple", q, stage=stage) for q in ("accuracy", "fp", "fn", "f1", "late")}
         expected |= {metric_name("video", "miou", stage=stage)}

@@ -1,4 +1,9 @@
-"""``ClipDataModule``: the clip datasets behind Lightning's fit/validate/test/predict."""
+"""``ClipDataModule``: the clip datasets behind Lightning's fit/validate/test/predict.
+
+Under several processes (DDP) the validation, test and prediction splits are shared out without repeats
+(`eval_sampler`) and every sample carries its index in the split (`Indexed`), so that scores and predictions are
+gathered in the split's order, each image once (docs/distributed.md).
+"""
 
 from __future__ import annotations
 
@@ -9,8 +14,10 @@ import warnings
 from dataclasses import asdict
 from pathlib import Path
 
+import torch
 from lightning import LightningDataModule
-from torch.utils.data import DataLoader
+from lightning.pytorch.overrides.distributed import UnrepeatedDistributedSampler
+from torch.utils.data import DataLoader, Dataset
 
 from stamlane.data.clips import FORMATS, HISTORY_SOURCES, ClipDataset, make_clips
 from stamlane.data.collate import collate_clips
@@ -25,10 +32,57 @@ __all__ = [
     "DEFAULT_SYNTHETIC_ROOT",
     "FORMATS",
     "FRAMES_HISTORY_SOURCES",
+    "INDEX_KEY",
     "ClipDataModule",
     "FramesDataModule",
+    "Indexed",
     "SequenceWarning",
+    "eval_sampler",
 ]
+
+INDEX_KEY = "index"
+"""Meta entry of an evaluation or prediction sample: its index in the split (`Indexed`)."""
+
+
+class Indexed(Dataset):
+    """A split whose samples carry their index in it, ``meta[INDEX_KEY]``: the key by which the scores and the
+    predictions of several processes are put back in the order of the split, each image once
+    (`stamlane_eval.integrations.distributed.gather_records`).
+
+    Args:
+        dataset: a map-style dataset of sample dicts with a ``meta`` dict (`stamlane.data.clips.ClipDataset`).
+    """
+
+    def __init__(self, dataset: Dataset) -> None:
+        self.dataset = dataset
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, index: int) -> dict:
+        sample = self.dataset[index]
+        sample["meta"] = {**sample["meta"], INDEX_KEY: int(index)}
+        return sample
+
+
+def eval_sampler(dataset: Dataset, split: str) -> UnrepeatedDistributedSampler | None:
+    """The sampler of an evaluation or prediction split under several processes: each process a strided share of
+    the split (process r: images r, r + W, r + 2W, ...), no image repeated (PyTorch's ``DistributedSampler``, which
+    Lightning puts in otherwise, pads the shards with repeats, scored twice); shares differ by one image at most.
+    None with one process.
+
+    Raises:
+        DataError: fewer images than processes (a process without a batch would stall the others).
+    """
+    if not (torch.distributed.is_available() and torch.distributed.is_initialized()):
+        return None
+    world = torch.distributed.get_world_size()
+    if world == 1:
+        return None
+    if len(dataset) < world:
+        raise DataError(f"the {split} split has {len(dataset)} images, fewer than the {world} processes: use fewer")
+    return UnrepeatedDistributedSampler(dataset, num_replicas=world, rank=torch.distributed.get_rank(), shuffle=False)
+
 
 FRAMES_HISTORY_SOURCES = ("real", "key")
 """What fills the history slots of a folder's or a video's clips (the other `HISTORY_SOURCES` need clips with
@@ -203,10 +257,13 @@ class ClipDataModule(LightningDataModule):
     def _loader(self, split: str) -> DataLoader:
         if split not in self.datasets:
             self.datasets[split] = self.make_dataset(split)
+        dataset = self.datasets[split] if split == "train" else Indexed(self.datasets[split])
+        sampler = None if split == "train" else eval_sampler(dataset, split)  # each image once under DDP
         return DataLoader(
-            self.datasets[split],
+            dataset,
             batch_size=self.loader.batch_size,
             shuffle=split == "train",
+            sampler=sampler,
             num_workers=self.loader.num_workers,
             collate_fn=collate_clips,
             persistent_workers=self.loader.num_workers > 0,
@@ -311,9 +368,11 @@ class FramesDataModule(LightningDataModule):
 
     def predict_dataloader(self) -> DataLoader:
         self.setup("predict")
+        dataset = Indexed(self.dataset)
         return DataLoader(
-            self.dataset,
+            dataset,
             batch_size=self.loader.batch_size,
+            sampler=eval_sampler(dataset, "predict"),
             num_workers=self.loader.num_workers,
             collate_fn=collate_clips,
         )

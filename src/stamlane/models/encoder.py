@@ -6,6 +6,9 @@ the stage outputs sit at strides ``(1, 2, 4, 8, 16)``. VGG16's fifth pool is dro
 stage — the one STAM fuses — stays at stride 16, so a 128x256 input fuses on an 8x16 grid and a
 256x512 input on 16x32 (stride 32 would leave 4x8 cells, too coarse to align or gate lanes). The
 input height and width must therefore be multiples of 16.
+
+ImageNet initialisation: ``weights`` names a torchvision ``vgg16_bn`` or ``vgg16`` state-dict file
+(`stamlane.models.imagenet`), loaded by `VGGEncoder.load_weights` (``StamLaneModule`` calls it when ``fit`` starts).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from stamlane.models.imagenet import ImageNetWeightsError, read_torchvision_vgg16
 from stamlane.types import nameable
 
 __all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "VGG16_BLOCKS", "VGGEncoder"]
@@ -36,20 +40,23 @@ def _conv_bn_relu(in_channels: int, out_channels: int) -> list[nn.Module]:
 
 @nameable
 class VGGEncoder(nn.Module):
-    """VGG16-BN conv blocks with a width multiplier; trained from scratch.
+    """VGG16-BN conv blocks with a width multiplier; trained from scratch or from ImageNet weights.
 
     Args:
         width: channel multiplier; 1.0 is the paper's VGG16 (64 ... 512 channels), 0.25 a CPU-sized
             network with the same graph. Each block gets ``max(1, round(c * width))`` channels.
         in_channels: channels of the input image; 3 = RGB, standardised with the ImageNet mean / std, any
             other count with mean 0.5 and std 0.25 per channel.
+        weights: a torchvision ``vgg16_bn`` or ``vgg16`` state-dict file (ImageNet; width 1.0, 3 channels), read by
+            `load_weights`, not here: ``StamLaneModule`` loads it when ``fit`` starts (before a resumed checkpoint
+            is restored), so a trained model is built, validated or exported without the file.
 
     Attributes:
         out_channels: channels of each stage output, shallow first, e.g. ``[64, 128, 256, 512, 512]``.
         strides: stride of each stage output w.r.t. the input, ``[1, 2, 4, 8, 16]``.
     """
 
-    def __init__(self, width: float = 1.0, in_channels: int = 3) -> None:
+    def __init__(self, width: float = 1.0, in_channels: int = 3, weights: str | None = None) -> None:
         super().__init__()
         if not width > 0:
             raise ValueError(f"width must be > 0, got {width}")
@@ -57,6 +64,7 @@ class VGGEncoder(nn.Module):
             raise ValueError(f"in_channels must be >= 1, got {in_channels}")
         self.width = width
         self.in_channels = in_channels
+        self.weights = weights
         self.out_channels: list[int] = []
         self.strides: list[int] = []
         stages: list[nn.Module] = []
@@ -75,6 +83,23 @@ class VGGEncoder(nn.Module):
         std = torch.tensor(IMAGENET_STD if in_channels == 3 else [0.25] * in_channels).view(1, -1, 1, 1)
         self.register_buffer("mean", mean, persistent=False)
         self.register_buffer("std", std, persistent=False)
+
+    def load_weights(self) -> bool:
+        """Load ``weights`` (ImageNet, torchvision's layout) into the stages; False when none were given.
+
+        Raises:
+            ImageNetWeightsError: the file is missing, unreadable or of another layout (one line naming it).
+        """
+        if not self.weights:
+            return False
+        if self.width != 1.0 or self.in_channels != 3:
+            raise ImageNetWeightsError(
+                f"ImageNet weights {self.weights} need the encoder at width 1.0 with 3 input channels, got width "
+                f"{self.width}, {self.in_channels} channels"
+            )
+        state = read_torchvision_vgg16(self.weights, self.stages, VGG16_BLOCKS)
+        self.stages.load_state_dict(state)
+        return True
 
     @property
     def total_stride(self) -> int:

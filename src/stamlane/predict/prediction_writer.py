@@ -13,8 +13,10 @@
   written under a temporary name and renamed when prediction ends.
 
 ``stamlane predict`` chooses ``output_dir`` when it is not given: one folder per model and source
-(`default_output_dir`), so that a split's json and a video's lines never mix. With several processes (DDP) every
-rank writes ``predictions.rank<r>.json`` (and no overlay video: the frames are split between the ranks).
+(`default_output_dir`), so that a split's json and a video's lines never mix. With several processes (DDP) each
+writes the lines and overlays of its share of the frames; the json lines are gathered on rank 0, which writes one
+``predictions.json`` in the order of the split, as one process does (no overlay video: the frames are split between
+the ranks; one process writes it).
 
 The data of ``stamlane predict --source FOLDER|VIDEO`` is ``stamlane.data.datamodule.FramesDataModule``.
 """
@@ -29,7 +31,9 @@ from typing import Any
 import cv2
 import lightning.pytorch as pl
 import numpy as np
+import torch
 from lightning.pytorch.callbacks import BasePredictionWriter
+from stamlane_eval.integrations.distributed import gather_records
 from stamlane_eval.io import culane_lines_path
 
 from stamlane.predict.overlay import draw_lanes, draw_legend
@@ -102,6 +106,7 @@ class LanePredictionWriter(BasePredictionWriter):
         self.video = video
         self.model_name = model_name
         self._json: TusimpleWriter | None = None
+        self._rows: list[tuple[Any, tuple]] = []  # several processes: (image key, json line's values), for rank 0
         self._video: cv2.VideoWriter | None = None
         self._video_fps: float | None = None
         self.written = {"tusimple": 0, "culane": 0, "overlays": 0, "video frames": 0}
@@ -119,15 +124,15 @@ class LanePredictionWriter(BasePredictionWriter):
         self.written = dict.fromkeys(self.written, 0)
         self._done = False
         self._json = None
+        self._rows = []
         self._data_root = Path(getattr(trainer.datamodule, "root", ".") or ".")
         is_video = bool(getattr(trainer.datamodule, "is_video", False))
         fps = getattr(trainer.datamodule, "video_fps", None) or FALLBACK_FPS
         self._video_fps = fps if is_video and trainer.world_size == 1 else None
 
-    def _json_writer(self, trainer: pl.Trainer) -> TusimpleWriter:
+    def _json_writer(self) -> TusimpleWriter:
         if self._json is None:
-            name = "predictions.json" if trainer.world_size == 1 else f"predictions.rank{trainer.global_rank}.json"
-            self._json = TusimpleWriter(self.output_dir / name)
+            self._json = TusimpleWriter(self.output_dir / "predictions.json")
         return self._json
 
     def write_on_batch_end(
@@ -149,7 +154,12 @@ class LanePredictionWriter(BasePredictionWriter):
             if use_json:
                 if h_samples is None:
                     raise ValueError(f"format 'tusimple' needs h_samples, {raw_file!r} has none")
-                self._json_writer(trainer).write(raw_file, lanes, h_samples, item["run_time"])
+                line = (raw_file, lanes, h_samples, item["run_time"])
+                if trainer.world_size == 1:
+                    self._json_writer().write(*line)
+                else:  # rank 0 writes every process's lines when prediction ends, in the split's order
+                    key = meta.get("index", (len(self._rows), trainer.global_rank))
+                    self._rows.append((key, line))
                 self.written["tusimple"] += 1
             else:
                 write_culane_lines(self.output_dir / "lines", raw_file, lanes)
@@ -210,6 +220,14 @@ class LanePredictionWriter(BasePredictionWriter):
         self._close_video(keep=False)  # a failed run leaves the previous overlay video whole
 
     def on_predict_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        if trainer.world_size > 1:
+            rows = gather_records(self._rows, "predictions")
+            self._rows = []
+            counts = trainer.strategy.all_gather(torch.tensor(list(self.written.values()), device=pl_module.device))
+            self.written = dict(zip(self.written, counts.reshape(-1, len(self.written)).sum(0).tolist(), strict=True))
+            if trainer.is_global_zero:
+                for _, line in rows:
+                    self._json_writer().write(*line)
         if self._json is not None:
             self._json.close()
             self._json = None

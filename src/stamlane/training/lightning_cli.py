@@ -28,11 +28,16 @@ from stamlane.safety.guard import check_outputs, temporary_name
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
+from stamlane.training.launch import one_process_unless_asked, spawned
 from stamlane.training.lightning_compat import keep_command_line_hparams
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
 
 __all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI", "checkpoint_name"]
+
+# registered when this module is imported, not only when a parser is made: the processes of ddp_spawn unpickle the
+# trainer (its callbacks are of this module) and save the config with the parser's mode (KeyError otherwise)
+yaml_mode()
 
 CONFIG_KEY = "stamlane_config"
 """Checkpoint entry holding the YAML config of the run that wrote it."""
@@ -96,6 +101,8 @@ class StamLaneCLI(LightningCLI):
         self._check_option_groups()
         self._logs_follow_root(given)
         self._logs_outside_run(given)
+        subcommand = self.config.get("subcommand")  # a stored run's trainer may be 8 GPUs': scored in one process
+        one_process_unless_asked(subcommand, (self.config.get(str(subcommand)) or {}).get("trainer"), given)
 
     def _check_option_groups(self) -> None:
         """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
@@ -177,6 +184,10 @@ class StamLaneCLI(LightningCLI):
     def after_fit(self) -> None:
         """Say where the model went and how good it is: best validation F1 and its step, checkpoints, logs."""
         if self.trainer.global_rank != 0 or not self.report:
+            return
+        if spawned(self.trainer):  # this process only started the ranks; the run's record is theirs
+            where = self.trainer.logger.log_dir if self.trainer.logger is not None else self.trainer.default_root_dir
+            print(f"stamlane fit: done ({self.trainer.world_size} processes); checkpoints, logs and config: {where}")
             return
         lines = [f"stamlane fit: done after {self.trainer.global_step} steps"]
         report = next((cb for cb in self.trainer.callbacks if isinstance(cb, FitReport)), None)

@@ -15,7 +15,8 @@ test and prediction alike.
 
 Optimisation (paper 4.1.2): SGD with momentum 0.9 and a poly learning rate ``lr * (1 - step / total)^0.9``
 stepped every iteration; ``total`` is the trainer's ``estimated_stepping_batches`` (``max_steps`` when
-set), so the schedule length is never written twice.
+set), so the schedule length is never written twice; a run resumed with ``--ckpt_path`` and a larger ``max_steps``
+follows the new length from the step it resumes at (`PolyLR.load_state_dict`).
 """
 
 from __future__ import annotations
@@ -31,10 +32,12 @@ import numpy as np
 import torch
 from lightning.pytorch import LightningModule
 from lightning.pytorch.utilities import rank_zero_info
+from stamlane_eval.integrations.distributed import gather_records, is_distributed
 from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from stamlane.data.datamodule import INDEX_KEY
 from stamlane.models import LaneNet, forward_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.safety.budget import check_clip, check_frames
@@ -78,6 +81,18 @@ class PolyLR(LRScheduler):
     def get_lr(self) -> list[float]:
         factor = max(0.0, 1.0 - min(self.last_epoch, self.total_steps) / self.total_steps) ** self.power
         return [base_lr * factor for base_lr in self.base_lrs]
+
+    def load_state_dict(self, state_dict: dict[str, Any]) -> None:
+        """Restore the position in the schedule (``last_epoch``, ``base_lrs``) but keep THIS run's length: a run
+        resumed with a larger ``max_steps`` follows ``base_lr * (1 - step / new_total) ** power`` from the step it
+        resumes at, as a run of ``new_total`` steps from the start would (the checkpoint's length would leave every
+        added step at learning rate 0). The optimizer's rates, restored before the schedule, are set anew."""
+        total = self.total_steps
+        super().load_state_dict(state_dict)
+        self.total_steps = total
+        self._last_lr = self.get_lr()
+        for group, lr in zip(self.optimizer.param_groups, self._last_lr, strict=True):
+            group["lr"] = lr
 
 
 def _is_plain(value: Any) -> bool:
@@ -185,6 +200,8 @@ class StamLaneModule(LightningModule):
             self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
         if channels_last:
             self.net.to(memory_format=torch.channels_last)
+        self._eval_losses: list[tuple[Any, float]] = []  # (image key, loss) of this evaluation epoch
+        self._eval_seen = 0
 
     @property
     def bf16(self) -> bool:
@@ -197,7 +214,11 @@ class StamLaneModule(LightningModule):
         self._bf16 = value
 
     def setup(self, stage: str) -> None:
-        """Load ``init_weights`` at the start of ``fit`` (a resumed checkpoint is restored after this)."""
+        """Load the encoder's ImageNet weights (``VGGEncoder(weights=...)``), then ``init_weights``, at the start of
+        ``fit`` (a resumed checkpoint is restored after this)."""
+        load = getattr(self.net.encoder, "load_weights", None)
+        if stage == "fit" and load is not None and load():
+            rank_zero_info(f"encoder: ImageNet weights from {self.net.encoder.weights}")
         if stage == "fit" and self.init_weights:
             try:
                 state = read_checkpoint(self.init_weights)["state_dict"]
@@ -325,10 +346,15 @@ class StamLaneModule(LightningModule):
 
     def _eval_step(self, batch: dict, stage: str) -> dict[str, Any]:
         logits, embedding, lanes, run_time = self._detect(batch)
-        if "binary" in batch and "instance" in batch:
-            terms = self._losses(batch, logits, embedding)
-            self.log(f"{stage}/loss", terms["loss"], batch_size=len(lanes), sync_dist=True)
         metas = batch["meta"]
+        keys = [self._image_key(meta, i) for i, meta in enumerate(metas)]
+        if "binary" in batch and "instance" in batch:
+            # per image (its own class weights), so that the loss is the images', not the batches' nor the processes'
+            for i, key in enumerate(keys):
+                one = {"binary": batch["binary"][i : i + 1], "instance": batch["instance"][i : i + 1]}
+                terms = self._losses(one, logits[i : i + 1], embedding[i : i + 1])
+                self._eval_losses.append((key, float(terms["loss"])))
+        self._eval_seen += len(metas)
         return {
             "pred_lanes": lanes,
             "gt_lanes": batch["lanes"],
@@ -336,7 +362,39 @@ class StamLaneModule(LightningModule):
             "orig_size": [tuple(m["orig_size"]) for m in metas],
             "run_time": run_time if self.report_run_time else None,
             "raw_file": [m.get("raw_file") for m in metas],
+            "image_id": keys,
         }
+
+    def _image_key(self, meta: dict, i: int) -> Any:
+        """An image's key in its split: its index (``meta["index"]``, `stamlane.data.datamodule.Indexed`), else its
+        position on this process with the rank (the order of a strided sampler)."""
+        index = meta.get(INDEX_KEY)
+        return int(index) if index is not None else (self._eval_seen + i, self.global_rank)
+
+    def on_validation_epoch_start(self) -> None:
+        self._eval_losses, self._eval_seen = [], 0
+
+    on_test_epoch_start = on_validation_epoch_start
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_eval_loss("val")
+
+    def on_test_epoch_end(self) -> None:
+        self._log_eval_loss("test")
+
+    def _log_eval_loss(self, stage: str) -> None:
+        """Log ``{stage}/loss``: the mean of every image's loss, summed in the order of the split on every process,
+        so that it is one process's number to the last bit whatever the number of processes (an image that came
+        twice is refused: `stamlane_eval.integrations.distributed.gather_records`)."""
+        losses = [loss for _, loss in gather_records(self._eval_losses, f"{stage} losses")]
+        self._eval_losses = []
+        if not losses:
+            return
+        mean = sum(losses) / len(losses)
+        if is_distributed():  # the same number on every process: max gives it back exactly (mean may not)
+            self.log(f"{stage}/loss", mean, sync_dist=True, reduce_fx="max")
+        else:
+            self.log(f"{stage}/loss", mean)
 
     def validation_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
         return self._eval_step(batch, "val")
