@@ -6,8 +6,12 @@ Modes:
                 ``strategy`` ``"chain"`` (default: consecutive frames matched and multiplied) or
                 ``"direct"`` (each history frame against the key frame). On the synthetic clips (20 fps)
                 the chain aligns 100 % of the history frames 1-3 back at stride 1, direct matching 55 % of
-                those 3 back (``benchmarks/synth_align.py``, README). Memoised per clip inside the
-                dataset object (alignment happens before augmentation, so it does not change per epoch).
+                those 3 back (``benchmarks/synth_align.py``, README). Each frame pair is estimated once
+                for good: kept by content in ``<root>/.stamlane-cache/alignment`` (`stamlane.align.cache.PairCache`,
+                keyed by both frames' pixel digests and the settings) and read by every later dataset, training
+                run, prediction pass, probe, model and seed on the same frames, in this process or another; a clip
+                is memoised inside the dataset object too (alignment happens before augmentation, so it does not
+                change per epoch). ``pair_cache=False``: estimated afresh by every dataset, as before the cache.
     ``"cache"`` read from ``stamlane align``'s cache (``stamlane.align.cache.load_alignment``); a frame
                 pair missing from the cache is estimated on the fly (with one warning per dataset).
     ``"true"``  the synthetic generator's exact homographies (``<root>/homographies/<clip>.json``): an
@@ -51,7 +55,12 @@ class ClipAligner:
         cache_dir: the alignment cache (mode ``"cache"``).
         horizon_row: first ground row for on-the-fly estimation (None: ``stamlane.align``'s default).
         strategy: ``"chain"`` or ``"direct"``, for on-the-fly estimation.
+        pair_cache: keep and read the on-the-fly frame-pair estimates in the data root's cache (see the module
+            docstring); False: this object's memo only.
     """
+
+    MEMO_PAIRS = 200_000
+    """Frame pairs this object keeps in memory (about 100 MB) before it starts afresh (the disk cache stays)."""
 
     def __init__(
         self,
@@ -60,6 +69,7 @@ class ClipAligner:
         cache_dir: str | Path | None = None,
         horizon_row: int | None = None,
         strategy: str = "chain",
+        pair_cache: bool = True,
     ) -> None:
         if mode not in ALIGN_MODES:
             raise ValueError(f"align must be one of {ALIGN_MODES}, got {mode!r}")
@@ -73,6 +83,12 @@ class ClipAligner:
         self.cache_dir = Path(cache_dir) if cache_dir is not None else None
         self.horizon_row = horizon_row
         self._memo: dict[tuple[str, ...], tuple[np.ndarray, list[bool]]] = {}
+        self._pairs: dict[str, object] = {}  # pair key -> stamlane.align.Alignment
+        self.pair_cache = None
+        if pair_cache and mode in ("fly", "cache"):
+            from stamlane.align.cache import PairCache  # imported only when used
+
+            self.pair_cache = PairCache(self.root)
         self._true: dict[str, dict] = {}
         self._warned_cache_miss = False
         self.failures = 0
@@ -110,10 +126,26 @@ class ClipAligner:
         self._memo[key] = result
         return result
 
-    def _estimate(self, frames: list[np.ndarray]) -> list:  # -> list[stamlane.align.Alignment], T - 1
-        from stamlane.align.warp import estimate_clip  # imported only when used
+    def forget(self) -> None:
+        """Drop what this object keeps in memory (clips and frame pairs); the disk cache stays."""
+        self._memo.clear()
+        self._pairs.clear()
 
-        return estimate_clip(frames, horizon_row=self.horizon_row, strategy=self.strategy)[:-1]  # no warping
+    @staticmethod
+    def digests(frames: list[np.ndarray]) -> list[str]:
+        """The frames' content digests (`stamlane.align.cache.frame_digest`) that key the pair cache."""
+        from stamlane.align.cache import frame_digest
+
+        return [frame_digest(f) for f in frames]
+
+    def _estimate(self, frames: list[np.ndarray]) -> list:  # -> list[stamlane.align.Alignment], T - 1
+        from stamlane.align.cache import estimate_clip_cached  # imported only when used
+
+        if len(self._pairs) > self.MEMO_PAIRS:
+            self._pairs.clear()
+        return estimate_clip_cached(
+            frames, self.pair_cache, self._pairs, horizon_row=self.horizon_row, strategy=self.strategy
+        )[:-1]  # no warping
 
     def _cached(self, key_path: str, hist_path: str):  # -> Alignment | None
         from stamlane.align.cache import load_alignment  # imported only when used

@@ -1,0 +1,64 @@
+"""``align: fly`` pays each frame pair once: a second dataset on the same frames (a later run, pass, probe, model or
+seed) reads the first one's estimates from the data root's cache and gets the same samples, bit for bit."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from stamlane.align.cache import PAIR_CACHE_DIR
+from stamlane.data import TuSimpleClips
+from stamlane.data.alignment import ClipAligner
+from stamlane.data.options import ClipOptions
+
+CLIP = ClipOptions(num_frames=4, image_size=(40, 128), crop_top=0.4, align="fly")
+
+
+@pytest.fixture(scope="module")
+def root(tiny_synthetic: Callable[..., Path]) -> Path:
+    """Two train clips of 320x180, 8 frames (key frames 8: the whole train split a few windows)."""
+    return tiny_synthetic(320, 180, 8, train=2, val=0, test=1, challenging=0, seed=6)
+
+
+def _samples(ds: TuSimpleClips) -> list[dict]:
+    return [ds.load(entry, np.random.default_rng(i)) for i, entry in enumerate(ds.entries)]
+
+
+def test_a_second_dataset_reads_the_pairs_and_gets_the_same_samples(root: Path) -> None:
+    reference = TuSimpleClips(root, "test.json", clip=CLIP)
+    options = reference.aligner
+    reference.aligner = ClipAligner("fly", root, pair_cache=False)  # as before the cache: estimated here
+    expected = _samples(reference)
+    assert not (root / PAIR_CACHE_DIR).exists()
+    first = TuSimpleClips(root, "test.json", clip=CLIP)
+    got = _samples(first)
+    assert first.aligner.pair_cache.misses > 0 and (root / PAIR_CACHE_DIR).is_dir()
+    second = TuSimpleClips(root, "test.json", clip=CLIP)
+    again = _samples(second)
+    assert second.aligner.pair_cache.hits > 0 and second.aligner.pair_cache.misses == 0
+    assert options.pair_cache is not None
+    for a, b, c in zip(expected, got, again):
+        assert torch.equal(a["frames"], b["frames"]) and torch.equal(a["frames"], c["frames"])
+        assert a["key_from_hist"].numpy().tobytes() == c["key_from_hist"].numpy().tobytes()
+        assert not np.allclose(a["key_from_hist"][0].numpy(), np.eye(3), atol=1e-3)  # aligned, not the identity
+
+
+def test_the_probes_read_the_pairs_of_the_real_history(root: Path) -> None:
+    TuSimpleClips(root, "test.json", clip=CLIP)[0]  # the real history: into the cache
+    for source in ("warped_key", "reversed"):
+        probe = TuSimpleClips(root, "test.json", clip=CLIP, history_source=source, require_labels=True)
+        probe[0]
+        assert probe.aligner.pair_cache.misses == 0, source
+
+
+def test_without_the_cache_nothing_is_written(tmp_path: Path, root: Path) -> None:
+    aligner = ClipAligner("fly", tmp_path, pair_cache=False)
+    frames = [np.zeros((96, 160, 3), np.uint8) + i for i in range(3)]
+    mats, oks = aligner(["1.jpg", "2.jpg", "3.jpg"], frames)
+    assert mats.shape == (3, 3, 3) and oks[-1] and aligner.pair_cache is None
+    assert not list(tmp_path.iterdir())
+    assert ClipAligner("none", tmp_path).pair_cache is None and ClipAligner("true", tmp_path).pair_cache is None
