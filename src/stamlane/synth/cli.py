@@ -12,9 +12,10 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
-from stamlane.synth.config import SynthConfig
+from stamlane.synth.config import FACTORS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP
+from stamlane.synth.tusimple_layout import LAYOUTS
 
 __all__ = ["build_parser", "main"]
 
@@ -23,12 +24,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="stamlane synth",
         description="Write synthetic road clips (clips/<id>/1..T.jpg, train/val/test/challenging.json, "
-        "frame_labels/, homographies/) in the TuSimple layout.",
+        "frame_labels/, homographies/); with --layout tusimple in TuSimple's own layout (clips/<date>/<id>/, "
+        "label_data_0313.json .. test_label.json, the last frame labelled, h_samples 160-710 at 720 rows).",
     )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--clips", type=int, default=100, help="clips of train+val+test (80/10/10 %%, >= 1 each when >= 3)")
     p.add_argument(
-        "--challenging-clips", type=int, default=None, help="clips of the challenging split (default clips/10)"
+        "--challenging-clips",
+        type=int,
+        default=None,
+        help=f"clips of the challenging split (default clips/10, at least one per factor: {len(FACTORS)})",
     )
     p.add_argument(
         "--reveal-clips", type=int, default=None, help="clips of the reveal split (default 3 per 10 of --clips, >= 3)"
@@ -54,10 +59,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=20, help="frames per clip (default 20)")
     p.add_argument("--fps", type=float, default=SynthConfig.fps, help="frame rate of the simulated camera")
     p.add_argument(
-        "--train-key-step", type=int, default=TRAIN_KEY_STEP, help="labelled key frames of train clips (0: the last)"
+        "--layout",
+        choices=LAYOUTS,
+        default="stamlane",
+        help="stamlane: clips/<id>/, every key-step-th frame labelled (default); tusimple: TuSimple's own layout",
     )
     p.add_argument(
-        "--eval-key-step", type=int, default=EVAL_KEY_STEP, help="labelled key frames of the other splits (0: the last)"
+        "--train-key-step",
+        type=int,
+        default=None,
+        help=f"labelled key frames of train clips (0: the last; default {TRAIN_KEY_STEP}, tusimple 0)",
+    )
+    p.add_argument(
+        "--eval-key-step",
+        type=int,
+        default=None,
+        help=f"labelled key frames of the other splits (0: the last; default {EVAL_KEY_STEP}, tusimple 0)",
     )
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -84,7 +101,8 @@ def _synth(args: argparse.Namespace) -> int:
     if args.clips < 1:
         print(f"stamlane synth: --clips must be >= 1, got {args.clips}", file=sys.stderr)
         return 2
-    challenging = args.challenging_clips if args.challenging_clips is not None else args.clips // 10
+    # by default every factor has a clip: a small set's challenging-<factor>.json files are never empty
+    challenging = args.challenging_clips if args.challenging_clips is not None else max(args.clips // 10, len(FACTORS))
     flags = {
         "challenging-clips": challenging,
         "reveal-clips": 3 * max(1, args.clips // 10) if args.reveal_clips is None else args.reveal_clips,
@@ -101,12 +119,30 @@ def _synth(args: argparse.Namespace) -> int:
             return 2
     counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
     existing = [
-        name for name in ("dataset.json", "train.json", "val.json", "test.json") if (Path(args.out) / name).exists()
+        name
+        for name in ("dataset.json", "train.json", "val.json", "test.json", "label_data_0313.json", "test_label.json")
+        if (Path(args.out) / name).exists()
     ]
     if existing:
         print(f"stamlane synth: {args.out} already holds a set ({existing[0]}); give another --out", file=sys.stderr)
         return 2
-    for flag in ("train_key_step", "eval_key_step"):
+    tusimple = args.layout == "tusimple"
+    if args.demo and tusimple:
+        print(
+            "stamlane synth: --demo writes the demo's own set, in the generator's layout: drop --layout",
+            file=sys.stderr,
+        )
+        return 2
+    for flag, default in (("train_key_step", TRAIN_KEY_STEP), ("eval_key_step", EVAL_KEY_STEP)):
+        if tusimple and getattr(args, flag):
+            print(
+                f"stamlane synth: TuSimple's layout labels the last frame alone: --{flag.replace('_', '-')} must be 0, "
+                f"got {getattr(args, flag)}",
+                file=sys.stderr,
+            )
+            return 2
+        if getattr(args, flag) is None:
+            setattr(args, flag, 0 if tusimple else default)
         if getattr(args, flag) < 0:
             print(
                 f"stamlane synth: --{flag.replace('_', '-')} must be >= 0, got {getattr(args, flag)}", file=sys.stderr
@@ -120,9 +156,10 @@ def _synth(args: argparse.Namespace) -> int:
     train, val, test = split_counts(args.clips)
     counts |= {"train": train, "val": val, "test": test}
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
+    settings |= {"layout": args.layout}
     if args.demo:  # the demo's set, as ``data.synth``'s defaults make it (stamlane.data.options.SynthOptions)
         counts = dict(DEMO_SPLITS)
-        settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0}
+        settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
         cfg = SynthConfig()
     start = time.perf_counter()
     info = generate_dataset(args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)

@@ -154,7 +154,9 @@ def _sky(cfg: SynthConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.nda
     return np.clip(sky, 0, 255).astype(np.uint8), ridge
 
 
-def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast: bool = False) -> SynthClip:
+def generate_clip(
+    cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast: bool = False, label_rows: list[int] | None = None
+) -> SynthClip:
     """Render one clip.
 
     Args:
@@ -163,6 +165,8 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast:
         paint_contrast: also render every frame without the lane paint (from a copy of ``rng``, so the frames
             are the same with or without it) and keep the difference, ``SynthClip.paint_contrast``: where the
             paint is visible (`stamlane.synth.visibility`). About doubles the rendering time.
+        label_rows: the rows the lanes are labelled at (``h_samples``; default ``cfg.h_samples()``, e.g.
+            TuSimple's, `stamlane.synth.tusimple_layout.tusimple_rows`); the frames do not depend on them.
 
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
@@ -257,12 +261,13 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast:
                 mask |= occluder.mask
         return cv2.convertScaleAbs(frame, alpha=float(gains[i])), mask
 
+    rows = h_samples if label_rows is None else list(label_rows)  # after the occluder's draws: the same frames
     frames, labels, occluded, homs, masks = [], [], [], [], []
     for i, pose in enumerate(poses):
         img_from_ground = camera.image_from_ground(pose)
         frame, mask = render_frame(i, renderer, rng)
-        lanes = _lane_labels(cfg, camera, road, pose, img_from_ground, h_samples)
-        occ = [[bool(x >= 0 and mask[y, x] > 0) for x, y in zip(lane, h_samples)] for lane in lanes]
+        lanes = _lane_labels(cfg, camera, road, pose, img_from_ground, rows)
+        occ = [[bool(x >= 0 and mask[y, x] > 0) for x, y in zip(lane, rows)] for lane in lanes]
         frames.append(frame)
         labels.append(lanes)
         occluded.append(occ)
@@ -276,7 +281,7 @@ def generate_clip(cfg: SynthConfig, rng: np.random.Generator, *, paint_contrast:
             unpainted, _ = render_frame(i, bare_renderer, bare_rng)
             diff = np.abs(frame.astype(np.int16) - unpainted.astype(np.int16)).mean(axis=2)
             contrast.append(np.round(diff).astype(np.uint8))
-    return SynthClip(frames, labels, occluded, h_samples, homs, masks, contrast)
+    return SynthClip(frames, labels, occluded, rows, homs, masks, contrast)
 
 
 def _haze(frame: np.ndarray, first_row: int, colour: tuple[float, ...]) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import cv2
 import numpy as np
@@ -35,6 +35,7 @@ from stamlane.synth.layout import (
     key_frames,
 )
 from stamlane.synth.statistics import clip_statistics, key_frame_visibility, visibility_shares
+from stamlane.synth.tusimple_layout import LAYOUTS, clip_folder, label_file, split_label_files, tusimple_rows
 from stamlane.synth.writer import write_clip, write_json_lines
 
 __all__ = ["generate_dataset", "write_temporal_labels"]
@@ -72,16 +73,20 @@ class _ClipJob:
     visibility: bool
     reach: int = FIRST_KEY
     """History frames the visibility masks look back over (`key_frame_visibility`)."""
+    layout: str = "stamlane"
+    """Where the clip's frames go and the rows its lanes are labelled at (`stamlane.synth.tusimple_layout`)."""
 
 
 def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]:
     """Render and write one clip (a worker of `generate_dataset`): its key-frame records, `clip_statistics` and,
     when asked, the visibility records of its key frames (`key_frame_visibility`)."""
     cv2.setNumThreads(1)  # the pool already runs one clip per core
-    clip = generate_clip(
-        job.config, np.random.default_rng([job.seed, job.code, job.index]), paint_contrast=job.visibility
-    )
-    records = write_clip(clip, job.root, f"{job.split}-{job.index:04d}", job.config.jpeg_quality, job.key_step)
+    rows = tusimple_rows(job.config.height) if job.layout == "tusimple" else None
+    rng = np.random.default_rng([job.seed, job.code, job.index])
+    clip = generate_clip(job.config, rng, paint_contrast=job.visibility, label_rows=rows)
+    folder = clip_folder(job.layout, job.split, job.index)
+    clip_id = f"{job.split}-{job.index:04d}"
+    records = write_clip(clip, job.root, clip_id, job.config.jpeg_quality, job.key_step, folder)
     visibility = []
     if job.visibility:
         keys = key_frames(len(clip.frames), job.key_step)
@@ -107,10 +112,11 @@ def generate_dataset(
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
-    train_key_step: int = TRAIN_KEY_STEP,
-    eval_key_step: int = EVAL_KEY_STEP,
+    train_key_step: int | None = None,
+    eval_key_step: int | None = None,
     workers: int = 1,
     visibility: bool = True,
+    layout: str = "stamlane",
 ) -> dict:
     """Write a synthetic clip set (the layout of `stamlane.synth.layout`).
 
@@ -132,12 +138,15 @@ def generate_dataset(
         config: settings of the normal splits (default ``SynthConfig()``); every factor and kind overrides it.
         progress: show a tqdm progress bar.
         train_key_step: key frames of the train clips (`key_frames`: 0 = the last frame only, 1 = every frame
-            from ``FIRST_KEY`` on).
+            from ``FIRST_KEY`` on); None: `TRAIN_KEY_STEP` (0 in TuSimple's layout, the only step it takes).
         eval_key_step: key frames of the val, test and challenging clips (e.g. 3: frames 8, 11, 14, 17, 20 of
-            20-frame clips, five fairly different views of each clip).
+            20-frame clips, five fairly different views of each clip); None: `EVAL_KEY_STEP` (TuSimple: 0).
         workers: processes rendering clips in parallel (the files do not depend on it).
         visibility: write ``visibility/<split>.json`` for every split but train: for every labelled key-frame
             point, where its paint is visible (`key_frame_visibility`).
+        layout: ``"stamlane"`` (the generator's, `stamlane.synth.layout`) or ``"tusimple"`` (TuSimple's own:
+            ``clips/<date>/<id>/``, its label file names, its ``h_samples`` scaled to the frame height, the last
+            frame alone labelled; `stamlane.synth.tusimple_layout`). The frames are the same in both.
 
     Returns:
         the content of ``dataset.json``: settings, counts, key frames and statistics per split.
@@ -159,6 +168,16 @@ def generate_dataset(
             raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}, got {layout!r}")
+    tusimple = layout == "tusimple"
+    if tusimple and (train_key_step or eval_key_step):
+        raise ValueError(
+            f"TuSimple's layout labels the last frame of a clip alone: key steps must be 0, got train_key_step "
+            f"{train_key_step} and eval_key_step {eval_key_step}"
+        )
+    train_key_step = (0 if tusimple else TRAIN_KEY_STEP) if train_key_step is None else train_key_step
+    eval_key_step = (0 if tusimple else EVAL_KEY_STEP) if eval_key_step is None else eval_key_step
     steps = {split: train_key_step if split == "train" else eval_key_step for split in SPLITS}
     steps |= {"reveal": 0, "reveal-traffic": 0}
     keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
@@ -183,14 +202,17 @@ def generate_dataset(
                     clip_factors[f"{split}-{i:04d}"] = kind[0]
                 kinds.append(None if kind is None else kind[0])
                 see = visibility and split != "train"
-                jobs.append(_ClipJob(root, split, split_cfg, seed, code, i, steps[split], see, reach_of[split]))
+                job = _ClipJob(root, split, split_cfg, seed, code, i, steps[split], see, reach_of[split], layout)
+                jobs.append(job)
             records: list[dict] = []
+            by_file: dict[str, list[dict]] = {name: [] for name in split_label_files(layout, split)}
             seen: list[dict] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-            for kind, (clip_records, clip_stats, clip_seen) in zip(
-                kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
+            for index, kind, (clip_records, clip_stats, clip_seen) in zip(
+                range(len(jobs)), kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
             ):
                 records += clip_records
+                by_file[label_file(layout, split, index)] += clip_records
                 seen += clip_seen
                 if split in KIND_SPLITS and kind is not None:
                     by_kind.setdefault((split, kind), []).extend(clip_records)
@@ -198,9 +220,10 @@ def generate_dataset(
                     totals[k] += v
                 bar.update(1)
             if records or split not in ("reveal", "reveal-traffic"):  # a set without them: no empty label files
-                write_json_lines(root / f"{split}.json", records)
+                for name, file_records in by_file.items():
+                    write_json_lines(root / name, file_records)
             if extra.get(split):  # the clean clips alone too: the set as it was before factor clips
-                clean = [r for r in records if r["raw_file"].split("/")[1] not in clip_factors]
+                clean = [r for r in records if PurePosixPath(r["raw_file"]).parent.name not in clip_factors]
                 write_json_lines(root / f"{split}-clean.json", clean)
             n = max(len(jobs), 1)
             stats[split] = {
@@ -236,5 +259,7 @@ def generate_dataset(
         | {split: [REVEAL_FRAMES] for split in ("reveal", "reveal-traffic") if counts[split]},
         "statistics": stats,
     }
+    if tusimple:  # a set in the generator's own layout keeps the record it always had, byte for byte
+        info |= {"layout": layout, "label_files": {split: split_label_files(layout, split) for split in SPLITS[:3]}}
     write_atomic(root / "dataset.json", json.dumps(info, indent=2))
     return info

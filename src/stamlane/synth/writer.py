@@ -19,22 +19,34 @@ from stamlane.synth.layout import key_frames
 __all__ = ["write_clip", "write_json_lines"]
 
 
-def write_clip(clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92, key_step: int = 0) -> list[dict]:
+def write_clip(
+    clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92, key_step: int = 0, folder: str | None = None
+) -> list[dict]:
     """Write a clip's frames, per-frame labels and homographies under ``root``.
+
+    Args:
+        clip: the rendered clip.
+        root: the set's folder.
+        clip_id: the clip's id (``train-0007``): ``frame_labels/<id>.json`` and ``homographies/<id>.json``.
+        jpeg_quality: of the frames.
+        key_step: which frames are labelled key frames (`key_frames`).
+        folder: where the frames go, relative to ``root`` (default ``clips/<clip_id>``; TuSimple's layout:
+            ``clips/<date>/<clip_id>``, `stamlane.synth.tusimple_layout.clip_folder`).
 
     Returns:
         the TuSimple label records (``raw_file``, ``lanes``, ``h_samples``) of the clip's key frames
         (`key_frames` with ``key_step``), oldest first.
     """
-    folder = root / "clips" / clip_id
+    rel = folder if folder is not None else f"clips/{clip_id}"
+    folder_path = root / rel
     names = [f"{i + 1}.jpg" for i in range(len(clip.frames))]
     for name, frame in zip(names, clip.frames):
         ok, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
         if not ok:
-            raise OSError(f"could not encode {folder / name}")
-        with atomic_path(folder / name) as tmp:
+            raise OSError(f"could not encode {folder_path / name}")
+        with atomic_path(folder_path / name) as tmp:
             tmp.write_bytes(buf.tobytes())
-    raw = [f"clips/{clip_id}/{name}" for name in names]
+    raw = [f"{rel}/{name}" for name in names]
     per_frame = [
         {"raw_file": r, "lanes": lanes, "h_samples": clip.h_samples, "occluded": occ}
         for r, lanes, occ in zip(raw, clip.labels, clip.occluded)
