@@ -161,7 +161,7 @@ def _option(rest: list[str], name: str) -> str | None:
 
 def _data_root_args(config: dict[str, Any], ckpt: str, start: str | None, rest: list[str]) -> list[str]:
     """``["--data.root", DIR]`` for a run whose config records its data root relative to the folder it was started
-    in (``data/synthetic-v6``), so that its checkpoint works from any folder: the root is looked for under the
+    in (``data/synthetic-v7``), so that its checkpoint works from any folder: the root is looked for under the
     folder the run was started in (recorded in the checkpoints of ``stamlane fit``), then under the run folder's
     ancestors, then here. ``[]`` when ``--data.root`` is given, the root is absolute or found nowhere but here; a
     default synthetic set (``data.root: null``) found nowhere is generated here, as ``fit`` would.

@@ -13,7 +13,7 @@ import pytest
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC, SynthConfig
 from stamlane.synth.dataset import generate_dataset
-from stamlane.synth.layout import REVEAL_FRAMES, SPLITS
+from stamlane.synth.layout import FORMAT_VERSION, REVEAL_FRAMES, SPLITS
 from stamlane.synth.visibility import visibility_class
 
 SMALL = SynthConfig(width=160, height=96)
@@ -65,7 +65,7 @@ def test_the_opaque_occluders_hide_labelled_points_and_bad_kinds_are_refused():
 
 def test_reveal_splits_name_their_kinds_and_see_over_every_history_frame(reveal_root: Path):
     info = json.loads((reveal_root / "dataset.json").read_text())
-    assert info["format_version"] == 6
+    assert info["format_version"] == FORMAT_VERSION
     assert info["visibility_reach"]["reveal"] == REVEAL_FRAMES - 1
     kinds = [info["clip_factors"][f"reveal-{i:04d}"] for i in range(6)]
     assert kinds == [*REVEAL, *REVEAL]

@@ -3,8 +3,9 @@
 The generator may grow (new formats add files and training clips), but a change that moves one pixel or one label
 of the clips the results were measured on makes old and new numbers incomparable. This test renders the first
 test clips, one challenging clip of every factor and the first clean train and val clips with the default
-settings and compares their frames (before JPEG) and labels with digests taken when format 4 was current (format
-5 and 6 left them as they were). The label files of the default set (``data/synthetic-v6``) have the SHA-256 recorded in
+settings and compares their frames (before JPEG) and labels with digests taken when format 4 was current (formats
+5, 6 and 7 left them as they were: format 7's dashcam world is an option). The label files of the default set
+(``data/synthetic-v7``, as ``data/synthetic-v6``'s) have the SHA-256 recorded in
 docs/results.md: test.json ``0933b432...``, challenging.json ``cf5401b5...``.
 """
 

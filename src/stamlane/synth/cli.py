@@ -12,7 +12,7 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
-from stamlane.synth.config import FACTORS, SynthConfig
+from stamlane.synth.config import FACTORS, WORLDS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP
 from stamlane.synth.tusimple_layout import LAYOUTS
@@ -76,6 +76,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help=f"labelled key frames of the other splits (0: the last; default {EVAL_KEY_STEP}, tusimple 0)",
     )
+    p.add_argument(
+        "--world",
+        choices=WORLDS,
+        default="classic",
+        help="classic: the world of formats 1-6 (default); dashcam: format 7's camera, markings, surfaces, barriers, "
+        "skies and sensor effects (docs/data.md)",
+    )
+    p.add_argument("--randomise", action="store_true", help="dashcam world: a random colour cast per clip")
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -152,7 +160,17 @@ def _synth(args: argparse.Namespace) -> int:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
     check_workers(args.workers, "--workers", minimum=1)
-    cfg = SynthConfig(height=args.size[0], width=args.size[1], num_frames=args.frames, fps=args.fps)
+    if args.randomise and args.world != "dashcam":
+        print("stamlane synth: --randomise is an option of --world dashcam", file=sys.stderr)
+        return 2
+    cfg = SynthConfig(
+        height=args.size[0],
+        width=args.size[1],
+        num_frames=args.frames,
+        fps=args.fps,
+        world=args.world,
+        randomise=args.randomise,
+    )
     train, val, test = split_counts(args.clips)
     counts |= {"train": train, "val": val, "test": test}
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
@@ -160,7 +178,7 @@ def _synth(args: argparse.Namespace) -> int:
     if args.demo:  # the demo's set, as ``data.synth``'s defaults make it (stamlane.data.options.SynthOptions)
         counts = dict(DEMO_SPLITS)
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
-        cfg = SynthConfig()
+        cfg = SynthConfig(world=args.world, randomise=args.randomise)
     start = time.perf_counter()
     info = generate_dataset(args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
     seconds = time.perf_counter() - start

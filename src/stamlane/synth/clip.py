@@ -24,13 +24,14 @@ state; `stamlane.synth.writer.write_clip` stores it.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from stamlane.align.camera import Camera, Pose
 from stamlane.synth.config import SynthConfig
+from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
@@ -171,6 +172,9 @@ def generate_clip(
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
     """
+    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world == "dashcam" else None
+    if world is not None:  # the clip's own camera: its labels' rows and homographies follow from it
+        cfg = replace(cfg, horizon=world.horizon, hfov_deg=world.hfov_deg, cam_height=world.cam_height)
     camera = cfg.camera()
     duration = (cfg.num_frames - 1) / cfg.fps
     z_far = cfg.speed[1] * 1.1 * duration + FAR_M
@@ -184,11 +188,19 @@ def generate_clip(
         worn_stretches=cfg.worn_stretches,
         worn_strength=cfg.worn_strength,
         dash_gap=cfg.dash_gap,
+        world=world,
     )
     poses, track = _ego_poses(cfg, rng, road, ego_lane)
     n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
+    surface = roadside = None
+    if world is not None:
+        offsets = [m.offset for m in road.marks]
+        surface = Surface.sample(rng, road.z_range, max(np.abs(offsets)))
+        roadside = Roadside.sample(rng, min(offsets), max(offsets))
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
-    textures = render_texture(road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth, unpainted=paint_contrast)
+    textures = render_texture(
+        road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth, unpainted=paint_contrast, surface=surface
+    )
     texture, bare = textures if paint_contrast else (textures, None)
     vehicles: list[Vehicle] = []
     if rng.random() < cfg.occluder_prob:
@@ -208,7 +220,12 @@ def generate_clip(
             speed_ratio=cfg.vehicle_speed,
         )
     sky, ridge = _sky(cfg, rng)
+    hills = 0.04
+    if world is not None:
+        sky, hills = world.sky(rng, cfg.height, cfg.width), world.hills
     haze = tuple(float(c) for c in sky[-1, 0])
+    if world is not None:  # the land beyond the texture's sides: a dull roadside colour, not the sky's
+        haze = world.land(haze)
     grain = GrainLayer(rng, cfg.grain) if cfg.grain > 0 else None
     levels = 7 if cfg.prefilter else 1
     renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=levels)
@@ -236,7 +253,9 @@ def generate_clip(
         frame = ground.render(img_from_ground, (cfg.height, cfg.width), sky_rows, haze)
         frame[:sky_rows] = sky[:sky_rows]
         _haze(frame, sky_rows, haze)
-        _draw_ridge(frame, ridge, horizon, pose, camera)
+        _draw_ridge(frame, ridge, horizon, pose, camera, hills)
+        if roadside is not None:
+            roadside.draw(frame, road.centre, camera, pose, FAR_M)
         if vehicles:
             shade = np.zeros((cfg.height, cfg.width), np.uint8)
             for v in vehicles:
@@ -259,6 +278,8 @@ def generate_clip(
             frame = occluder.apply(frame)
             if occluder.mask is not None:
                 mask |= occluder.mask
+        if world is not None:
+            frame = world.sensor.apply(frame, frame_rng)
         return cv2.convertScaleAbs(frame, alpha=float(gains[i])), mask
 
     rows = h_samples if label_rows is None else list(label_rows)  # after the occluder's draws: the same frames
@@ -292,11 +313,14 @@ def _haze(frame: np.ndarray, first_row: int, colour: tuple[float, ...]) -> None:
     frame[first_row : first_row + band] = (rows * (1 - a) + np.asarray(colour, np.float32) * a).astype(np.uint8)
 
 
-def _draw_ridge(frame: np.ndarray, ridge: np.ndarray, horizon: float, pose: Pose, camera: Camera) -> None:
-    """A dark tree line just above the horizon, shifting with yaw (not part of the ground plane)."""
+def _draw_ridge(
+    frame: np.ndarray, ridge: np.ndarray, horizon: float, pose: Pose, camera: Camera, hills: float = 0.04
+) -> None:
+    """A dark tree line just above the horizon, up to ``hills`` of the frame height, shifting with yaw (not part of
+    the ground plane)."""
     height = frame.shape[0]
     shift = round(camera.focal * float(pose.yaw)) % len(ridge)
-    tops = horizon - (2 + 0.04 * height * np.roll(ridge, -shift))
+    tops = horizon - (2 + hills * height * np.roll(ridge, -shift))
     first = int(np.clip(np.floor(tops.min()), 0, height))
     last = int(np.clip(np.floor(horizon) + 1, first, height))
     if last <= first:

@@ -25,12 +25,15 @@ __all__ = [
     "REVEAL_MOTION",
     "REVEAL_TRAFFIC",
     "TRAIN_MOTION",
+    "WORLDS",
     "Factor",
     "SynthConfig",
     "challenging_factor",
     "clip_kinds",
 ]
 
+WORLDS = ("classic", "dashcam")
+"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, or the dashcam world of format 7."""
 KEY_OCCLUDERS = ("spray", "blobs", "flash")
 """The kinds of transient occluder of the last frames (``SynthConfig.key_occluder``; drawn by
 `stamlane.synth.transient.KeyOccluder`)."""
@@ -225,6 +228,15 @@ class SynthConfig:
     "": none."""
     key_occluder_frames: int = 1
     """How many of the last frames carry ``key_occluder`` (1: the key frame alone)."""
+    world: str = "classic"
+    """What the clips show (`WORLDS`): "classic", the world of formats 1-6 (a camera with its horizon at
+    ``horizon``, 2-4 m dashes, box vehicles); "dashcam" (format 7, `stamlane.synth.dashcam`): per clip a camera
+    spread over dashcam ranges (its horizon, field of view and height replace ``horizon``, ``hfov_deg`` and
+    ``cam_height``), the dash and gap lengths of a marking standard with raised pavement markers, concrete or asphalt
+    with joints, seams and a shoulder of another shade, concrete barriers and guard rails, clear or overcast skies,
+    sensor effects (blur, noise, exposure, vignetting, JPEG)."""
+    randomise: bool = False
+    """Domain randomisation in the dashcam world: a random colour cast per clip."""
 
     @classmethod
     def with_factor(cls, factor: str, **overrides: object) -> SynthConfig:
@@ -245,6 +257,10 @@ class SynthConfig:
             raise ValueError(f"glare_prob must be in [0, 1], got {self.glare_prob}")
         if self.key_occluder and self.key_occluder not in KEY_OCCLUDERS:
             raise ValueError(f"key_occluder must be one of {KEY_OCCLUDERS} or empty, got {self.key_occluder!r}")
+        if self.world not in WORLDS:
+            raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
+        if self.randomise and self.world != "dashcam":
+            raise ValueError("randomise is an option of the dashcam world: set world='dashcam' too")
         if not 1 <= self.key_occluder_frames <= self.num_frames:
             raise ValueError(f"key_occluder_frames must be in [1, num_frames], got {self.key_occluder_frames}")
 

@@ -52,8 +52,11 @@ SPLITS = ("train", "val", "test", "challenging", "reveal", "reveal-traffic")
 ``(seed, c, i)``: a split added at the end leaves every clip before it as it was)."""
 KIND_SPLITS = ("challenging", "reveal", "reveal-traffic")
 """Splits whose every clip has a named factor or kind, with a label file per kind (``<split>-<kind>.json``)."""
-FORMAT_VERSION = 6
-"""6: the ``reveal`` and ``reveal-traffic`` splits (``config.REVEAL``, ``config.REVEAL_TRAFFIC``: 12-frame clips
+FORMAT_VERSION = 7
+"""7: ``SynthConfig.world``: the ``dashcam`` world (`stamlane.synth.dashcam`: a camera spread over dashcam ranges,
+marking standards with raised pavement markers, concrete and asphalt with joints and seams, barriers and guard
+rails, skies, sensor effects), what the real-road check (benchmarks/real_roads.py) asked for; the default
+``classic`` world and every clip of format 6 are as they were, byte for byte; 6: the ``reveal`` and ``reveal-traffic`` splits (``config.REVEAL``, ``config.REVEAL_TRAFFIC``: 12-frame clips
 where the history shows what the key frame hides) with their visibility over every history frame, and
 ``train_motion`` clips (the reveal splits' ego motion, no occluder) in the train split after its factor clips; every
 clip of format 5 is as it was, byte for byte; 5: factor clips added to the train and val splits (``train_factors``,

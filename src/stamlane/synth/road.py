@@ -11,9 +11,13 @@ of it (``texture_from_ground`` composes with the camera's ``image_from_ground``)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:
+    from stamlane.synth.dashcam import DashcamWorld, Surface
 
 __all__ = ["LaneMark", "Road", "render_texture", "sample_road"]
 
@@ -34,6 +38,9 @@ class LaneMark:
     colour: tuple[int, int, int] = WHITE
     worn: list[tuple[float, float, float]] = field(default_factory=list)
     """``(z0, z1, strength)`` stretches where the paint is worn away by ``strength`` in [0, 1]."""
+    dots: str = ""
+    """Raised pavement markers (Botts' dots) of a dashed mark: "gaps" in its gaps, "only" instead of its paint, ""
+    none (the dashcam world's, `stamlane.synth.dashcam.MARKINGS`)."""
 
 
 @dataclass
@@ -118,6 +125,7 @@ def sample_road(
     worn_stretches: tuple[int, int] = (1, 3),
     worn_strength: tuple[float, float] = (0.4, 0.9),
     dash_gap: tuple[float, float] = (4.0, 8.0),
+    world: DashcamWorld | None = None,
 ) -> tuple[Road, int]:
     """Draw a road of 2-5 lane marks.
 
@@ -125,6 +133,9 @@ def sample_road(
         worn_prob: chance of a mark to be worn in ``worn_stretches`` (inclusive range) stretches of 5-30 m
             whose paint is ``worn_strength`` gone.
         dash_gap: range of the metres between dashes (the dashes are 2-4 m).
+        world: the dashcam world's clip (`stamlane.synth.dashcam.DashcamWorld`): its marking standard's dash, gap
+            and widths replace the classic ones, and its dashed marks may have raised pavement markers; None: the
+            classic road, draw for draw.
 
     Returns:
         the road and the index of the ego lane (0 = between marks 0 and 1).
@@ -140,6 +151,8 @@ def sample_road(
     dkappa = float(rng.uniform(-1, 1) * max_kappa / 200.0) if curved else 0.0
     marks = []
     dash, gap = float(rng.uniform(2.0, 4.0)), float(rng.uniform(*dash_gap))
+    if world is not None:
+        dash, gap = world.dash, world.gap
     for i, off in enumerate(offsets):
         outer = i in (0, n_marks - 1)
         dashed = (not outer) and rng.random() < 0.8
@@ -149,23 +162,40 @@ def sample_road(
             for _ in range(int(rng.integers(worn_stretches[0], worn_stretches[1] + 1))):
                 z0 = float(rng.uniform(*z_range))
                 worn.append((z0, z0 + float(rng.uniform(5, 30)), float(rng.uniform(*worn_strength))))
+        width = float(rng.uniform(0.12, 0.2))
+        phase = float(rng.uniform(0, dash + gap))
+        dots = ""
+        if world is not None:  # draws of the dashcam world only, after the classic ones: the classic road stays
+            width = float(rng.uniform(*world.marking.width))
+            r = rng.random()
+            if dashed and r < world.marking.dots_only_prob:
+                dots = "only"
+            elif dashed and r < world.marking.dots_only_prob + world.marking.dots_prob:
+                dots = "gaps"
         marks.append(
             LaneMark(
                 offset=float(off),
                 dashed=dashed,
-                width=float(rng.uniform(0.12, 0.2)),
+                width=width,
                 dash=dash,
                 gap=gap,
-                phase=float(rng.uniform(0, dash + gap)),
+                phase=phase,
                 colour=colour,
                 worn=worn,
+                dots=dots,
             )
         )
     return Road(kappa, dkappa, lane_width, marks, z_range, ppm), ego_lane
 
 
 def render_texture(
-    road: Road, rng: np.random.Generator, *, shadows: int = 4, shadow_depth: float = 0.5, unpainted: bool = False
+    road: Road,
+    rng: np.random.Generator,
+    *,
+    shadows: int = 4,
+    shadow_depth: float = 0.5,
+    unpainted: bool = False,
+    surface: Surface | None = None,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Render the top-down texture of a road.
 
@@ -177,6 +207,8 @@ def render_texture(
         unpainted: also return the same texture without the lane paint (same asphalt, same shadows, the same
             draws from ``rng``): rendered beside the painted one, it shows where the paint is visible
             (`stamlane.synth.visibility`).
+        surface: the dashcam world's road surface (`stamlane.synth.dashcam.Surface`: concrete or asphalt with
+            joints, seams, a shoulder of another shade, wheel paths), drawn over the asphalt before the paint.
 
     Returns:
         BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``;
@@ -231,6 +263,9 @@ def render_texture(
         pts = (np.c_[steps, np.ones(len(steps))] @ tex_from_ground.T)[:, :2].astype(np.int32)
         cv2.polylines(lum, [pts], False, base_grey - 40, max(1, int(0.04 * p)), lineType=cv2.LINE_AA)
 
+    if surface is not None:
+        lum = surface.draw(lum, rel, zs.astype(np.float32), p, [m.offset for m in road.marks], base_grey)
+
     green = np.array([60, 110, 90], np.float32) * float(rng.uniform(0.7, 1.1))
     verge_lum = cv2.addWeighted(low, 12.0, grain, 2.0, 0.0)
     planes = [np.where(on_road, lum * tint, verge_lum + g) for tint, g in zip((1.02, 1.0, 0.97), green)]
@@ -250,6 +285,10 @@ def render_texture(
             on = np.mod(z_fine - mark.phase, mark.dash + mark.gap) < mark.dash
         else:
             on = np.ones(len(z_fine), bool)
+        if mark.dots:
+            _draw_dots(road, mark, tex_from_ground, alpha, colour)
+            if mark.dots == "only":
+                on[:] = False
         # one polyline per run of painted samples of one strength (a dash, or a stretch of solid line)
         key = np.where(on, strength, -1.0)
         cuts = np.flatnonzero(np.diff(key) != 0) + 1
@@ -297,3 +336,22 @@ def render_texture(
     if not unpainted:
         return texture
     return texture, cv2.merge([np.clip(pl, 0, 255).astype(np.uint8) for pl in bare])
+
+
+def _draw_dots(
+    road: Road, mark: LaneMark, tex_from_ground: np.ndarray, alpha: np.ndarray, colour: list[np.ndarray]
+) -> None:
+    """Raised pavement markers of ``mark`` into the paint planes: a white dot every ``DOT_SPACING_M`` along it, in
+    its gaps (``dots == "gaps"``) or all along it (``"only"``)."""
+    from stamlane.synth.dashcam import DOT_RADIUS_M, DOT_SPACING_M
+
+    z = np.arange(road.z_range[0] + mark.phase % DOT_SPACING_M, road.z_range[1], DOT_SPACING_M)
+    if mark.dots == "gaps":
+        z = z[np.mod(z - mark.phase, mark.dash + mark.gap) >= mark.dash + 0.3]
+    pts = road.mark_points(mark, z)
+    pix = np.round((np.c_[pts, np.ones(len(pts))] @ tex_from_ground.T)[:, :2] * 16).astype(np.int32)
+    radius = max(16, round(DOT_RADIUS_M * road.ppm * 16))
+    for x, y in pix:
+        cv2.circle(alpha, (int(x), int(y)), radius, 1.0, -1, lineType=cv2.LINE_AA, shift=4)
+        for plane in colour:
+            cv2.circle(plane, (int(x), int(y)), radius + 16, 240.0, -1, shift=4)
