@@ -649,3 +649,128 @@ def test_fit_and_predict_config_values(
         ours = [line for line in err if line.startswith(f"stamlane {command}")]
         assert code == 2 and len(ours) == 1 and HOSTILE_CONFIGS[config] in ours[0], err
         assert _fingerprint(path) == before
+
+
+# ---------------------------------------------------------------------------------------------- every path option
+PATH_SHAPES = (
+    "long-name",  # one component over the file system's 255 bytes (Path.exists() raises on Python 3.11)
+    "long-component",  # a long component in the middle of the path
+    "long-path",  # over 4,096 bytes in all, each component short
+    "fifo",
+    "device",  # /dev/zero: never ends
+    "sparse",  # a 2 GiB file that takes no disk (read whole: a MemoryError or 2 GiB of memory)
+    "link-loop",
+    "dangling-link",
+    "dot-segments",  # a/./b/../missing
+    "not-utf8",  # a folder whose name holds bytes that are not UTF-8
+    "nul-byte",
+    "under-a-file",
+)
+"""Path shapes every path option of every command must answer in one line (exit 2), never a traceback, a hang or
+a blown memory."""
+
+
+def _shape(kind: str, tmp: Path, name: str) -> str:
+    """A path of the shape ``kind`` under ``tmp`` (made there when it is a file, a link or a folder)."""
+    if kind == "long-name":
+        return str(tmp / ("n" * 300 + name))
+    if kind == "long-component":
+        return str(tmp / ("c" * 256) / name)
+    if kind == "long-path":
+        return str(tmp.joinpath(*["p" * 200] * 22, name))
+    if kind == "fifo":
+        path = tmp / f"fifo-{name}"
+        if not path.exists():
+            os.mkfifo(path)
+        return str(path)
+    if kind == "device":
+        return "/dev/zero"
+    if kind == "sparse":
+        path = tmp / f"sparse-{name}"
+        with open(path, "wb") as file:
+            file.truncate(2 << 30)
+        return str(path)
+    if kind == "link-loop":
+        a, b = tmp / f"loop-a-{name}", tmp / f"loop-b-{name}"
+        if not os.path.lexists(a):
+            a.symlink_to(b)
+            b.symlink_to(a)
+        return str(a)
+    if kind == "dangling-link":
+        path = tmp / f"dangling-{name}"
+        if not os.path.lexists(path):
+            path.symlink_to(tmp / "nothing-here")
+        return str(path)
+    if kind == "dot-segments":
+        return f"{tmp}/./a/../b//./missing-{name}"
+    if kind == "not-utf8":
+        path = os.fsencode(tmp) + b"/\xff\xfe-" + name.encode()
+        os.makedirs(path, exist_ok=True)
+        return os.fsdecode(path)
+    if kind == "nul-byte":
+        return f"{tmp}/nul\x00{name}"
+    (tmp / "a-file").write_text("x")
+    return str(tmp / "a-file" / name)
+
+
+PATH_COMMANDS = {
+    "fit-config": ["fit", "--config", "{path}"],
+    "validate-ckpt": ["validate", "--ckpt_path", "{path}"],
+    "predict-ckpt": ["predict", "--ckpt_path", "{path}", "--source", "{frames}"],
+    "predict-source": ["predict", "--source", "{path}", "--ckpt_path", "{ckpt}"],
+    "predict-config": ["predict", "--config={path}", "--source", "{frames}"],
+    "stream-source": ["stream", "{path}", "--ckpt", "{ckpt}", "--out", "{tmp}/s", "--no-video"],
+    "stream-ckpt": ["stream", "{frames}", "--ckpt", "{path}", "--out", "{tmp}/s", "--no-video"],
+    "stream-out": ["stream", "{frames}", "--ckpt", "{ckpt}", "--out", "{path}", "--no-video", "--max-frames", "1"],
+    "export-ckpt": ["export", "--ckpt_path", "{path}", "--out", "{tmp}/m.onnx"],
+    "show-root": ["show", "--root", "{path}", "--out", "{tmp}/g.png"],
+    "show-out": ["show", "--root", "{set}", "--labels", "train.json", "--out", "{path}", "--n", "1"],
+    "align-root": ["align", "{path}", "--cache", "{tmp}/cache", "--quiet"],
+    "synth-out": ["synth", "--out", "{path}", "--clips", "1", "--challenging-clips", "0", "--quiet"],
+    "report-summary": ["report", "{path}"],
+    "report-out": ["report", "{summary}", "--out", "{path}"],
+    "demo-data": ["demo", "--quick", "--data", "{path}", "--out", "{tmp}/d"],
+    "demo-out": ["demo", "--quick", "--out", "{path}"],
+    "demo-fit-config": ["demo", "--quick", "--out", "{tmp}/d", "--", "--config", "{path}"],
+    "ablate-base": ["ablate", "--table", "2", "--base", "{path}", "--out", "{tmp}/a"],
+    "ablate-out": ["ablate", "--table", "2", "--out", "{path}", "--data", "{path}"],
+    "ablate-fit-config": ["ablate", "--table", "2", "--out", "{tmp}/a", "--", "--config={path}"],
+}
+"""Every command of ``stamlane`` with each of its path options as ``{path}``; the other paths valid."""
+OUTPUT_SHAPES = ("long-name", "long-component", "long-path", "fifo", "device", "link-loop", "nul-byte", "under-a-file")
+"""The shapes an output option is fuzzed with (every one refused: a valid output would run the whole command)."""
+
+
+@pytest.fixture(scope="module")
+def path_inputs(tmp_path_factory: pytest.TempPathFactory, stream_inputs: dict[str, Path], tiny_set: Path) -> dict:
+    folder = tmp_path_factory.mktemp("paths")
+    summary = folder / "summary.json"
+    summary.write_text(json.dumps(_summary_dict()))
+    return {"frames": stream_inputs["frames"], "ckpt": stream_inputs["good"], "set": tiny_set, "summary": summary}
+
+
+@pytest.mark.parametrize("command", sorted(PATH_COMMANDS))
+@_settings(5)
+@given(data=st.data())
+def test_every_path_option_answers_every_path_shape(
+    path_inputs: dict[str, Path],
+    plain_argv_module: None,
+    capsys: pytest.CaptureFixture[str],
+    command: str,
+    data: st.DataObject,
+) -> None:
+    """Property: a path of any shape given to any path option of any command is one line and exit status 2 (the
+    path gate, `stamlane.safety.paths`), never a traceback, a hang, 2 GiB read or a file written beside it."""
+    shapes = OUTPUT_SHAPES if command.endswith("-out") else PATH_SHAPES
+    if command == "demo-data":  # a missing --data is where the synthetic set is made: a path with dots is valid
+        shapes = tuple(s for s in shapes if s != "dot-segments")
+    kind = data.draw(st.sampled_from(shapes), label="shape")
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        path = _shape(kind, tmp, "x.yaml" if "config" in command else "x")
+        values = {k: str(v) for k, v in path_inputs.items()} | {"tmp": str(tmp), "path": path}
+        argv = [a.format(**values) for a in PATH_COMMANDS[command]]
+        inputs = [path_inputs[k] for k in ("frames", "ckpt", "summary")]
+        assert _contract(capsys, argv, inputs) == 2, (command, kind)
+        made = {p.name for p in tmp.iterdir()} - {"a-file", "a", "b"}
+        assert not {"s", "m.onnx", "g.png", "d", "cache"} & made, (command, kind, made)

@@ -30,6 +30,14 @@ from pathlib import Path
 from typing import Any
 
 from stamlane.safety.boundary import one_line
+from stamlane.safety.paths import (
+    CKPT_NAMES,
+    MAX_CONFIG_BYTES,
+    PathError,
+    check_arguments,
+    check_command_files,
+    inspect_path,
+)
 
 __all__ = ["LIGHTNING_COMMANDS", "TOOLS", "main"]
 
@@ -139,7 +147,7 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
         if not beside.is_file():
             raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
         check_input_file(beside, "run config")
-        config, source = read_text(beside, limit=_MAX_CONFIG_BYTES), beside
+        config, source = read_text(beside, limit=MAX_CONFIG_BYTES), beside
     # data, not the user's code: checked against the closed registry, then a copy read
     root = _data_root_args(check_run_config(config, source), ckpt, start if isinstance(start, str) else None, rest)
     # where the run's config wrote predictions is not where this call's go: one folder per model and source
@@ -193,34 +201,6 @@ def _data_root_args(config: dict[str, Any], ckpt: str, start: str | None, rest: 
     )
 
 
-_MAX_CONFIG_BYTES = 16 << 20
-"""Largest config file read (16 MiB; the paper's table configs take a few KiB)."""
-_FILE_OPTIONS = ("--config", "--ckpt_path", "--source")
-
-
-def _check_input_files(rest: list[str]) -> None:
-    """Refuse, before jsonargparse or torch reads them, a ``--config`` or ``--ckpt_path`` that is a FIFO, a device or
-    a directory (a FIFO would block the command forever, ``/dev/zero`` fill the memory) and a config over 16 MiB;
-    ``--source`` may be a folder of frames or a video, not a FIFO or a device."""
-    from stamlane_eval.cli_tools import InputError, check_input_file
-
-    for i, arg in enumerate(rest):
-        option, eq, value = arg.partition("=")
-        option = "--config" if option == "-c" else option  # LightningCLI's short form
-        if option not in _FILE_OPTIONS:
-            continue
-        value = value if eq else (rest[i + 1] if i + 1 < len(rest) else "")
-        if not value or (option == "--ckpt_path" and value in ("last", "best", "hpc", "registry")):
-            continue
-        if not Path(value).exists() or (option == "--source" and Path(value).is_dir()):
-            continue  # a missing file was said by _missing_input; a --source by the data module
-        check_input_file(value, option[2:])
-        if option == "--config" and Path(value).stat().st_size > _MAX_CONFIG_BYTES:
-            raise InputError(f"config {value} is larger than {_MAX_CONFIG_BYTES >> 20} MiB")
-
-
-_NAMED_CHECKPOINTS = ("last", "best", "hpc", "registry", "null", "None")
-"""``--ckpt_path`` values that are no file (Lightning's names, and "none")."""
 _NO_RUN = ("-h", "--help", "--print_config", "--print-config")
 
 
@@ -233,7 +213,7 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
     ckpt = _option(rest, "--ckpt_path")
     configs = [a.split("=", 1)[1] for a in rest if a.startswith(("--config=", "-c="))]
     configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a in ("--config", "-c")]
-    if ckpt is not None and ckpt not in _NAMED_CHECKPOINTS and not Path(ckpt).exists():
+    if ckpt is not None and ckpt not in CKPT_NAMES and not inspect_path(ckpt).exists:
         if command == "fit":
             return (
                 f"checkpoint {ckpt} does not exist: give the path of the run to resume's checkpoint "
@@ -244,7 +224,7 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
             f"or the best one `stamlane fit` printed) or a shipped model's name ({_shipped_names()})"
         )
     for config in configs:
-        if not Path(config).exists():
+        if not inspect_path(config).exists:
             return f"config {config} does not exist (see stamlane {command} --help)"
     if configs or ckpt is not None or any(a.startswith("--model.") for a in rest):
         return None
@@ -306,10 +286,20 @@ def main(argv: list[str] | None = None) -> int:
     command, rest = argv[0], argv[1:]
     if command == "predict" and any(arg == "--stream" or arg.startswith("--stream=") for arg in rest):
         command, rest = "stream", _stream_args(rest)
+    try:  # the door: an argument that can be no usable path (a name too long, a loop of links) is one line
+        check_arguments(rest)
+    except PathError as err:
+        print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
+        return 2
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
-        shipped = _with_shipped_weights(command, rest)
+        try:  # every path through the gate first: a name too long, a FIFO or a device is one line, never opened
+            check_command_files(rest, missing_ok=True)
+            shipped = _with_shipped_weights(command, rest)
+        except PathError as err:
+            print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
+            return 2
         if shipped != rest:  # LightningCLI reads the rewritten arguments, not sys.argv's
             rest, argv = shipped, [command, *shipped]
         missing = _missing_input(command, rest)
@@ -331,7 +321,6 @@ def main(argv: list[str] | None = None) -> int:
             quiet_libraries()
 
         try:
-            _check_input_files(rest)
             with _config_from_checkpoint(command, rest) as extra:
                 from stamlane.training.lightning_cli import StamLaneCLI  # once the libraries are quieted
 

@@ -79,12 +79,19 @@ def release(ckpt: Path, out: Path) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     from stamlane.safety.boundary import run_command
     from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.safety.paths import check_arguments
 
     parser = argparse.ArgumentParser(prog="python -m stamlane.training.release", description=__doc__.split("\n")[0])
     parser.add_argument("ckpt", type=Path, help="a run's checkpoint (RUN/checkpoints/last.ckpt)")
     parser.add_argument("out", type=Path, help="the file to write")
     args = parser.parse_args(argv)
-    return run_command("release", lambda: release(args.ckpt, args.out) and 0, CheckpointError)
+
+    def body() -> int:
+        check_arguments(sys.argv[1:] if argv is None else argv)  # the path gate's door (`stamlane.safety.paths`)
+        release(args.ckpt, args.out)
+        return 0
+
+    return run_command("release", body, CheckpointError)
 
 
 if __name__ == "__main__":

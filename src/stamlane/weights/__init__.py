@@ -9,6 +9,7 @@ registry, with ``weights_only=True``. What they were trained on and what they sc
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -66,7 +67,8 @@ def shipped_path(name: str) -> Path:
 
 def resolve(value: str) -> str:
     """What ``--ckpt_path VALUE`` means: a shipped model's file where ``VALUE`` is one's name and no file or folder
-    of that name exists here (a file of yours always wins), else ``VALUE`` unchanged."""
-    if any(value == m.name for m in SHIPPED) and not Path(value).exists():
+    of that name exists here (a file of yours always wins), else ``VALUE`` unchanged. Never raises: a name too long
+    for the file system is no file here (``os.path.exists``, not ``Path.exists``, which raises on Python 3.11)."""
+    if any(value == m.name for m in SHIPPED) and not os.path.exists(value):
         return str(shipped_path(value))
     return value
