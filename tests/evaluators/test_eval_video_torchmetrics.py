@@ -162,4 +162,4 @@ def test_callback_needs_sequences() -> None:
     cb = LaneEvalCallback(tusimple=False, culane=False, temporal=True)
     out = {"pred_lanes": [[]], "gt_lanes": [[]], "h_samples": [None], "orig_size": [(360, 640)]}
     with pytest.raises(ValueError, match="'sequence'"):
-        cb._update(out)
+        cb._keep(out)
