@@ -4,8 +4,10 @@ Training logs the loss terms separately (``train/loss``, ``train/loss_seg``, ``t
 ``train/loss_dist``, ``train/loss_reg``). Validation and test decode lanes with
 `stamlane.predict.postprocess.decode_lanes` (numpy, outside any ``forward``) and return the dict that
 ``stamlane_eval.integrations.lightning.LaneEvalCallback`` reads: ``pred_lanes`` (per image, lanes in
-original pixels), ``gt_lanes``, ``h_samples``, ``orig_size`` and ``run_time`` (ms per image, network
-share of the batch + post-processing). ``predict_step`` returns lanes with each sample's meta.
+original pixels), ``gt_lanes``, ``h_samples``, ``orig_size``, ``run_time`` (ms per image, network
+share of the batch + post-processing) and ``image_id`` (the image's index in its split). ``val/loss`` and
+``test/loss`` are the mean of every image's own loss, gathered from every process in the order of the split (one
+process's number to the last bit under DDP). ``predict_step`` returns lanes with each sample's meta.
 
 Alignment space: a batch of ``warp="image"`` data holds history frames already warped onto the key frame and
 runs ``LaneNet.forward``; a batch of ``warp="feature"`` data also holds ``key_from_hist_net`` (B, T, 3, 3,
