@@ -13,6 +13,7 @@ import yaml
 
 from stamlane.cli import main
 from stamlane.safety.guard import file_sha256
+from stamlane.safety.owner import OWNER_NAME
 from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
 from stamlane.training.module import StamLaneModule
 from stamlane.training.release import KEPT, release
@@ -90,7 +91,7 @@ def test_predict_on_a_video_with_no_other_argument_keeps_its_folder_clean(
     video = cv2.VideoCapture(str(out / "overlay.mp4"))
     assert video.get(cv2.CAP_PROP_FRAME_COUNT) == 5 and video.get(cv2.CAP_PROP_FPS) == 8
     assert video.read()[1].shape == (180, 320, 3)
-    assert sorted(p.name for p in out.iterdir()) == ["lines", "overlay.mp4", "overlays"]  # no temporary left
+    assert sorted(p.name for p in out.iterdir()) == sorted(["lines", "overlay.mp4", "overlays", OWNER_NAME])
 
 
 @pytest.mark.usefixtures("plain_argv")
