@@ -8,6 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stamlane.safety.images import read_image
 
@@ -137,3 +139,78 @@ def test_bmp_sizes_are_read(tmp_path: Path) -> None:
     assert ok and declared_size(data.tobytes()) == (48, 64)
     (tmp_path / "f.bmp").write_bytes(data.tobytes())
     assert read_image(tmp_path / "f.bmp").shape == (48, 64, 3)
+
+
+def _boundaries(data: bytes) -> list[int]:
+    """Where each segment before the scan starts (after SOI), in a file as OpenCV writes it."""
+    at, found = 2, []
+    while data[at + 1] != 0xDA:
+        found.append(at)
+        at += 2 + int.from_bytes(data[at + 2 : at + 4], "big")
+    return [*found, at]
+
+
+JUNK = [b"\xff", b"\xff\xff\xff", b"\xff\x00", b"\x00", b"\x12\x34", b"\xff\x00\xff\x00", b"\xfe"]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(
+    progressive=st.booleans(),
+    turned=st.sampled_from([None, 1, 6, 8, 3]),
+    junk=st.lists(st.tuples(st.integers(0, 20), st.sampled_from(JUNK)), max_size=4),
+    huge=st.booleans(),
+)
+def test_fuzz_jpeg_headers_as_the_decoder_reads_them(
+    tmp_path_factory: pytest.TempPathFactory, progressive: bool, turned: int | None, junk: list, huge: bool
+) -> None:
+    """Property: whatever libjpeg skips between the segments before the frame header (fill bytes, stuffed zeros,
+    stray bytes), with EXIF orientation or progressive coding, the size read from the header is the size OpenCV
+    decodes, or the file is not decoded by either; a 20000 x 20000 frame header is never decoded."""
+    import struct
+
+    from stamlane.safety.images import declared_size
+
+    data = _jpeg((40, 60), progressive)
+    if turned is not None:
+        data = data[:2] + _exif(turned) + data[2:]
+    cuts = _boundaries(data)
+    for pick, bytes_ in sorted(junk, reverse=True):  # from the end, so the earlier positions hold
+        at = cuts[pick % len(cuts)]
+        data = data[:at] + bytes_ + data[at:]
+        cuts = _boundaries_after(data)
+    if huge:
+        sof = max(data.rfind(b"\xff\xc0"), data.rfind(b"\xff\xc2"))
+        data = data[: sof + 5] + struct.pack(">HH", 20_000, 20_000) + data[sof + 9 :]
+    size = declared_size(data)
+    path = tmp_path_factory.mktemp("jpeg") / "f.jpg"
+    path.write_bytes(data)
+    if huge:
+        assert size is None or max(size) == 20_000
+        assert read_image(path) is None
+        return
+    decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if decoded is None:
+        assert read_image(path) is None
+    else:
+        assert size == decoded.shape[:2], (size, decoded.shape)
+        assert read_image(path).shape == decoded.shape
+
+
+def _boundaries_after(data: bytes) -> list[int]:
+    """`_boundaries` of a file that may hold junk between segments: each segment's marker, found as libjpeg finds
+    it (junk skipped)."""
+    at, found = 2, []
+    while at < len(data):
+        while data[at] != 0xFF:
+            at += 1
+        while data[at] == 0xFF:
+            at += 1
+        marker = data[at]
+        at += 1
+        if marker == 0x00:
+            continue
+        found.append(at - 2)
+        if marker == 0xDA:
+            return found
+        at += int.from_bytes(data[at : at + 2], "big")
+    return found
