@@ -310,10 +310,10 @@ def _run_config(tmp: Path) -> str:
 
 def _lightning_argv(args: list[str], tmp: Path) -> list[str]:
     """``args`` with a ``--config`` or ``--ckpt_path`` that is not here replaced by a run's (see above)."""
-    from stamlane.cli import _NAMED_CHECKPOINTS
+    from stamlane.safety.paths import CKPT_NAMES
     from stamlane.weights import SHIPPED
 
-    names = {*_NAMED_CHECKPOINTS, *(m.name for m in SHIPPED)}
+    names = {*CKPT_NAMES, *(m.name for m in SHIPPED)}
     out = list(args)
     for i, arg in enumerate(out[:-1]):
         value = out[i + 1]
