@@ -106,10 +106,10 @@ def _synth(args: argparse.Namespace) -> int:
     counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
     # never written over: a folder holding anything synth did not write (its owner file), whatever the names; one of
     # synth's own holding a whole set (an interrupted one is written again)
-    claim(args.out, SYNTH_OWNER, "--out", strict=True)
     if (Path(args.out) / "dataset.json").exists():
         print(f"stamlane synth: {args.out} already holds a set (dataset.json); give another --out", file=sys.stderr)
         return 2
+    claim(args.out, SYNTH_OWNER, "--out", strict=True)
     for flag in ("train_key_step", "eval_key_step"):
         if getattr(args, flag) < 0:
             print(
