@@ -319,7 +319,7 @@ def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     fps=st.sampled_from([None, "inf", "nan", "-5", "0", "1e9", "10"]),
     frames=st.sampled_from([None, 1, 2, 10**6, 0]),
     size=st.sampled_from([None, (32, 64), (65536, 65536), (63, 5)]),
-    out=st.sampled_from([*PLACES, "ckpt-named-like-output"]),
+    out=st.sampled_from([*PLACES, "ckpt-named-like-output", "another-sources-folder"]),
     video=st.booleans(),
     source=st.sampled_from(["frames", "video", "link", "fifo"]),
 )
@@ -345,6 +345,12 @@ def test_stream(
             target.mkdir()
             checkpoint = target / "lanes.jsonl"
             checkpoint.write_bytes(stream_inputs[ckpt].read_bytes())
+        elif out == "another-sources-folder":  # the results of another source: never written beside
+            from stamlane.safety.owner import mark
+
+            target = tmp / "theirs"
+            mark(target, {"command": "stream", "source": str(tmp / "elsewhere.mp4")})
+            (target / "lanes.jsonl").write_text("theirs\n")
         else:
             target = _place(out, tmp, "stream", stream_inputs["video"], stream_inputs["frames"])
         argv = ["stream", str(source_path), "--ckpt", str(checkpoint), "--out", str(target), "--max-frames", "2"]
@@ -353,7 +359,8 @@ def test_stream(
         argv += [] if size is None else ["--image-size", *map(str, size)]
         argv += [] if video else ["--no-video"]
         inputs = [stream_inputs[k] for k in ("frames", "video", "link", "good", "huge")]
-        code = _contract(capsys, argv, [*inputs, checkpoint])
+        code = _contract(capsys, argv, [*inputs, checkpoint, *([target] if out == "another-sources-folder" else [])])
+        assert code == 2 or out != "another-sources-folder"
         ok = source in ("frames", "video", "link") and (ckpt, fps in (None, "10"), out) == ("good", True, "fresh")
         if ok and frames in (None, 2) and size in (None, (32, 64)):
             assert code == 0 and (target / "lanes.jsonl").is_file()  # what is valid is done
@@ -443,9 +450,10 @@ def test_stream_device(stream_inputs: dict[str, Path], capsys: pytest.CaptureFix
     frames=st.sampled_from([2, 10**6, 0]),
     fps=st.sampled_from(["inf", "nan", "0", "20", "1e12"]),
     clips=st.sampled_from([1, 0, -1]),
-    out=st.sampled_from(["fresh", "existing-set", "under-a-file", "a-file", "a-fifo"]),
+    out=st.sampled_from(["fresh", "existing-set", "under-a-file", "a-file", "a-fifo", "foreign-folder"]),
 )
 @example(size="64x48", frames=2, fps="20", clips=1, out="fresh")  # the run that succeeds
+@example(size="64x48", frames=2, fps="20", clips=1, out="foreign-folder")  # would succeed but for the folder
 def test_synth(
     tiny_set: Path, capsys: pytest.CaptureFixture[str], size: str, frames: int, fps: str, clips: int, out: str
 ) -> None:
@@ -457,10 +465,16 @@ def test_synth(
             "under-a-file": tiny_set / "train.json" / "set",
             "a-file": tiny_set / "train.json",
             "a-fifo": tiny_set / "fifo.json",
+            "foreign-folder": tmp / "frames",  # frames and test_label.json: no name of a set synth writes
         }[out]
+        if out == "foreign-folder":
+            (tmp / "frames").mkdir()
+            (tmp / "frames" / "0.jpg").write_bytes(b"frame")
+            (tmp / "frames" / "test_label.json").write_text("{}\n")
         argv = ["synth", "--out", str(target), "--size", size, "--frames", str(frames), f"--fps={fps}"]
         argv += ["--clips", str(clips), "--challenging-clips", "0", "--quiet"]
-        code = _contract(capsys, argv, [tiny_set])
+        code = _contract(capsys, argv, [tiny_set, tmp / "frames"])
+        assert code == 2 or out not in ("foreign-folder", "existing-set")
         if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh"):
             assert code == 0 and (target / "train.json").is_file()  # what is valid is done
 
@@ -683,7 +697,12 @@ def _shape(kind: str, tmp: Path, name: str) -> str:
         if not path.exists():
             os.mkfifo(path)
         return str(path)
-    if kind == "device":
+    if kind == "device":  # an output gets a link to it: a command that replaced its output would replace the link,
+        if name.startswith("out"):  # never the device node itself (a test run as root must not lose /dev/zero)
+            link = tmp / f"device-{name}"
+            if not os.path.lexists(link):
+                link.symlink_to("/dev/zero")
+            return str(link)
         return "/dev/zero"
     if kind == "sparse":
         path = tmp / f"sparse-{name}"
@@ -767,7 +786,7 @@ def test_every_path_option_answers_every_path_shape(
     kind = data.draw(st.sampled_from(shapes), label="shape")
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
-        path = _shape(kind, tmp, "x.yaml" if "config" in command else "x")
+        path = _shape(kind, tmp, "x.yaml" if "config" in command else "out-x" if command.endswith("-out") else "x")
         values = {k: str(v) for k, v in path_inputs.items()} | {"tmp": str(tmp), "path": path}
         argv = [a.format(**values) for a in PATH_COMMANDS[command]]
         inputs = [path_inputs[k] for k in ("frames", "ckpt", "summary")]

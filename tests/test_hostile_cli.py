@@ -333,3 +333,22 @@ def test_a_config_that_is_no_mapping_is_not_echoed(
     err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("stamlane")]
     assert len(err) == 1 and len(err[0]) < 600 and "END-OF-FILE" not in err[0] and "characters more" in err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "sparse"])
+@pytest.mark.parametrize("argv", [["demo", "--quick"], ["ablate", "--table", "2"]], ids=["demo", "ablate"])
+def test_a_config_after_the_double_dash_goes_through_fits_checks(
+    specials: dict[str, Path], no_hang: None, tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str, argv: list
+) -> None:
+    """``demo ... -- --config PATH`` reads PATH through the checks of ``fit --config``: a FIFO (a hang), a device and a
+    2 GiB sparse file (a MemoryError) are refused unopened, in one line, nothing written."""
+    path = specials.get(kind)
+    if kind == "sparse":
+        path = tmp_path / "sparse.yaml"
+        with open(path, "wb") as file:
+            file.truncate(2 << 30)
+    out = tmp_path / "out"
+    err = _one_line(capsys, main([*argv, "--out", str(out), "--", "--config", str(path)]))
+    words = {"fifo": "is a FIFO, not a file", "device": "is a device, not a file", "sparse": "over the limit of 16 MiB"}
+    assert words[kind] in err and str(path) in err
+    assert not out.exists()

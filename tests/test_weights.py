@@ -13,6 +13,7 @@ import yaml
 
 from stamlane.cli import main
 from stamlane.safety.guard import file_sha256
+from stamlane.safety.owner import OWNER_NAME
 from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
 from stamlane.training.module import StamLaneModule
 from stamlane.training.release import KEPT, release
@@ -90,7 +91,7 @@ def test_predict_on_a_video_with_no_other_argument_keeps_its_folder_clean(
     video = cv2.VideoCapture(str(out / "overlay.mp4"))
     assert video.get(cv2.CAP_PROP_FRAME_COUNT) == 5 and video.get(cv2.CAP_PROP_FPS) == 8
     assert video.read()[1].shape == (180, 320, 3)
-    assert sorted(p.name for p in out.iterdir()) == ["lines", "overlay.mp4", "overlays"]  # no temporary left
+    assert sorted(p.name for p in out.iterdir()) == sorted(["lines", "overlay.mp4", "overlays", OWNER_NAME])
 
 
 @pytest.mark.usefixtures("plain_argv")
@@ -131,3 +132,21 @@ def test_release_refuses_to_write_over_its_input(tmp_path: Path) -> None:
     ckpt = tmp_path / "last.ckpt"
     ckpt.write_bytes(shipped_path(DEFAULT).read_bytes())
     assert release_main([str(ckpt), str(ckpt)]) == 2
+
+
+@pytest.mark.usefixtures("plain_argv")
+def test_the_default_model_is_a_name_nobody_typed(tiny_synthetic, tmp_path, monkeypatch, capsys) -> None:
+    """``predict --source DIR`` without a checkpoint runs the shipped default even where a folder of its name lies
+    here (that was "ckpt_path stam4-synthetic is a directory"); the name typed by the user means the folder."""
+    root = tiny_synthetic(320, 180, 4, train=0, val=0, test=1, challenging=0)
+    (clip,) = (root / "clips").iterdir()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / DEFAULT).mkdir()  # a folder of the default model's name, here
+    out = tmp_path / "pred"
+    assert main(["predict", "--source", str(clip), "--predictions.output_dir", str(out)]) == 0
+    assert f"running the shipped {DEFAULT}" in capsys.readouterr().err
+    assert len(list((out / "lines").rglob("*.lines.txt"))) == 4
+    assert main(["predict", "--source", str(clip), "--ckpt_path", DEFAULT]) == 2  # typed: the folder here wins
+    err = capsys.readouterr().err.strip()
+    assert err == f"stamlane predict: checkpoint {DEFAULT} is a folder, not a file", err
+    assert resolve("n" * 300) == "n" * 300  # a name too long for the file system: no file here, no exception

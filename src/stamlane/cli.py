@@ -243,10 +243,11 @@ def _shipped_names() -> str:
 
 
 def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
-    """``rest`` with a shipped model's name given to ``--ckpt_path`` replaced by its file (`stamlane.weights`), and
-    ``stamlane predict --source X`` given no checkpoint, no config and no model option run with the default shipped
-    model (said in one line on stderr)."""
-    from stamlane.weights import DEFAULT, resolve
+    """``rest`` with a shipped model's name given to ``--ckpt_path`` replaced by its file (`stamlane.weights`; a file
+    or folder of that name here wins, as the user typed the name), and ``stamlane predict --source X`` given no
+    checkpoint, no config and no model option run with the default shipped model (said in one line on stderr): its
+    file, whatever lies here under its name, since nobody typed that name."""
+    from stamlane.weights import DEFAULT, resolve, shipped_path
 
     out = []
     for i, arg in enumerate(rest):
@@ -264,7 +265,7 @@ def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
             "only; what it can and cannot do: docs/models.md)",
             file=sys.stderr,
         )
-        out = ["--ckpt_path", resolve(DEFAULT), *out]
+        out = ["--ckpt_path", str(shipped_path(DEFAULT)), *out]  # a name nobody typed: never a file of that name here
     return out
 
 

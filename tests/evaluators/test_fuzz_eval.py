@@ -158,7 +158,7 @@ _TS_GT = {g["raw_file"]: g for g in map(json.loads, (GOLDEN / "tusimple_gt.json"
 
 
 @FUZZ
-@given(st.data(), st.sampled_from(["value", "duplicate", "huge", "special", "output", "temporary"]))
+@given(st.data(), st.sampled_from(["value", "duplicate", "respelled", "huge", "special", "output", "temporary"]))
 def test_fuzz_tusimple(
     tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str], data: st.DataObject, how: str
 ) -> None:
@@ -177,6 +177,12 @@ def test_fuzz_tusimple(
     elif how == "duplicate":
         recs = preds if side == "pred" else gts
         recs.append(recs[data.draw(st.integers(0, len(recs) - 1))])
+    elif how == "respelled":  # one image named again in another spelling: the same image (normalised once)
+        recs = preds if side == "pred" else gts
+        rec = recs[data.draw(st.integers(0, len(recs) - 1))]
+        folder_name, _, name = rec["raw_file"].rpartition("/")
+        how_spelled = data.draw(st.sampled_from(["{}/./{}", "{}//{}", "{}/x/../{}", "./{}/{}"]))
+        recs.append({**rec, "raw_file": how_spelled.format(folder_name, name)})
     elif how == "huge":  # past the documented limits: 64 lanes, 10,000 rows
         if data.draw(st.booleans()):
             preds[0]["lanes"] = [preds[0]["lanes"][0]] * 65
@@ -203,8 +209,8 @@ def test_fuzz_tusimple(
             "outside",
             "per.jsonl",
         ]
-    if how in ("special", "output", "huge") or (how == "duplicate" and side == "gt"):
-        assert code == 2
+    if how in ("special", "output", "huge", "respelled") or (how == "duplicate" and side == "gt"):
+        assert code == 2  # a respelled prediction names no image of the ground truth: lane.py's KeyError
     if code == 0:
         _rates(json.loads(out), ("accuracy",))
 
@@ -336,7 +342,8 @@ def _video_case(folder: Path, data: st.DataObject, how: str, secret: Path, tempo
         if data.draw(st.sampled_from(["label", "list"])) == "label":
             docs["00001.png.json"] = _vil_doc()
         else:
-            entries.append(data.draw(st.sampled_from(["v/00001.jpg", "/JPEGImages/v/00000.png"])))
+            again = ["v/00001.jpg", "/JPEGImages/v/00000.png", "/JPEGImages/v/./00001.jpg", "v//00002.jpg"]
+            entries.append(data.draw(st.sampled_from(again)))
     elif how == "huge":
         what = data.draw(st.sampled_from(["size", "info", "sizes"]))
         if what == "size":
@@ -426,3 +433,80 @@ def test_fuzz_video_temporal(
         # the far lane draws nothing: the frame's counts are those without it
         assert {t: got[t] for t in ("0.5", "0.8")} == {t: want[t] for t in ("0.5", "0.8")}
     _check_video(code, out, temporal=True)
+
+
+# ------------------------------------------------------------------------------------------ every path option
+_PATH_SHAPES = ("long-name", "long-component", "long-path", "fifo", "device", "sparse", "loop", "dangling", "dots")
+_PATH_SHAPES += ("not-utf8", "nul-byte", "under-a-file")
+
+
+def _path_shape(kind: str, folder: Path, output: bool) -> str:
+    """A path of the shape ``kind`` in ``folder`` (an output's device: a link to it, never the node itself)."""
+    if kind == "long-name":
+        return str(folder / ("n" * 300))
+    if kind == "long-component":
+        return str(folder / ("c" * 256) / "x.json")
+    if kind == "long-path":
+        return str(folder.joinpath(*["p" * 200] * 22, "x.json"))
+    if kind == "fifo":
+        os.mkfifo(folder / "fifo")
+        return str(folder / "fifo")
+    if kind == "device":
+        if output:
+            (folder / "device").symlink_to("/dev/zero")
+            return str(folder / "device")
+        return "/dev/zero"
+    if kind == "sparse":
+        with open(folder / "sparse.json", "wb") as file:
+            file.truncate(2 << 30)
+        return str(folder / "sparse.json")
+    if kind == "loop":
+        (folder / "a").symlink_to(folder / "b")
+        (folder / "b").symlink_to(folder / "a")
+        return str(folder / "a")
+    if kind == "dangling":
+        (folder / "dangling").symlink_to(folder / "nothing")
+        return str(folder / "dangling")
+    if kind == "dots":
+        return f"{folder}/./x/..//missing.json"
+    if kind == "not-utf8":
+        os.makedirs(os.fsencode(folder) + b"/\xff\xfe")
+        return os.fsdecode(os.fsencode(folder) + b"/\xff\xfe")
+    if kind == "nul-byte":
+        return f"{folder}/a\x00b"
+    (folder / "file").write_text("x")
+    return str(folder / "file" / "x.json")
+
+
+_PATH_COMMANDS = {
+    "tusimple-pred": ["tusimple", "{path}", "{gt}"],
+    "tusimple-gt": ["tusimple", "{pred}", "{path}"],
+    "tusimple-per-image": ["tusimple", "{pred}", "{gt}", "--per-image", "{path}"],
+    "culane": ["culane", "{path}", "{path}"],
+    "video-pred": ["video", "{path}", "{gt}", "--size", "640x360"],
+    "video-gt": ["video", "{pred}", "{path}", "--size", "640x360"],
+    "video-per-sequence": ["video", "{pred}", "{gt}", "--size", "640x360", "--per-sequence", "{path}"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(_PATH_COMMANDS))
+@settings(max_examples=6, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_every_path_option_answers_every_path_shape(
+    tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str], command: str, data: st.DataObject
+) -> None:
+    """Property: a path of any shape given to any path option of ``stamlane-eval`` is one line and exit 2 (an output
+    that is a regular file, or a link to nothing, is written: exit 0), never a traceback or a hang; a device or a
+    FIFO given as an output is never replaced."""
+    folder = tmp_path_factory.mktemp("fz_path")
+    output = command.endswith(("per-image", "per-sequence"))
+    kind = data.draw(st.sampled_from(_PATH_SHAPES), label="shape")
+    pred, gt = folder / "pred.json", folder / "gt.json"
+    gt.write_text(_dumps({"raw_file": "clips/c/1.jpg", "lanes": [[100, 101, 102]], "h_samples": [300, 310, 320]}))
+    pred.write_text(_dumps({**json.loads(gt.read_text()), "run_time": 1}))
+    path = _path_shape(kind, folder, output)
+    argv = [a.format(path=path, pred=pred, gt=gt) for a in _PATH_COMMANDS[command]]
+    code, _, _ = _run(capsys, argv, [pred, gt])
+    assert code == 2 or (output and kind in ("sparse", "dangling", "dots")), (command, kind)
+    if kind == "device" and output:
+        assert (folder / "device").is_symlink() and os.stat("/dev/zero").st_rdev == os.makedev(1, 5)

@@ -558,6 +558,11 @@ VIDEO_TUSIMPLE_BAD = {  # case: (gt text or records, pred records, words of the 
     "gt_no_folder": ([{**_REC, "raw_file": "1.jpg"}], [_REC], "names no folder"),
     "gt_same_frame_two_names": ([_REC, {**_REC, "raw_file": "clips/c/1.png"}], [_REC], "labelled twice"),
     "gt_same_raw_file": ([_REC, _REC], [_REC], "two labels for one image"),
+    # one frame named twice, written two ways: the names are normalised once (stamlane_eval.io.image_key)
+    "gt_dot_segment": ([_REC, {**_REC, "raw_file": "clips/c/./1.jpg"}], [_REC], "two labels for one image"),
+    "gt_parent_segment": ([_REC, {**_REC, "raw_file": "clips/x/../c/1.jpg"}], [_REC], "two labels for one image"),
+    "gt_double_slash": ([_REC, {**_REC, "raw_file": "clips//c/1.jpg"}], [_REC], "two labels for one image"),
+    "pred_dot_segment_twice": ([_REC], [_REC, {**_REC, "raw_file": "clips/c/./1.jpg"}], "predicted twice"),
     "gt_boolean": ("[" + json.dumps(_REC).replace("100", "true") + "]", [_REC], "boolean"),
     "gt_nan": ([json.dumps(_REC).replace("100", "NaN")], [_REC], "not a pixel coordinate"),
     "gt_lane_length": ([{**_REC, "lanes": [[1, 2]]}], [_REC], "h_samples has 3"),
@@ -647,3 +652,25 @@ def test_video_tusimple_malformed_records(
         code, out, err = _run(capsys, "video", pred, gt, "--size", "640x360", "--json", *extra)
         assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
         assert code in (0, 2) and (code == 0) == bool(out), err
+
+
+def test_frame_names_are_normalised_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``s1/./2.jpg`` is ``s1/2.jpg``: a prediction written so scores its frame (one sequence, not two), and a list
+    naming the frame both ways is refused as naming it twice (it was a second sequence: F1 1.0 -> 0.857, exit 0)."""
+    from stamlane_eval.io import image_key
+
+    assert image_key("s1/./2.jpg") == image_key("s1/2.jpg") == image_key("s1//2.jpg") == "s1/2.jpg"
+    assert image_key("s0/x/../2.jpg") == "s0/2.jpg" and image_key("/a/./b.jpg") == "/a/b.jpg"
+    gt = _jsonl(tmp_path / "gt.json", [_REC, _REC2])
+    pred = _jsonl(tmp_path / "pred.json", [{**_REC, "raw_file": "clips/c/./1.jpg"}, _REC2])
+    code, out, err = _run(capsys, "video", pred, gt, "--size", "640x360", "--json")
+    assert code == 0, err
+    scores = json.loads(out)
+    assert scores["0.5"]["f1"] == 1.0 and scores["sequences"] == 1 and scores["frames"] == 2, scores
+    listing = tmp_path / "list.txt"
+    listing.write_text("clips/c/1.jpg\nclips/c/./1.jpg\n")
+    culane = tmp_path / "lines" / "c"
+    culane.mkdir(parents=True)
+    (culane / "1.lines.txt").write_text("100 300 101 310\n")
+    err = _refused(capsys, "video", tmp_path / "lines", tmp_path / "lines", "--list", listing, "--size", "640x360")
+    assert "name the same" in err, err

@@ -118,3 +118,11 @@ def test_the_gate_never_raises(path: str) -> None:
     info = inspect_path(path)
     assert info.kind in ("file", "folder", "fifo", "device", "socket", "missing", "unusable")
     assert "\n" not in shown(path) and "\n" not in info.shown
+
+
+def test_a_long_yaml_value_is_no_path() -> None:
+    """``--trainer.callbacks=[...]`` or ``--data.predict_labels=[...]`` may be long: values, not paths."""
+    labels = "[" + ",".join(f"split-{i}.json" for i in range(40)) + "]"
+    check_arguments([f"--data.predict_labels={labels}", "--config", "{" + '"a": 1, ' * 60 + "}"])
+    with pytest.raises(PathError):
+        check_arguments([f"--data.root={'r' * 300}"])

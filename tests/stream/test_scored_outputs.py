@@ -13,6 +13,7 @@ import torch
 from stamlane_eval.cli import main as evaluate
 
 from stamlane.cli import main as stamlane
+from stamlane.safety.owner import OWNER_NAME
 from stamlane.synth import SynthConfig, generate_dataset
 
 torch.set_num_threads(1)
@@ -130,7 +131,7 @@ def test_a_folder_of_frames_keeps_its_names(streamed: dict[str, Path], tmp_path:
     # a second run replaces the folder whole: no file of the first one stays
     assert stamlane([*argv, "--max-frames", "2"]) == 0
     assert sorted(p.name for p in (out / "lines" / "test-0000").iterdir()) == ["1.lines.txt", "2.lines.txt"]
-    assert sorted(p.name for p in out.iterdir()) == ["lanes.jsonl", "lines", "predictions.json"]  # no temporary
+    assert sorted(p.name for p in out.iterdir()) == sorted(["lanes.jsonl", "lines", "predictions.json", OWNER_NAME])
 
 
 def test_the_default_names_of_a_videos_frames_are_predicts(streamed: dict[str, Path], tmp_path: Path) -> None:
@@ -151,12 +152,15 @@ def test_a_failed_run_keeps_the_previous_lines(streamed: dict[str, Path], tmp_pa
     (broken / "3.jpg").write_bytes(b"not an image")
     out = tmp_path / "out"
     argv = ["--ckpt", str(ckpt), "--out", str(out), "--no-video", "--tusimple", "--culane"]
-    assert stamlane(["stream", str(clip), *argv, "--max-frames", "4"]) == 0
+    assert stamlane(["stream", str(broken), *argv, "--max-frames", "2"]) == 0  # the readable frames
     before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert stamlane(["stream", str(broken), *argv]) == 2
     assert "cannot read image" in capsys.readouterr().err
     assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
-    assert sorted(p.name for p in out.iterdir()) == ["lanes.jsonl", "lines", "predictions.json"]  # no temporary
+    names = ["lanes.jsonl", "lines", "predictions.json", OWNER_NAME]
+    assert sorted(p.name for p in out.iterdir()) == sorted(names)  # no temporary
+    assert stamlane(["stream", str(clip), *argv]) == 2  # another source of that name: never beside its results
+    assert "holds the stream output of another source" in capsys.readouterr().err
 
 
 def test_a_videos_frames_are_counted_on_from_the_first_name() -> None:

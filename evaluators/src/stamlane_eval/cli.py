@@ -48,6 +48,9 @@ from stamlane_eval.io import (
     tusimple_lanes_by_image,
     write_jsonl,
 )
+from stamlane_eval.io.files import (
+    path_problem,
+)
 
 __all__ = ["main"]
 
@@ -502,6 +505,10 @@ def _main(argv: list[str] | None) -> int:
     if isinstance(args, int):  # --help, --version, or a usage error already printed in one line
         return args
     try:
+        for arg in sys.argv[1:] if argv is None else argv:  # the door: what can be no path is one line, not a trace
+            problem = path_problem(arg.split("=", 1)[1] if arg.startswith("-") and "=" in arg else arg)
+            if problem is not None:
+                raise LaneFileError(f"argument {arg.encode('utf-8', 'backslashreplace').decode()!r:.300} {problem}")
         check_outputs(_outputs(args), _inputs(args), files=True)  # every output against every input, before any read
         if len(set(getattr(args, "iou", ()))) > MAX_THRESHOLDS:
             raise LaneFileError(f"--iou: {len(set(args.iou))} thresholds, more than the limit of {MAX_THRESHOLDS}")

@@ -100,9 +100,21 @@ def check_outputs(
                 raise OutputError(f"{path}: the output would overwrite or write into the input {source}")
         if files and target.is_dir():
             raise OutputError(f"{path}: is a folder; the output is a file")
+        if files and _is_special(target):  # renaming over it would replace a device node (as root: /dev/zero)
+            raise OutputError(f"{path}: is a FIFO, device or socket, not a file to write")
         if target in seen:
             raise OutputError(f"{path}: the same path as the output {seen[target]}")
         seen[target] = path
+
+
+def _is_special(path: Path) -> bool:
+    """Whether ``path`` exists and is a FIFO, a device or a socket (links followed); False when it cannot be
+    looked at."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def _same_file(a: Path, b: Path) -> bool:

@@ -387,11 +387,20 @@ def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
 
 def check_fit_arguments(config: Path, extra: Sequence[str]) -> None:
     """Parse ``stamlane fit --config CONFIG EXTRA`` and build nothing: fit arguments that every run would refuse
-    are said at once, in one line (ExperimentError), not after the data are made and a stage has started."""
+    are said at once, in one line (ExperimentError), not after the data are made and a stage has started. A
+    ``--config``, ``--ckpt_path`` or ``--source`` among them goes through the path gate ``stamlane fit`` uses
+    (`stamlane.safety.paths.check_command_files`: a FIFO, a device, a config over 16 MiB, a name too long are refused
+    unopened) before jsonargparse reads it."""
     from jsonargparse import ArgumentError
 
     from stamlane.safety.boundary import one_line
+    from stamlane.safety.paths import PathError, check_command_files
     from stamlane.training.lightning_cli import StamLaneCLI
+
+    try:
+        check_command_files(extra)
+    except PathError as err:
+        raise ExperimentError(f"the stamlane fit arguments after --: {err}") from None
 
     class Parsed(Exception):
         """Raised once the arguments parsed: nothing is built."""

@@ -41,6 +41,7 @@ from stamlane.predict.scores import image_score
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
 from stamlane.safety.guard import temporary_name
 from stamlane.safety.images import read_image
+from stamlane.safety.owner import mark
 
 __all__ = ["DEFAULT_ROOT", "VIDEO_NAME", "LanePredictionWriter", "default_output_dir", "folder_name"]
 
@@ -105,6 +106,7 @@ class LanePredictionWriter(BasePredictionWriter):
         self.max_overlays = max_overlays
         self.video = video
         self.model_name = model_name
+        self.owner: dict[str, Any] | None = None  # what the folder holds the results of (stamlane.safety.owner)
         self._json: TusimpleWriter | None = None
         self._rows: list[tuple[Any, tuple]] = []  # several processes: (image key, json line's values), for rank 0
         self._video: cv2.VideoWriter | None = None
@@ -129,6 +131,8 @@ class LanePredictionWriter(BasePredictionWriter):
         is_video = bool(getattr(trainer.datamodule, "is_video", False))
         fps = getattr(trainer.datamodule, "video_fps", None) or FALLBACK_FPS
         self._video_fps = fps if is_video and trainer.world_size == 1 else None
+        if self.owner is not None and trainer.is_global_zero:  # the folder holds this source's results from now on
+            mark(self.output_dir, self.owner)
 
     def _json_writer(self) -> TusimpleWriter:
         if self._json is None:

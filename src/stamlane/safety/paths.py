@@ -251,13 +251,16 @@ def check_command_files(args: Sequence[str], *, missing_ok: bool = False) -> Non
 def check_arguments(args: Sequence[str]) -> None:
     """Refuse, in one line, an argument (or the value of ``--option=VALUE``) that cannot be a usable path in any
     reading (`inspect_path` answers ``unusable``: a name too long, a NUL byte, bytes that are not UTF-8, a loop of
-    links). Every other argument passes: what a path IS (a FIFO, a device, a folder) is for its reader's check.
+    links). Every other argument passes: what a path IS (a FIFO, a device, a folder) is for its reader's check; so
+    does a YAML or JSON value (``[...]``, ``{...}``), however long.
 
     Raises:
         PathError: naming the argument and the problem.
     """
     for arg in args:
         value = arg.split("=", 1)[1] if arg.startswith("-") and "=" in arg else arg
+        if value.lstrip().startswith(("[", "{")):  # a YAML / JSON value (a list of label files, callbacks): no path
+            continue
         info = inspect_path(value)
         if info.kind == "unusable":
             raise PathError(f"argument {info.shown} {info.problem}")

@@ -42,6 +42,7 @@ from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 from stamlane.safety.images import open_video, read_image
+from stamlane.safety.owner import claim, mark
 from stamlane.stream.eval_outputs import (
     DEFAULT_FIRST_FRAME,
     EvalOutputs,
@@ -291,7 +292,9 @@ def run(args: argparse.Namespace) -> int:
     if args.num_frames is not None and args.image_size is not None:
         check_clip(args.num_frames, args.image_size, "--num-frames x --image-size")
     sequence = _sequence(args, source)
-    out_dir = Path(args.out) if args.out else Path("outputs/stream") / source.stem
+    # one folder per source: a second source of the same name gets outputs/stream/<name>-2 (stamlane.safety.owner)
+    owner = {"command": "stream", "source": str(source.resolve())}
+    out_dir = claim(args.out or Path("outputs/stream") / source.stem, owner, "--out", chosen=not args.out)
     paths: dict[str, Path | None] = {
         "lanes": out_dir / "lanes.jsonl",
         "video": None if args.no_video else out_dir / "overlay.mp4",
@@ -313,6 +316,7 @@ def run(args: argparse.Namespace) -> int:
             if path is not None
         }
         written, seconds = _stream(args, source, frames, count, fps, predictor, temps, sequence)
+    mark(out_dir, owner)  # once the results are whole: a failed run leaves the folder as it was
     wrote = [str(path) for path in paths.values() if path is not None]
     print(
         f"stamlane stream: {written} frames in {seconds:.1f} s ({written / max(seconds, 1e-9):.1f} frames/s); "

@@ -25,6 +25,7 @@ from stamlane_eval.cli_tools import OneLineParser, check_input_file, format_wxh,
 
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.owner import claim, mark
 from stamlane.weights import resolve
 
 __all__ = ["EXPORT_PACKAGES", "ONNX_HINT", "build_parser", "main", "parity"]
@@ -114,6 +115,9 @@ def _export(args: Any) -> int:
     )
     if output.suffix != ".onnx":
         raise ValueError(f"--output must end in .onnx, got {output}")
+    if args.streaming is not None:  # the folder holds one checkpoint's graphs (stamlane.safety.owner)
+        owner = {"command": "export", "model": str(args.ckpt_path.resolve())}
+        mark(claim(args.streaming, owner, "--streaming"), owner)
     return _write(args, opset, outputs)
 
 

@@ -12,10 +12,14 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
+from stamlane.safety.owner import claim, mark
 from stamlane.synth.config import FACTORS, WORLDS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP
 from stamlane.synth.tusimple_layout import LAYOUTS
+
+SYNTH_OWNER = {"command": "synth"}
+"""What ``synth --out``'s owner file says: a folder synth wrote (`stamlane.safety.owner`)."""
 
 __all__ = ["build_parser", "main"]
 
@@ -126,6 +130,8 @@ def _synth(args: argparse.Namespace) -> int:
             print(f"stamlane synth: --{flag} must be >= 0, got {n}", file=sys.stderr)
             return 2
     counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
+    # never written over: a folder holding anything synth did not write (its owner file), whatever the names; one of
+    # synth's own holding a whole set (an interrupted one is written again)
     existing = [
         name
         for name in ("dataset.json", "train.json", "val.json", "test.json", "label_data_0313.json", "test_label.json")
@@ -134,6 +140,7 @@ def _synth(args: argparse.Namespace) -> int:
     if existing:
         print(f"stamlane synth: {args.out} already holds a set ({existing[0]}); give another --out", file=sys.stderr)
         return 2
+    claim(args.out, SYNTH_OWNER, "--out", strict=True)
     tusimple = args.layout == "tusimple"
     if args.demo and tusimple:
         print(
@@ -180,6 +187,7 @@ def _synth(args: argparse.Namespace) -> int:
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
         cfg = SynthConfig(world=args.world, randomise=args.randomise)
     start = time.perf_counter()
+    mark(args.out, SYNTH_OWNER)
     info = generate_dataset(args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
     seconds = time.perf_counter() - start
     long = counts["reveal"] + counts["reveal_traffic"] + counts["train_motion"]

@@ -25,6 +25,7 @@ from stamlane.data.datamodule import ClipDataModule, FramesDataModule, SequenceW
 from stamlane.predict.prediction_writer import LanePredictionWriter, default_output_dir
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs, temporary_name
+from stamlane.safety.owner import claim
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
@@ -324,14 +325,22 @@ class StamLaneCLI(LightningCLI):
         model = checkpoint_name(ckpt, configs)
         if source:
             path = Path(source).resolve()
-            what = path.stem if path.is_file() else path.name
+            what, origin = (path.stem if path.is_file() else path.name), str(path)
         else:
             labels = "+".join(Path(f).stem for f in self.datamodule.split_labels("predict"))
             what = f"{Path(self.datamodule.root).resolve().name}-{labels}"
+            origin = f"{Path(self.datamodule.root).resolve()}: {labels}"
+        # one folder per model and source: a second source of the same name gets its own (stamlane.safety.owner)
+        owner = {"command": "predict", "source": origin}
         for writer in self.trainer.callbacks:
             if isinstance(writer, LanePredictionWriter):
-                if not writer.given_output_dir:
-                    writer.use_output_dir(default_output_dir(model, what))
+                if writer.given_output_dir:
+                    claim(writer.output_dir, owner, "--predictions.output_dir")
+                else:
+                    writer.use_output_dir(
+                        claim(default_output_dir(model, what), owner, "--predictions.output_dir", chosen=True)
+                    )
+                writer.owner = owner
                 if writer.model_name is None:
                     writer.model_name = model
 

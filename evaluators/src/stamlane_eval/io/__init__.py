@@ -25,7 +25,7 @@ from stamlane_eval.io.culane import (
     read_culane_folders,
     read_culane_lines,
 )
-from stamlane_eval.io.files import Inside, LaneFileError, inside, read_text, write_atomic, write_jsonl
+from stamlane_eval.io.files import Inside, LaneFileError, image_key, inside, read_text, write_atomic, write_jsonl
 from stamlane_eval.io.limits import (
     MAX_COORDINATE,
     MAX_DRAWN_PIXELS,
@@ -92,6 +92,7 @@ __all__ = [
     "culane_entries",
     "culane_lines_path",
     "duplicate_raw_file",
+    "image_key",
     "images_beside",
     "inside",
     "is_tusimple_input",

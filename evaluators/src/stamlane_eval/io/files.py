@@ -11,10 +11,12 @@
 
 from __future__ import annotations
 
+import errno
 import gc
 import json
 import math
 import os
+import posixpath
 import stat
 import tempfile
 from collections.abc import Iterable, Iterator, Sequence
@@ -24,7 +26,16 @@ from pathlib import Path
 from stamlane_eval.cli_tools import OutputError, check_outputs
 from stamlane_eval.io.limits import MAX_FILE_BYTES
 
-__all__ = ["Inside", "LaneFileError", "inside", "read_text", "write_atomic", "write_jsonl"]
+__all__ = [
+    "Inside",
+    "LaneFileError",
+    "image_key",
+    "inside",
+    "path_problem",
+    "read_text",
+    "write_atomic",
+    "write_jsonl",
+]
 # read_file, is_json_number, json_float and gc_paused serve the readers of this package
 
 
@@ -88,6 +99,52 @@ def read_file(path: str | os.PathLike) -> str:
         raise LaneFileError(f"{path}: cannot read: {e.strerror}") from None
 
 
+NAME_MAX = 255
+"""Bytes of one path component the file systems take."""
+PATH_MAX = 4096
+"""Bytes of a whole path the kernel takes."""
+
+
+def path_problem(arg: str) -> str | None:
+    """Why ``arg`` can be no usable path in any reading — a NUL byte, bytes that are not UTF-8, a component over
+    `NAME_MAX` bytes, over `PATH_MAX` in all, a loop of links — or None. Never raises (``Path.exists()`` raises
+    ``OSError: File name too long`` on Python 3.11, ``RuntimeError`` for a loop in ``Path.resolve()``)."""
+    try:
+        raw = os.fsencode(arg)
+    except (TypeError, ValueError):
+        return "is no path"
+    if b"\x00" in raw:
+        return "holds a NUL byte"
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return "is not UTF-8: rename it"
+    longest = max((len(part) for part in raw.split(b"/")), default=0)
+    if longest > NAME_MAX:
+        return f"has a name of {longest} bytes, over the file system's limit of {NAME_MAX}"
+    if len(raw) > PATH_MAX:
+        return f"is {len(raw)} bytes long, over the file system's limit of {PATH_MAX}"
+    try:
+        os.stat(raw)
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            return "is a loop of links"
+        if e.errno == errno.ENAMETOOLONG:
+            return "has a name too long for the file system"
+    return None
+
+
+def image_key(name: str) -> str:
+    """THE key of an image or frame a record or list names: its path POSIX-normalised once (``//`` and ``.``
+    segments dropped, ``a/..`` collapsed, as the file system resolves the name), so that ``s1/./2.jpg`` and
+    ``s1/2.jpg`` are one image (found twice: refused as a duplicate, as the same name twice is). A leading ``/``
+    and leading ``..`` segments are kept; names are compared as written otherwise (case included: the file
+    systems the benchmarks ship on are case-sensitive)."""
+    if "//" not in name and "/." not in name and not name.startswith("./") and name != ".":
+        return name  # the common case, a plain a/b/c.jpg: already normal (a few hundred ns saved per record)
+    return posixpath.normpath(name)
+
+
 def inside(path: Path, root: Path) -> Path:
     """``path`` after checking that, symlinks resolved, it lies in ``root``: a link in a prediction or annotation
     folder never makes the evaluator read (and quote in an error) a file elsewhere (`Inside`, for one file).
@@ -135,6 +192,14 @@ def write_atomic(path: Path, text: str, inputs: Iterable[str | Path | None] = ()
         LaneFileError: the file cannot be written (naming it and why).
         OutputError: the temporary file would be one of ``inputs``.
     """
+    try:  # a FIFO, a device or a socket where the file goes is never replaced (as root: /dev/zero itself)
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        mode = stat.S_IFREG
+    except (OSError, ValueError) as e:
+        raise LaneFileError(f"{path}: cannot write: {e}") from None
+    if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+        raise LaneFileError(f"{path}: cannot write: a FIFO, device, socket or folder, not a file")
     try:
         fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as e:

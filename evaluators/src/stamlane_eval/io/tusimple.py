@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stamlane_eval.io.files import LaneFileError, gc_paused, is_json_number, json_float, read_file
+from stamlane_eval.io.files import LaneFileError, gc_paused, image_key, is_json_number, json_float, read_file
 from stamlane_eval.io.limits import MAX_COORDINATE, MAX_LANE_POINTS, MAX_LANES
 
 __all__ = [
@@ -269,9 +269,12 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
         if type(name) is not str or not name.strip():
             raise TuSimpleInputError(f"raw_file must be a non-empty string, got {name!r:.60}", role, i + 1)
         if role == "gt":
-            if name in first:
-                raise TuSimpleInputError(duplicate_raw_file(name, f"line {first[name] + 1}"), role, i + 1)
-            first[name] = i
+            key = image_key(name)  # s1/./2.jpg is s1/2.jpg: one image labelled twice
+            if key in first:
+                line = first[key]
+                also = "" if records[line]["raw_file"] == name else f" as {records[line]['raw_file']!r}"  # type: ignore[index]
+                raise TuSimpleInputError(duplicate_raw_file(name, f"line {line + 1}{also}"), role, i + 1)
+            first[key] = i
         if not isinstance(rec["lanes"], _SEQUENCES):
             raise TuSimpleInputError(f"lanes must be a list of lists of numbers, got {rec['lanes']!r:.60}", role, i + 1)
         names.append(name)

@@ -22,7 +22,16 @@ import numpy as np
 
 from stamlane_eval.cli_tools import parse_wxh
 from stamlane_eval.io.culane import culane_entries, culane_lines_path, read_culane_lines
-from stamlane_eval.io.files import LaneFileError, gc_paused, inside, is_json_number, json_float, read_file, read_text
+from stamlane_eval.io.files import (
+    LaneFileError,
+    gc_paused,
+    image_key,
+    inside,
+    is_json_number,
+    json_float,
+    read_file,
+    read_text,
+)
 from stamlane_eval.io.limits import MAX_COORDINATE, MAX_IMAGE_SIDE, MAX_LANE_POINTS, MAX_LANES
 from stamlane_eval.io.tusimple import (
     TuSimpleInputError,
@@ -139,9 +148,9 @@ class TuSimpleFrames:
 
 
 def tusimple_frame_key(raw_file: str) -> tuple[str, str] | None:
-    """``(sequence, frame)`` of a ``raw_file``: its folder and its name without the extension; None where it names
-    no folder."""
-    seq, _, name = raw_file.replace("\\", "/").rpartition("/")
+    """``(sequence, frame)`` of a ``raw_file``: its folder and its name without the extension, the name normalised
+    once (`image_key`: ``s1/./2.jpg`` is frame ``2`` of ``s1``); None where it names no folder."""
+    seq, _, name = image_key(raw_file.replace("\\", "/")).rpartition("/")
     seq = seq.strip("/")
     stem = name[: name.rfind(".")] if "." in name else name
     return (seq, stem) if seq and stem else None
@@ -301,7 +310,7 @@ def listed_frames(gt: Path, list_file: Path, kind: str) -> dict[str, list[tuple[
     first: dict[tuple[str, str], int] = {}  # (sequence, frame) -> the line that named it
     last = None
     for i, entry in enumerate(culane_entries(gt if gt.is_dir() else gt.parent, list_file), 1):
-        rel = entry.strip().lstrip("/")
+        rel = image_key(entry.strip()).lstrip("/")  # s1/./2.jpg is s1/2.jpg: one frame
         rel = rel[len("JPEGImages/") :] if rel.startswith("JPEGImages/") else rel  # evaluate_iou.py drops it too
         if "/" not in rel:
             raise LaneFileError(f"{list_file}: line {i}: {entry!r} names no sequence (expected <sequence>/<frame>)")
