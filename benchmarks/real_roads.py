@@ -257,9 +257,8 @@ def check(ckpt: str, shared: Path, frames: int | None, video_frames: int | None,
     frame_numbers, frame_lanes = score_frames(predictor, records, root)
     video_numbers, images, video_lanes = run_video(predictor, video, video_frames)
     labelled = [cv2.imread(str(root / r["raw_file"])) for r in records[:cells]]
-    picture = strip(
-        images, video_lanes, labelled, frame_lanes[:cells], [_gt_lanes(r) for r in records[:cells]], cells, ckpt
-    )
+    gt = [_gt_lanes(r) for r in records[:cells]]
+    picture = strip(images, video_lanes, labelled, frame_lanes[:cells], gt, cells, Path(ckpt).stem)
     result = {
         "checkpoint": ckpt,
         "num_frames": predictor.num_frames,

@@ -79,3 +79,59 @@ def test_missing_data_is_one_line_and_writes_nothing(bench, tmp_path: Path, caps
     assert len(err) == 1 and err[0].startswith("real_roads: error:") and "lanenet_frames.json" in err[0]
     assert not out.exists()
     assert bench.main(["--frames", "0", "--out", str(out)]) == 2 and not out.exists()
+
+
+def _tusimple_layout(root: Path, clips: int = 2, size: tuple[int, int] = (180, 320)) -> Path:
+    """A tiny set in TuSimple's own layout (``clips/<date>/<id>/1..20.jpg``, ``label_data_<date>.json`` labelling
+    frame 20): what a user with real data has, written here."""
+    rng = np.random.default_rng(0)
+    h, w = size
+    h_samples = list(range(80, h, 10))
+    records = []
+    for c in range(clips):
+        folder = root / "clips" / "0531" / f"14924{c:05d}"
+        folder.mkdir(parents=True)
+        lanes = [[round(w * (0.3 + 0.4 * k) + (y - 80) * (1.2 if k else -1.2)) for y in h_samples] for k in (0, 1)]
+        for frame in range(1, 21):
+            image = rng.integers(60, 110, (h, w, 3), dtype=np.uint8)
+            for lane in lanes:
+                points = np.array([(x, y) for x, y in zip(lane, h_samples) if 0 <= x < w], np.int32)
+                cv2.polylines(image, [points], False, (235, 235, 235), 3)
+            cv2.imwrite(str(folder / f"{frame}.jpg"), image)
+        lanes = [[x if 0 <= x < w else -2 for x in lane] for lane in lanes]
+        records.append({"raw_file": f"clips/0531/14924{c:05d}/20.jpg", "lanes": lanes, "h_samples": h_samples})
+    (root / "label_data_0531.json").write_text("".join(json.dumps(r) + "\n" for r in records))
+    return root
+
+
+def test_fine_tuning_a_shipped_model_on_a_tusimple_layout_set_is_one_command(tmp_path: Path, plain_argv: None):
+    import torch
+
+    from stamlane.cli import main as cli_main
+    from stamlane.weights import shipped_path
+
+    root = _tusimple_layout(tmp_path / "tusimple")
+    out = tmp_path / "run"
+    command = [  # docs/models.md, "Fine-tune on your own data", with a 1-step budget and a small input
+        "fit",
+        "--config",
+        str(REPO / "configs" / "demo.yaml"),
+        f"--data.root={root}",
+        "--data.train_labels=[label_data_0531.json]",
+        "--data.val_labels=[label_data_0531.json]",
+        "--model.init_weights=stam4-synthetic",
+        "--trainer.max_steps=1",
+        "--trainer.val_check_interval=1",
+        "--data.loader.batch_size=2",
+        "--data.loader.num_workers=0",
+        f"--trainer.default_root_dir={out}",
+        f"--trainer.logger.save_dir={out}",
+        "--trainer.enable_progress_bar=false",
+    ]
+    assert cli_main(command) == 0
+    tuned = torch.load(next(out.rglob("last.ckpt")), weights_only=True)
+    shipped = torch.load(shipped_path("stam4-synthetic"), weights_only=True)["state_dict"]
+    assert tuned["global_step"] == 1
+    weights = [k for k, v in shipped.items() if v.is_floating_point() and "running_" not in k]  # not BN statistics
+    moved = [float((tuned["state_dict"][k] - shipped[k]).abs().max()) for k in weights]
+    assert 0 < max(moved) <= 0.0021  # one AdamW step of lr 0.002 from the shipped weights, not a fresh initialisation
