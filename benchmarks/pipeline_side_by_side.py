@@ -125,14 +125,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--test", type=int, default=12)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--steps", type=int, default=20)
-    parser.add_argument("--skip", nargs="*", default=[], choices=("render", "predict", "fit"))
+    parser.add_argument(
+        "--skip", nargs="*", default=[], choices=("render", "predict", "fit"), help="parts not run (kept in --out)"
+    )
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/pipeline_side_by_side.json"))
     args = parser.parse_args(argv)
     import torch
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
     warnings.filterwarnings("ignore")
-    result: dict = {"cpu_count": os.cpu_count(), "args": {k: v for k, v in vars(args).items() if k != "out"}}
+    result: dict = {"cpu_count": os.cpu_count(), "load_average_1min_at_start": round(os.getloadavg()[0], 1)}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         root = tmp / "one"
@@ -140,12 +142,15 @@ def main(argv: list[str] | None = None) -> int:
             one = render(root, args.train, args.test, 1)
             two = render(tmp / "two", args.train, args.test, 2)
             same = _files(root) == _files(tmp / "two")
-            result["render"] = {"workers_1_s": round(one, 2), "workers_2_s": round(two, 2), "same_bytes": same}
+            result["render"] = {"clips": args.train + args.test + 2, "workers_1_s": round(one, 2)}
+            result["render"] |= {"workers_2_s": round(two, 2), "same_bytes": same}
             print(f"set: 1 worker {one:.1f} s, 2 workers {two:.1f} s (x{one / two:.2f}); the same bytes: {same}")
             shutil.rmtree(tmp / "two")
         else:
             render(root, args.train, args.test, 2)
         if "predict" not in args.skip:
+            with cache_off():  # imports and first-call costs out of the timings
+                predict(root, tmp / "pred-warm-up")
             cold, first = predict(root, tmp / "pred-cold")  # fills the cache
             times: dict[str, list[float]] = {"afresh": [], "cached": []}
             lanes = {}
@@ -156,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
                     times[mode].append(seconds)
             same = lanes["afresh"] == lanes["cached"] == first
             med = {k: statistics.median(v) for k, v in times.items()}
-            result["predict"] = {"images": len(first), "cold_s": round(cold, 2), "times_s": times, "same_lanes": same}
+            result["predict"] = {"images": len(first), "repeats": args.repeats, "cold_s": round(cold, 2)}
+            result["predict"] |= {"times_s": times, "same_lanes": same}
             print(
                 f"prediction pass of {len(first)} images: afresh {med['afresh']:.1f} s, cached {med['cached']:.1f} s "
                 f"(x{med['afresh'] / med['cached']:.2f}), first pass into the empty cache {cold:.1f} s; "
@@ -173,13 +179,16 @@ def main(argv: list[str] | None = None) -> int:
                     times[mode].append(seconds)
             same = all(torch.equal(weights["afresh"][k], weights["cached"][k]) for k in weights["afresh"])
             med = {k: statistics.median(v) for k, v in times.items()}
-            result["fit"] = {"steps": args.steps, "cold_s": round(cold, 2), "times_s": times, "same_weights": same}
+            result["fit"] = {"steps": args.steps, "train_clips": args.train, "cold_s": round(cold, 2)}
+            result["fit"] |= {"times_s": times, "same_weights": same}
             print(
                 f"training run of {args.steps} steps: afresh {med['afresh']:.1f} s, cached {med['cached']:.1f} s "
                 f"(x{med['afresh'] / med['cached']:.2f}), first run into the empty cache {cold:.1f} s; the same final "
                 f"weights, bit for bit: {same}"
             )
     args.out.parent.mkdir(parents=True, exist_ok=True)
+    if args.skip and args.out.is_file():  # the parts skipped keep their earlier results
+        result = json.loads(args.out.read_text()) | result
     args.out.write_text(json.dumps(result, indent=1))
     print(f"wrote {args.out}")
     return 0

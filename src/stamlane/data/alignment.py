@@ -59,8 +59,9 @@ class ClipAligner:
             docstring); False: this object's memo only.
     """
 
-    MEMO_PAIRS = 200_000
-    """Frame pairs this object keeps in memory (about 100 MB) before it starts afresh (the disk cache stays)."""
+    MEMO_PAIRS = 50_000
+    """Frame pairs this object keeps in memory (about 35 MB; a demo training run uses about 3,000) before it starts
+    afresh (the disk cache stays)."""
 
     def __init__(
         self,
