@@ -38,6 +38,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 import argparse
 import functools
 import importlib
+import importlib.metadata
 import json
 import math
 import multiprocessing
@@ -277,6 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         "cpu": cpu_name(),
         "cores": os.cpu_count(),
         "device": args.device,
+        "torch": importlib.metadata.version("torch"),
         "threads": args.threads,
         "quick": args.quick,
         "steps": args.steps,
