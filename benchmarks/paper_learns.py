@@ -5,18 +5,21 @@ variant, step by step.
 
 Usage::
 
-    python benchmarks/paper_learns.py --steps 150 --batch 1            # what docs/results/paper-learns holds
-    python benchmarks/paper_learns.py --quick                          # a few steps of a tiny set (a smoke test)
+    python benchmarks/paper_learns.py                   # the three runs of RUNS (what docs/results/paper-learns holds)
+    python benchmarks/paper_learns.py --runs stable-128x256 &  python benchmarks/paper_learns.py --runs \
+        paper-256x512 stable-256x512                    # the same, in two processes (one set of files at the end)
+    python benchmarks/paper_learns.py --quick           # 4 steps of each variant on a tiny set (a smoke test)
 
-Each variant is one ``stamlane fit`` of the paper config with the overlay of the variant (``VARIANTS``) and the
-same command-line overrides (the number of steps, the batch, the image size, where the data and logs go,
+Each run is one ``stamlane fit`` of the paper config with the layer of its variant (``VARIANTS``) and the same
+command-line overrides (its number of steps and input size, the batch, where the data and logs go,
 ``model.report_run_time false`` so that validation F1 does not depend on the CPU's speed, one DataLoader process),
-run one after the other with ``--threads`` torch threads. The set is generated first when ``--root`` holds none
+run one after the other with ``--threads`` torch threads; one seed. The set is generated first when ``--root`` holds none
 (``stamlane synth --layout tusimple``) and aligned (``stamlane align``, the config's ``align: cache``).
 
-Writes into ``--out`` (default ``outputs/bench/paper-learns``): ``curve.csv`` (variant, step, train loss, validation
-loss, validation F1, learning rate), ``summary.json`` (the commands, settings, CPU, seconds and the first / last
-numbers of each variant) and ``curve.png`` (the three curves).
+Writes into ``--out`` (default ``outputs/bench/paper-learns``): ``<run>.json`` as each run ends, then ``curve.csv``
+(run, step, train loss, validation loss, validation F1, learning rate), ``paper-learns.json`` (the commands,
+settings, CPU, seconds and the first / last numbers of each run) and ``curve.png`` (the three curves) of every run
+in the folder (``--combine-only``: those alone, from the runs' files).
 """
 
 from __future__ import annotations
@@ -209,6 +212,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--threads", type=int, default=1, help="torch threads (OMP_NUM_THREADS)")
     parser.add_argument("--quick", action="store_true", help="a tiny set, 64x128, 4 steps a variant (a smoke test)")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/paper-learns"))
+    parser.add_argument("--combine-only", action="store_true", help="only combine the runs' files in --out")
     return parser
 
 
@@ -253,7 +257,7 @@ def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict | None
 
 
 def combine(out: Path, info: dict) -> None:
-    """``curve.csv``, ``summary.json`` and ``curve.png`` of every run whose ``<name>.json`` is in ``out`` (runs
+    """``curve.csv``, ``paper-learns.json`` and ``curve.png`` of every run whose ``<name>.json`` is in ``out`` (runs
     made by several invocations, one after the other or side by side, end in one set of files)."""
     rows, runs = [], {}
     for name in [*RUNS, *QUICK_RUNS]:
@@ -268,9 +272,9 @@ def combine(out: Path, info: dict) -> None:
         writer.writeheader()
         writer.writerows(rows)
     tmp.replace(out / "curve.csv")
-    tmp = out / "summary.json.tmp"
+    tmp = out / "paper-learns.json.tmp"
     tmp.write_text(json.dumps({**info, "runs": runs}, indent=2))
-    tmp.replace(out / "summary.json")
+    tmp.replace(out / "paper-learns.json")
     title = (
         f"configs/tusimple_stam4.yaml from scratch (width 1.0, 4 frames, SGD lr 0.05), batch {info['batch']}, "
         f"synthetic TuSimple-layout set ({info['set']['size']}), seed {info['seed']} (one seed), {info['cpu']}"
@@ -290,7 +294,6 @@ def main(argv: list[str] | None = None) -> int:
     args.root = args.root.resolve()
     args.out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    make_set(args.root, args.clips, args.size, args.frames)
     info = {
         "cpu": cpu_name(),
         "cores": os.cpu_count(),
@@ -298,11 +301,16 @@ def main(argv: list[str] | None = None) -> int:
         "batch": args.batch,
         "set": {"clips": args.clips, "size": args.size, "frames": args.frames, "layout": "tusimple"},
     }
+    if args.combine_only:
+        combine(args.out, info)
+        print(f"wrote {args.out}/curve.csv, paper-learns.json, curve.png")
+        return 0
+    make_set(args.root, args.clips, args.size, args.frames)
     for name in args.runs:
         if run(name, args, env) is None:
             return 1
     combine(args.out, info)
-    print(f"wrote {args.out}/curve.csv, summary.json, curve.png ({time.perf_counter() - started:.0f} s)")
+    print(f"wrote {args.out}/curve.csv, paper-learns.json, curve.png ({time.perf_counter() - started:.0f} s)")
     return 0
 
 

@@ -38,6 +38,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 import argparse
 import functools
 import importlib
+import importlib.metadata
 import json
 import math
 import multiprocessing
@@ -227,7 +228,7 @@ def _table(rows: list[dict], centre: dict) -> str:
     base = next(r for r in rows if all(r[k] == v for k, v in centre.items()))
     memory = "peak GPU MB" if "peak_gpu_mb" in base else "peak RSS MB"
     lines = [
-        f"| width | frames | image | batch | s / step | x paper model | {memory} | bf16 |",
+        f"| width | frames | image | batch | s / step | x first row | {memory} | bf16 |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -249,11 +250,18 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1: a shared CPU)")
     parser.add_argument("--only", choices=("steps", "loading"), default=None, help="one of the two parts alone")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/scale.json"))
+    parser.add_argument("--replot", action="store_true", help="only rewrite the table and plot of --out's json")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.replot:
+        if not args.out.is_file():
+            print(f"scale.py: --replot needs --out's json, {args.out} is not a file", file=sys.stderr)
+            return 2
+        print(report(json.loads(args.out.read_text()), args.out))
+        return 0
     if args.steps < 1 or args.warmup < 0 or args.threads < 1 or (args.batch and min(args.batch) < 1):
         print("scale.py: --steps, --threads and --batch must be >= 1, --warmup >= 0", file=sys.stderr)
         return 2
@@ -270,6 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         "cpu": cpu_name(),
         "cores": os.cpu_count(),
         "device": args.device,
+        "torch": importlib.metadata.version("torch"),
         "threads": args.threads,
         "quick": args.quick,
         "steps": args.steps,
@@ -311,14 +320,78 @@ def main(argv: list[str] | None = None) -> int:
     tmp_out = args.out.with_suffix(".json.tmp")
     tmp_out.write_text(json.dumps(payload, indent=2))
     tmp_out.replace(args.out)
-    if rows:
-        table = _table(rows, centre)
-        clock = "CPU seconds (process time)" if args.device == "cpu" else "seconds"
-        header = f"{payload['cpu']}, {args.device}, {args.threads} thread(s), {clock}, median of {args.steps} steps\n\n"
-        args.out.with_suffix(".md").write_text(header + table + "\n")
-        print("\n" + table)
+    print("\n" + report(payload, args.out))
     print(f"\nwrote {args.out} ({payload['seconds']:.0f} s)")
     return 0
+
+
+def report(payload: dict, out: Path) -> str:
+    """Write the markdown table (``out`` with ``.md``) and, where matplotlib is installed, the curves (``.png``)
+    of a run's ``payload``; returns the table."""
+    centre = {**payload["centre"], "size": tuple(payload["centre"]["size"])}
+    rows = [{**r, "size": tuple(r["size"])} for r in payload.get("steps_table", [])]
+    clock = "CPU seconds (process time)" if payload["device"] == "cpu" else "seconds"
+    lines = [
+        f"{payload['cpu']} ({payload['cores']} cores, shared), {payload['device']}, {payload['threads']} thread(s); "
+        f"{clock} per step, median of {payload['steps']} after {payload['warmup']} warm-up",
+        "",
+    ]
+    if rows:
+        lines += [_table(rows, centre), ""]
+    loading = payload.get("loading")
+    if loading:
+        h, w = loading["source_size"]
+        lines += [f"| loading a sample ({w}x{h} frames) | s | of a step | workers to feed a step, per batch |"]
+        lines += ["|---|---|---|---|"]
+        for align in ("cache", "fly"):
+            r = loading[align]
+            feed = ", ".join(f"batch {b}: {n}" for b, n in r.get("workers_to_feed", {}).items())
+            lines += [
+                f"| alignment {align} | {r['load_s']:.3f} | {r.get('load_over_step', float('nan')):.3f} | {feed} |"
+            ]
+    text = "\n".join(lines) + "\n"
+    tmp = out.with_suffix(".md.tmp")
+    tmp.write_text(text)
+    tmp.replace(out.with_suffix(".md"))
+    if rows:
+        _plot(rows, centre, out.with_suffix(".png"), lines[0])
+    return text
+
+
+def _plot(rows: list[dict], centre: dict, path: Path, title: str) -> None:
+    """Seconds per step and peak memory against each axis (the others at ``centre``)."""
+    try:
+        import matplotlib
+    except ImportError:
+        return
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    axes_of = {
+        "size": ("image pixels (M)", lambda v: v[0] * v[1] / 1e6),
+        "frames": ("frames", float),
+        "width": ("width", float),
+        "batch": ("batch", float),
+    }
+    fig, axes = plt.subplots(2, 4, figsize=(16, 6.5))
+    for col, (axis, (label, value)) in enumerate(axes_of.items()):
+        mine = sorted(
+            (r for r in rows if all(r[k] == centre[k] for k in centre if k != axis)), key=lambda r: value(r[axis])
+        )
+        xs = [value(r[axis]) for r in mine]
+        axes[0, col].plot(xs, [r["step_s"] for r in mine], "o-")
+        axes[1, col].plot(xs, [r.get("peak_gpu_mb", r["peak_rss_mb"]) / 1024 for r in mine], "o-", color="C1")
+        axes[0, col].set_title(f"s / step against {axis}")
+        axes[1, col].set_xlabel(label)
+        axes[1, col].set_ylabel("peak memory (GB)")
+        for ax in axes[:, col]:
+            ax.set_ylim(bottom=0)
+            ax.grid(alpha=0.3)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    tmp = path.with_suffix(".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    tmp.replace(path)
 
 
 def _by_batch(rows: list[dict], centre: dict) -> dict[int, dict]:

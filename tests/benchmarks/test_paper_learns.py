@@ -80,7 +80,7 @@ def test_quick_mode_trains_and_writes_the_curve(tmp_path: Path, capsys: pytest.C
     rows = list(csv.DictReader((out / "curve.csv").open()))
     assert [int(r["step"]) for r in rows if r["train_loss"]] == [1, 2, 3, 4]
     assert [int(r["step"]) for r in rows if r["val_f1"]] == [2, 4]
-    summary = json.loads((out / "summary.json").read_text())
+    summary = json.loads((out / "paper-learns.json").read_text())
     run = summary["runs"]["stable-quick"]
     assert run["overlays"] == ["configs/common/stable_sgd.yaml"] and run["image_size"] == [64, 128]
     assert "--config=" in run["command"] and not run["diverged"]

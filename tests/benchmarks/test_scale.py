@@ -51,7 +51,11 @@ def test_quick_mode_measures_everything(tmp_path: Path, capsys: pytest.CaptureFi
         assert loading["samples"] == 2 and loading["failures"] == 0 and loading["load_s"] > 0
         assert loading["workers_to_feed"]["1"] >= 1
     table = out.with_suffix(".md").read_text()
-    assert "| 0.25 | 2 | 64x128 | 1 |" in table and "CPU seconds" in table
+    assert "| 0.25 | 2 | 64x128 | 1 |" in table and "CPU seconds" in table and "| alignment fly |" in table
+    assert out.with_suffix(".png").stat().st_size > 1000
+    before = table
+    out.with_suffix(".md").unlink()
+    assert scale.main(["--replot", "--out", str(out)]) == 0 and out.with_suffix(".md").read_text() == before
     assert "workers to keep a step fed" in capsys.readouterr().out
 
 
