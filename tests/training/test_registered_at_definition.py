@@ -16,6 +16,7 @@ import torch
 
 from stamlane.cli import main
 from stamlane.training.registry import registry
+from tests.training.tiny_runs import tiny_args
 
 REPO = Path(__file__).resolve().parents[2]
 torch.set_num_threads(1)
@@ -24,34 +25,12 @@ pytestmark = pytest.mark.usefixtures("plain_argv")
 MONITOR = "stamlane.training.history_use_monitor.HistoryUseMonitor"
 
 
-def _fit_args(root: Path, out: Path, *extra: str) -> list[str]:
-    """The demo config shrunk to seconds: 2 frames at 64x128, width 1/8, no alignment."""
-    return [
-        "--config",
-        str(REPO / "configs" / "demo.yaml"),
-        f"--data.root={root}",
-        "--data.clip.num_frames=2",
-        "--data.clip.image_size=[64, 128]",
-        "--data.loader.batch_size=2",
-        "--data.loader.num_workers=0",
-        "--data.clip.align=none",
-        "--model.encoder.width=0.125",
-        "--model.bf16=false",
-        "--model.channels_last=false",
-        f"--trainer.default_root_dir={out}",
-        f"--trainer.logger.save_dir={out}",
-        "--trainer.enable_progress_bar=false",
-        "--trainer.enable_model_summary=false",
-        *extra,
-    ]
-
-
 def test_a_run_with_the_history_monitor_opens_from_its_checkpoint(
     tiny_synthetic: Callable[..., Path], tmp_path: Path
 ) -> None:
     root = tiny_synthetic(256, 144, 2, train=2, val=2, test=2, challenging=0)
     run = tmp_path / "run"
-    assert main(["fit", *_fit_args(root, run, "--trainer.max_steps=2", f"--trainer.callbacks+={MONITOR}")]) == 0
+    assert main(["fit", *tiny_args(root, run, "--trainer.max_steps=2", f"--trainer.callbacks+={MONITOR}")]) == 0
     last = next(run.rglob("last.ckpt"))
     assert main(["validate", f"--ckpt_path={last}", f"--data.root={root}", "--trainer.logger=false"]) == 0
     out = tmp_path / "predictions"
