@@ -21,7 +21,7 @@ import numpy as np
 import torch
 import yaml
 
-from stamlane.data.clips import make_clips
+from stamlane.data.layouts import make_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.training.module import StamLaneModule

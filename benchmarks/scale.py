@@ -188,7 +188,7 @@ def measure_loading(root: Path, frames: int, size: tuple[int, int], threads: int
     import cv2
     import torch
 
-    from stamlane.data.clips import TuSimpleClips
+    from stamlane.data.layouts import TuSimpleClips
     from stamlane.data.options import ClipOptions
 
     torch.set_num_threads(threads)

@@ -221,7 +221,7 @@ def _load(ckpt: Path) -> tuple[torch.nn.Module, ClipOptions]:
 
 
 def _dataset(module: torch.nn.Module, clip: ClipOptions, root: Path, labels: list[str], warp: str = "image") -> object:
-    from stamlane.data.clips import TuSimpleClips
+    from stamlane.data.layouts import TuSimpleClips
 
     return TuSimpleClips(
         root,

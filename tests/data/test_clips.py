@@ -208,8 +208,9 @@ def test_the_clip_options_are_declared_once(tusimple_root: Path) -> None:
     import inspect
     from dataclasses import fields
 
-    from stamlane.data.clips import DATASETS, ClipDataset
+    from stamlane.data.clips import ClipDataset
     from stamlane.data.frames import FolderClips
+    from stamlane.data.layouts import DATASETS
 
     names = {f.name for f in fields(ClipOptions)}
     for cls in (ClipDataset, FolderClips, *DATASETS.values()):

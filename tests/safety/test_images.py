@@ -36,8 +36,8 @@ def test_whole_files_read_and_truncated_ones_do_not(tmp_path: Path, suffix: str)
 
 def test_a_truncated_key_frame_is_a_data_error_and_align_says_so(tiny_synthetic, tmp_path: Path, capsys) -> None:
     from stamlane.align.cli import main as align
-    from stamlane.data.clips import TuSimpleClips
     from stamlane.data.labels import DataError
+    from stamlane.data.layouts import TuSimpleClips
     from stamlane.data.options import ClipOptions
 
     root = tiny_synthetic(96, 64, 4, train=1, val=0, test=0, challenging=0, seed=2)

@@ -11,17 +11,10 @@ from __future__ import annotations
 from typing import Any
 
 from stamlane.data.alignment import ALIGN_MODES, WARP_MODES, ClipAligner
-from stamlane.data.clips import (
-    NET_HOMOGRAPHIES,
-    ApolloClips,
-    ClipDataset,
-    ClipEntry,
-    CULaneClips,
-    TuSimpleClips,
-    VIL100Clips,
-)
+from stamlane.data.clips import NET_HOMOGRAPHIES, ClipDataset, ClipEntry
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
+from stamlane.data.layouts import ApolloClips, CULaneClips, TuSimpleClips, VIL100Clips
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipParams, ClipTransform, net_homographies

@@ -1,4 +1,5 @@
-"""Clip datasets for the TuSimple, ApolloScape, CULane and VIL-100 layouts (docs/method.md §6).
+"""The clip dataset every layout shares (docs/method.md §6); the TuSimple, ApolloScape, CULane and VIL-100 layouts
+are `stamlane.data.layouts`.
 
 Every dataset indexes its label/list files once, finds each key frame's history frames (by frame
 number, or by order within the folder), and returns samples as ``stamlane.types`` describes:
@@ -28,7 +29,6 @@ from typing import Any
 import cv2
 import numpy as np
 import torch
-from stamlane_eval.io import duplicate_raw_file
 from torch.utils.data import Dataset
 
 from stamlane.data.alignment import ClipAligner
@@ -36,11 +36,7 @@ from stamlane.data.corruption import KeyFrameCorruption
 from stamlane.data.labels import (
     DataError,
     history_name,
-    read_culane_lines,
-    read_tusimple_labels,
-    read_vil100_json,
     resolve_inside,
-    tusimple_lanes,
 )
 from stamlane.data.options import ClipOptions
 from stamlane.data.targets import draw_lane_targets, left_to_right
@@ -49,20 +45,13 @@ from stamlane.safety.images import read_image
 from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [
-    "DATASETS",
-    "FORMATS",
     "FRAME_LOOKUPS",
     "HISTORY_SOURCES",
     "IMAGE_SUFFIXES",
     "NET_HOMOGRAPHIES",
-    "ApolloClips",
-    "CULaneClips",
     "ClipDataset",
     "ClipEntry",
-    "TuSimpleClips",
-    "VIL100Clips",
     "frame_order",
-    "make_clips",
     "warped_key",
 ]
 
@@ -354,6 +343,21 @@ class ClipDataset(Dataset):
         return sample
 
 
+def _check_inside(entry: ClipEntry, width: int, height: int) -> None:
+    """Refuse lane points more than one image size outside the ``width`` x ``height`` frame: drawn as a target,
+    such a lane would cross the image on a line the annotation never meant (points just outside, as CULane's
+    lanes that run off the border, are fine)."""
+    for k, lane in enumerate(entry.lanes):
+        if len(lane) and (
+            np.abs(lane[:, 0] - width / 2).max() > 1.5 * width or np.abs(lane[:, 1] - height / 2).max() > 1.5 * height
+        ):
+            far = lane[np.argmax(np.abs(lane[:, 0] - width / 2) / width + np.abs(lane[:, 1] - height / 2) / height)]
+            raise DataError(
+                f"{entry.label_file}: lane {k} has the point ({far[0]:g}, {far[1]:g}), far outside the "
+                f"{width}x{height} image"
+            )
+
+
 def warped_key(key: np.ndarray, key_from_hist: np.ndarray) -> list[np.ndarray]:
     """The matched null of a clip's history: the key frame as each history frame's view would show it.
 
@@ -373,207 +377,3 @@ def warped_key(key: np.ndarray, key_from_hist: np.ndarray) -> list[np.ndarray]:
         for m in key_from_hist[:-1]
     ]
     return [*out, key]
-
-
-def _image_token(line: str) -> str:
-    """The image path of a list-file line: tokens up to the first one with an image suffix (paths such as
-    ApolloScape's ``Camera 5/...`` contain spaces), else the first token."""
-    tokens = line.split()
-    for i, tok in enumerate(tokens):
-        if tok.lower().endswith(IMAGE_SUFFIXES):
-            return " ".join(tokens[: i + 1])
-    return tokens[0]
-
-
-class TuSimpleClips(ClipDataset):
-    """TuSimple: label json-lines (``raw_file`` = ``clips/<date>/<id>/20.jpg``, ``lanes``, ``h_samples``);
-    history frames by number in the same folder (T = 4, stride 1 gives frames 17..20).
-
-    Args:
-        root: data root.
-        labels: label files relative to the root (e.g. ``["label_data_0313.json"]``).
-        **kwargs: see ``ClipDataset``.
-    """
-
-    format = "tusimple"
-
-    def __init__(self, root: str | Path, labels: list[str] | str, **kwargs: Any) -> None:
-        self.labels = [labels] if isinstance(labels, str) else list(labels)
-        if not self.labels:
-            raise ValueError("labels must name at least one label file")
-        super().__init__(root, **kwargs)
-
-    def _index(self) -> list[ClipEntry | DataError]:
-        out: list[ClipEntry | DataError] = []
-        seen: dict[str, str] = {}
-        for name in self.labels:
-            path = resolve_inside(self.root, name, "labels")
-            for number, rec in read_tusimple_labels(path):
-                if isinstance(rec, DataError):
-                    out.append(rec)
-                    continue
-                source = f"{path}:{number}"
-                if rec["raw_file"] in seen:  # two labels for one image: the evaluator's check, the same message
-                    out.append(DataError(f"{source}: {duplicate_raw_file(rec['raw_file'], seen[rec['raw_file']])}"))
-                    continue
-                seen[rec["raw_file"]] = source
-                try:
-                    frames = self._clip_paths(rec["raw_file"], source)
-                except DataError as err:
-                    out.append(err)
-                    continue
-                out.append(ClipEntry(rec["raw_file"], frames, tusimple_lanes(rec), list(rec["h_samples"]), source))
-        return out
-
-
-def _check_inside(entry: ClipEntry, width: int, height: int) -> None:
-    """Refuse lane points more than one image size outside the ``width`` x ``height`` frame: drawn as a target,
-    such a lane would cross the image on a line the annotation never meant (points just outside, as CULane's
-    lanes that run off the border, are fine)."""
-    for k, lane in enumerate(entry.lanes):
-        if len(lane) and (
-            np.abs(lane[:, 0] - width / 2).max() > 1.5 * width or np.abs(lane[:, 1] - height / 2).max() > 1.5 * height
-        ):
-            far = lane[np.argmax(np.abs(lane[:, 0] - width / 2) / width + np.abs(lane[:, 1] - height / 2) / height)]
-            raise DataError(
-                f"{entry.label_file}: lane {k} has the point ({far[0]:g}, {far[1]:g}), far outside the "
-                f"{width}x{height} image"
-            )
-
-
-class _ListClips(ClipDataset):
-    """Datasets indexed by list files of image paths (first token per line, relative to the root)."""
-
-    def __init__(self, root: str | Path, lists: list[str] | str, **kwargs: Any) -> None:
-        self.lists = [lists] if isinstance(lists, str) else list(lists)
-        if not self.lists:
-            raise ValueError("lists must name at least one list file")
-        super().__init__(root, **kwargs)
-
-    def _label_path(self, image_rel: str) -> Path:
-        raise NotImplementedError
-
-    def _read_lanes(self, path: Path) -> list[np.ndarray]:
-        raise NotImplementedError
-
-    def _index(self) -> list[ClipEntry | DataError]:
-        out: list[ClipEntry | DataError] = []
-        seen: dict[str, str] = {}
-        for name in self.lists:
-            path = resolve_inside(self.root, name, "lists")
-            try:
-                lines = path.read_text().splitlines()
-            except OSError as err:
-                raise DataError(f"cannot read list file {path}: {err}") from err
-            for number, line in enumerate(lines, start=1):
-                if not line.strip():
-                    continue
-                source = f"{path}:{number}"
-                image_rel = _image_token(line)
-                if image_rel in seen:
-                    out.append(DataError(f"{source}: duplicate entry {image_rel!r} (first at {seen[image_rel]})"))
-                    continue
-                seen[image_rel] = source
-                try:
-                    frames = self._clip_paths(image_rel, source)
-                    label = self._label_path(frames[-1])
-                    if label.is_file() or self.require_labels:
-                        lanes = self._read_lanes(label)
-                    else:
-                        lanes = []
-                except DataError as err:
-                    out.append(DataError(f"{source}: {err}") if source not in str(err) else err)
-                    continue
-                out.append(ClipEntry(frames[-1], frames, lanes, None, str(label)))
-        return out
-
-
-class CULaneClips(_ListClips):
-    """CULane: list files of image paths (``/driver_xx/<video>.MP4/00030.jpg ...``), one ``.lines.txt``
-    beside each image (``00030.lines.txt``: one lane a line, ``x1 y1 x2 y2 ...``).
-
-    CULane keeps every 30th frame of its videos, so history frames come by name with ``stride=30`` where
-    they exist; use ``clip.num_frames=1`` for the single-frame protocol, or ``clip.repeat_missing_history=True``.
-    """
-
-    format = "culane"
-
-    def _label_path(self, image_rel: str) -> Path:
-        return (self.root / image_rel).with_suffix(".lines.txt")
-
-    def _read_lanes(self, path: Path) -> list[np.ndarray]:
-        return read_culane_lines(path)
-
-
-class ApolloClips(_ListClips):
-    """ApolloScape lane sequences with per-frame lane points in the CULane text form.
-
-    The paper's ApolloScape point labels were never published, so this loader reads the ApolloScape
-    image sequences (e.g. ``ColorImage_road02/ColorImage/Record001/Camera 5/<stamp>_Camera_5.jpg``)
-    with ``<frame>.lines.txt`` either beside each image or, with ``label_dir``, mirrored under
-    ``<root>/<label_dir>/<same relative path>``. History frames are the previous images in the
-    folder's sorted listing (``frame_lookup="sorted"``; the frame names are timestamps).
-
-    Args:
-        root: data root.
-        lists: list files of key-frame image paths.
-        label_dir: folder (relative to root) that mirrors the image tree with ``.lines.txt`` files.
-        **kwargs: see ``ClipDataset``.
-    """
-
-    format = "apollo"
-    frame_lookup = "sorted"
-
-    def __init__(self, root: str | Path, lists: list[str] | str, label_dir: str | None = None, **kwargs: Any) -> None:
-        self.label_dir = label_dir
-        super().__init__(root, lists, **kwargs)
-
-    def _label_path(self, image_rel: str) -> Path:
-        rel = PurePosixPath(image_rel).with_suffix(".lines.txt")
-        if self.label_dir:
-            return resolve_inside(self.root, str(PurePosixPath(self.label_dir) / rel), "label_dir")
-        return self.root / rel
-
-    def _read_lanes(self, path: Path) -> list[np.ndarray]:
-        return read_culane_lines(path)
-
-
-class VIL100Clips(_ListClips):
-    """VIL-100: ``JPEGImages/<video>/<frame>.jpg`` with ``Json/<video>/<frame>.jpg.json`` per frame (every
-    frame labelled, so a clip can end on any frame). List files name key frames (e.g. VIL-100's
-    ``data/train.txt``: ``/JPEGImages/<video>/00000.jpg ...``); history frames by number.
-    """
-
-    format = "vil100"
-
-    def _label_path(self, image_rel: str) -> Path:
-        parts = PurePosixPath(image_rel).parts
-        if not parts or parts[0] != "JPEGImages":
-            raise DataError(f"VIL-100 image path {image_rel!r} does not start with JPEGImages/")
-        return self.root / "Json" / PurePosixPath(*parts[1:]).with_name(parts[-1] + ".json")
-
-    def _read_lanes(self, path: Path) -> list[np.ndarray]:
-        return read_vil100_json(path)
-
-
-DATASETS: dict[str, type[ClipDataset]] = {
-    cls.format: cls for cls in (TuSimpleClips, CULaneClips, ApolloClips, VIL100Clips)
-}
-"""The dataset of each format (each class names its own ``format``): the one list of formats."""
-FORMATS = tuple(DATASETS)
-
-
-def make_clips(
-    format: str, root: str | Path, files: list[str] | str, label_dir: str | None = None, **kwargs: Any
-) -> ClipDataset:
-    """The dataset of ``format`` (`FORMATS`) over the label or list ``files``; ``label_dir`` is ApolloScape's.
-
-    Raises:
-        ValueError: an unknown format, or ``label_dir`` for another format than ApolloScape.
-    """
-    if format not in DATASETS:
-        raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
-    if label_dir is not None and DATASETS[format] is not ApolloClips:
-        raise ValueError(f"label_dir is ApolloScape's option, not {format!r}'s")
-    extra = {"label_dir": label_dir} if DATASETS[format] is ApolloClips else {}
-    return DATASETS[format](root, files, **extra, **kwargs)

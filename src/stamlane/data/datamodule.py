@@ -19,10 +19,11 @@ from lightning import LightningDataModule
 from lightning.pytorch.overrides.distributed import UnrepeatedDistributedSampler
 from torch.utils.data import DataLoader, Dataset
 
-from stamlane.data.clips import FORMATS, HISTORY_SOURCES, ClipDataset, make_clips
+from stamlane.data.clips import HISTORY_SOURCES, ClipDataset
 from stamlane.data.collate import collate_clips
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
+from stamlane.data.layouts import FORMATS, make_clips
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION
@@ -109,7 +110,7 @@ class ClipDataModule(LightningDataModule):
             generated when missing (with a progress bar) as ``synth`` says; the default label files are then
             ``train.json``/``val.json``/``test.json`` (``predict`` uses ``test.json``).
         format: ``"tusimple"`` (also the synthetic sets and custom data), ``"culane"``, ``"apollo"``,
-            ``"vil100"`` (`stamlane.data.clips.FORMATS`).
+            ``"vil100"`` (`stamlane.data.layouts.FORMATS`).
         clip: how a clip is read and resized (frames, stride, size, sky cut, alignment), in every split.
         augment: the training augmentation and key-frame corruption; validation/test/predict only resize.
         synth: the synthetic set generated when ``root`` is None.

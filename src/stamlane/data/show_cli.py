@@ -17,7 +17,8 @@ import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status, parse_wxh
 
 from stamlane.data.alignment import ALIGN_MODES
-from stamlane.data.clips import FORMATS, ClipDataset, make_clips
+from stamlane.data.clips import ClipDataset
+from stamlane.data.layouts import FORMATS, make_clips
 from stamlane.data.options import ClipOptions
 from stamlane.data.transforms import ClipTransform
 from stamlane.safety.boundary import run_command
