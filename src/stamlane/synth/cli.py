@@ -132,13 +132,8 @@ def _synth(args: argparse.Namespace) -> int:
     counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
     # never written over: a folder holding anything synth did not write (its owner file), whatever the names; one of
     # synth's own holding a whole set (an interrupted one is written again)
-    existing = [
-        name
-        for name in ("dataset.json", "train.json", "val.json", "test.json", "label_data_0313.json", "test_label.json")
-        if (Path(args.out) / name).exists()
-    ]
-    if existing:
-        print(f"stamlane synth: {args.out} already holds a set ({existing[0]}); give another --out", file=sys.stderr)
+    if (Path(args.out) / "dataset.json").exists():  # written last by either layout: a whole set
+        print(f"stamlane synth: {args.out} already holds a set (dataset.json); give another --out", file=sys.stderr)
         return 2
     claim(args.out, SYNTH_OWNER, "--out", strict=True)
     tusimple = args.layout == "tusimple"
