@@ -36,6 +36,7 @@ from stamlane.safety.paths import (
     PathError,
     check_arguments,
     check_command_files,
+    check_config_paths,
     inspect_path,
 )
 
@@ -148,8 +149,10 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
             raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
         check_input_file(beside, "run config")
         config, source = read_text(beside, limit=MAX_CONFIG_BYTES), beside
-    # data, not the user's code: checked against the closed registry, then a copy read
-    root = _data_root_args(check_run_config(config, source), ckpt, start if isinstance(start, str) else None, rest)
+    # data, not the user's code: checked against the closed registry and its paths through the gate, then a copy read
+    checked = check_run_config(config, source)
+    check_config_paths(checked)
+    root = _data_root_args(checked, ckpt, start if isinstance(start, str) else None, rest)
     # where the run's config wrote predictions is not where this call's go: one folder per model and source
     fresh = ["--predictions.output_dir=null"] if command == "predict" else []
     with safe_config_file(config, source) as path:

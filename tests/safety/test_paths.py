@@ -14,6 +14,7 @@ from stamlane.safety.paths import (
     PathError,
     check_arguments,
     check_command_files,
+    check_config_paths,
     inspect_path,
     require,
     shown,
@@ -109,6 +110,36 @@ def test_command_files_and_arguments(shapes: dict[str, Path | str]) -> None:
             check_arguments(["--out", str(shapes[arg])])
         with pytest.raises(PathError, match=r"^argument "):
             check_arguments([f"--out={shapes[arg]}"])
+
+
+def test_config_paths(shapes: dict[str, Path | str]) -> None:
+    """The path-valued options of a parsed config (nested mappings; jsonargparse's Namespace has the same ``get``)
+    go through `require`: the key named, a missing path or a checkpoint name passed to its reader."""
+    good = {
+        "data": {"root": str(shapes["folder"]), "clip": {"cache_dir": str(shapes["dangling"])}},
+        "model": {"init_weights": str(shapes["link"]), "encoder": {"class_path": "x", "init_args": {"weights": None}}},
+        "predictions": {"output_dir": str(shapes["dots"]).replace("/file", "/new")},
+        "ckpt_path": "last",
+        "source": str(shapes["file"]),
+    }
+    check_config_paths(good)
+    check_config_paths({"data": [1, 2], "model": "a string", "ckpt_path": 3})  # no mapping, no path: not the gate's
+    hostile = {
+        ("data", "root"): ("file", "is a file, not a folder"),
+        ("model", "init_weights"): ("fifo", "is a FIFO, not a file"),
+        ("model", "encoder", "init_args", "weights"): ("device", "is a device"),
+        ("predictions", "output_dir"): ("loop", "is a loop of links"),
+        ("ckpt_path",): ("long-name", "over the file system's limit"),
+        ("source",): ("nul", "holds a NUL byte"),
+    }
+    for keys, (shape, problem) in hostile.items():
+        config: dict = {}
+        inner = config
+        for key in keys[:-1]:
+            inner = inner.setdefault(key, {})
+        inner[keys[-1]] = str(shapes[shape])
+        with pytest.raises(PathError, match=rf"^{'.'.join(keys)} .*{problem}"):
+            check_config_paths(config)
 
 
 @settings(max_examples=200, deadline=None, derandomize=True, database=None)

@@ -14,7 +14,9 @@ starts): an argument that names no usable path in any reading (a component over 
 are not UTF-8, a loop of links) is refused in one line, whichever option it was given to. `check_command_files` is
 the early check of a LightningCLI command line (``stamlane fit|validate|test|predict``
 and the fit arguments ``stamlane demo`` / ``ablate`` take after ``--``): every ``--config``, ``--ckpt_path`` and
-``--source`` through `require`, a config at most `MAX_CONFIG_BYTES`.
+``--source`` through `require`, a config at most `MAX_CONFIG_BYTES`. `check_config_paths` is the same check for
+the path-valued options of a parsed config (`CONFIG_PATHS`: ``data.root``, ``model.init_weights``, ...), whether
+they came from a flag, a ``--config`` file or the config a checkpoint carries.
 """
 
 from __future__ import annotations
@@ -25,9 +27,11 @@ import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "CKPT_NAMES",
+    "CONFIG_PATHS",
     "KINDS",
     "MAX_CONFIG_BYTES",
     "NAME_MAX",
@@ -36,6 +40,7 @@ __all__ = [
     "PathInfo",
     "check_arguments",
     "check_command_files",
+    "check_config_paths",
     "inspect_path",
     "require",
     "shown",
@@ -264,3 +269,50 @@ def check_arguments(args: Sequence[str]) -> None:
         info = inspect_path(value)
         if info.kind == "unusable":
             raise PathError(f"argument {info.shown} {info.problem}")
+
+
+CONFIG_PATHS: dict[str, tuple[str, ...]] = {
+    "data.root": ("folder",),
+    "data.label_dir": ("folder",),
+    "data.clip.cache_dir": ("folder",),
+    "model.init_weights": ("file",),
+    "model.encoder.init_args.weights": ("file",),
+    "predictions.output_dir": ("folder",),
+    "trainer.default_root_dir": ("folder",),
+    "ckpt_path": ("file",),
+    "source": ("file", "folder"),
+}
+"""The path-valued options of a ``stamlane fit|validate|test|predict`` config (dotted keys), with the kinds each
+takes."""
+
+
+def _dotted(config: Any, key: str) -> object:
+    """The value at the dotted ``key`` of a nested mapping (a dict, or jsonargparse's Namespace); None if absent."""
+    for part in key.split("."):
+        getter = getattr(config, "get", None)
+        if not callable(getter):
+            return None
+        try:
+            config = getter(part)
+        except (KeyError, TypeError, AttributeError):
+            return None
+    return config
+
+
+def check_config_paths(config: Any) -> None:
+    """Refuse, in one line naming the key, a path-valued option of a parsed config (`CONFIG_PATHS`; a nested dict
+    or jsonargparse's Namespace) that `require` refuses: a name too long, a NUL byte, bytes that are not UTF-8, a
+    loop of links, or a path of the wrong kind (a FIFO or a device as ``model.init_weights``, a file as
+    ``data.root``). A missing path passes (its reader says so, or makes it); ``ckpt_path`` names (`CKPT_NAMES`)
+    are no files.
+
+    Raises:
+        PathError: naming the key, the path and the problem.
+    """
+    for key, kinds in CONFIG_PATHS.items():
+        value = _dotted(config, key)
+        if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+            continue
+        if key == "ckpt_path" and value in CKPT_NAMES:
+            continue
+        require(value, key, kinds, missing_ok=True)

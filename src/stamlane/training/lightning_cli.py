@@ -26,6 +26,7 @@ from stamlane.predict.prediction_writer import LanePredictionWriter, default_out
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs, temporary_name
 from stamlane.safety.owner import claim
+from stamlane.safety.paths import check_config_paths
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
@@ -99,6 +100,9 @@ class StamLaneCLI(LightningCLI):
         given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
         check_flags(given)  # --data.num_frames: one line naming --data.clip.num_frames
         super().parse_arguments(parser, args)
+        # the config's paths (data.root, model.init_weights, ...) through the gate of the flags' paths, whichever
+        # file named them: a name too long, a NUL byte, a FIFO or a loop of links is one line, never opened
+        check_config_paths(self.config.get(str(self.config.get("subcommand"))) or self.config)
         self._check_option_groups()
         self._logs_follow_root(given)
         self._logs_outside_run(given)
