@@ -29,7 +29,6 @@ import csv
 import json
 import math
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -45,17 +44,6 @@ VARIANTS = {
 }
 """The overlays (``--config`` files after the paper's) of each variant: the paper's optimiser as it is, and the
 shipped configuration that does not diverge without ImageNet weights."""
-
-
-def cpu_name() -> str:
-    """The CPU's model name (``/proc/cpuinfo``), else what ``platform`` knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def make_set(root: Path, clips: int, size: str, frames: int) -> None:
@@ -283,6 +271,8 @@ def combine(out: Path, info: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from stamlane.training.hardware import cpu_name
+
     args = _parser().parse_args(argv)
     if args.quick:
         quick = [name for name in args.runs if name in QUICK_RUNS]  # the quick runs asked for, else both

@@ -39,7 +39,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 
 import argparse
 import json
-import platform
 import statistics
 import sys
 import tempfile
@@ -61,13 +60,6 @@ TRAIN_STEP += ("optimizer",)
 PREDICT_IMAGE = ("decode", "align cached", "resize", "targets", "collate", "forward eval", "decode lanes", "score")
 """The per-image cost of a prediction pass with the cache (batch stages / 4)."""
 BATCH = 4
-
-
-def _cpu() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines() if Path("/proc/cpuinfo").is_file() else []:
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
 
 
 def make_set(root: Path, clips: int) -> float:
@@ -241,6 +233,8 @@ def check(summary: dict, reference: dict, tolerance: float, min_share: float) ->
 
 
 def main(argv: list[str] | None = None) -> int:
+    from stamlane.training.hardware import cpu_name
+
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--clips", type=int, default=4, help="clips of each of the set's two splits")
@@ -265,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(times)
     print(table(summary))
     result = {
-        "cpu": _cpu(),
+        "cpu": cpu_name(),
         "cores": os.cpu_count(),
         "threads": args.threads,
         "torch": torch.__version__,

@@ -42,7 +42,6 @@ import importlib.metadata
 import json
 import math
 import multiprocessing
-import platform
 import resource
 import statistics
 import sys
@@ -61,17 +60,6 @@ FULL = {
 QUICK_PAPER = {"width": 0.25, "frames": 2, "size": (64, 128), "batch": 1}
 QUICK = {"size": [(32, 64)], "frames": [1], "width": [0.125]}
 """``--quick``: every kind of measurement, each tiny (what a smoke test runs)."""
-
-
-def cpu_name() -> str:
-    """The CPU's model name (``/proc/cpuinfo``), else what ``platform`` knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def _peak_rss_mb() -> float:
@@ -255,6 +243,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from stamlane.training.hardware import cpu_name
+
     args = _parser().parse_args(argv)
     if args.replot:
         if not args.out.is_file():

@@ -429,17 +429,10 @@ def _cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
 
 def _hardware() -> str:
     """The CPU (or GPU), threads and torch version a run trained on."""
-    import platform
-
     import torch
+
+    from stamlane.training.hardware import cpu_name
 
     if torch.cuda.is_available():
         return f"cuda: {torch.cuda.get_device_name(0)}, torch {torch.__version__}"
-    name = platform.processor() or platform.machine()
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.is_file():
-        name = next(
-            (ln.split(":", 1)[1].strip() for ln in cpuinfo.read_text().splitlines() if ln.startswith("model name")),
-            name,
-        )
-    return f"cpu: {name}, {torch.get_num_threads()} threads, torch {torch.__version__}"
+    return f"cpu: {cpu_name()}, {torch.get_num_threads()} threads, torch {torch.__version__}"

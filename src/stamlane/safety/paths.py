@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from stamlane_eval.io.files import NAME_MAX, PATH_MAX, name_problem
+
 __all__ = [
     "CKPT_NAMES",
     "CONFIG_PATHS",
@@ -46,10 +48,6 @@ __all__ = [
     "shown",
 ]
 
-NAME_MAX = 255
-"""Bytes of one path component (Linux's and macOS's file systems); a longer one is refused by the kernel."""
-PATH_MAX = 4096
-"""Bytes of a whole path the kernel takes."""
 MAX_CONFIG_BYTES = 16 << 20
 """Largest config file read (16 MiB; the paper's table configs take a few KiB), wherever it is given."""
 KINDS = ("file", "folder", "fifo", "device", "socket", "missing", "unusable")
@@ -102,21 +100,6 @@ def shown(path: PathLike | bytes) -> str:
     return text if len(text) <= 300 else f"{text[:150]}…{text[-150:]} ({len(text)} characters)"
 
 
-def _name_problem(raw: bytes) -> str | None:
-    if b"\x00" in raw:
-        return "holds a NUL byte"
-    try:
-        raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return "is not UTF-8 (stamlane writes names into UTF-8 files): rename it"
-    longest = max((len(part) for part in raw.split(b"/")), default=0)
-    if longest > NAME_MAX:
-        return f"has a name of {longest} bytes, over the file system's limit of {NAME_MAX}"
-    if len(raw) > PATH_MAX:
-        return f"is {len(raw)} bytes long, over the file system's limit of {PATH_MAX}"
-    return None
-
-
 def _kind(mode: int) -> str:
     if stat.S_ISREG(mode):
         return "file"
@@ -137,7 +120,7 @@ def inspect_path(path: PathLike | bytes, roots: Iterable[PathLike] = ()) -> Path
         given = os.fsdecode(raw)
     except (TypeError, ValueError) as err:
         return PathInfo(str(path), "unusable", problem=f"is no path ({err})")
-    problem = _name_problem(raw)
+    problem = name_problem(raw)
     if problem is not None:
         return PathInfo(given, "unusable", problem=problem)
     try:

@@ -7,9 +7,12 @@ without them (AVX2-only laptops and many cloud cores), where oneDNN emulates it.
 
 from __future__ import annotations
 
+import platform
+from pathlib import Path
+
 import torch
 
-__all__ = ["native_bf16", "resolve_bf16"]
+__all__ = ["cpu_name", "native_bf16", "resolve_bf16"]
 
 
 def native_bf16(device_type: str = "cpu") -> bool:
@@ -35,3 +38,15 @@ def resolve_bf16(value: bool | str, device_type: str = "cpu") -> bool:
     if value == "auto":
         return native_bf16(device_type)
     raise ValueError(f"bf16 must be true, false or 'auto', got {value!r}")
+
+
+def cpu_name() -> str:
+    """The CPU's model name (``/proc/cpuinfo``'s ``model name``), else what ``platform`` knows: what a timing or a
+    run record says it came from."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()

@@ -31,6 +31,7 @@ __all__ = [
     "LaneFileError",
     "image_key",
     "inside",
+    "name_problem",
     "path_problem",
     "read_text",
     "write_atomic",
@@ -105,14 +106,10 @@ PATH_MAX = 4096
 """Bytes of a whole path the kernel takes."""
 
 
-def path_problem(arg: str) -> str | None:
-    """Why ``arg`` can be no usable path in any reading — a NUL byte, bytes that are not UTF-8, a component over
-    `NAME_MAX` bytes, over `PATH_MAX` in all, a loop of links — or None. Never raises (``Path.exists()`` raises
-    ``OSError: File name too long`` on Python 3.11, ``RuntimeError`` for a loop in ``Path.resolve()``)."""
-    try:
-        raw = os.fsencode(arg)
-    except (TypeError, ValueError):
-        return "is no path"
+def name_problem(raw: bytes) -> str | None:
+    """Why the name ``raw`` (a path's bytes) can be no file's name — a NUL byte, bytes that are not UTF-8 (names are
+    written into UTF-8 files), a component over `NAME_MAX` bytes, over `PATH_MAX` in all — or None; looks at nothing
+    on disk."""
     if b"\x00" in raw:
         return "holds a NUL byte"
     try:
@@ -124,6 +121,20 @@ def path_problem(arg: str) -> str | None:
         return f"has a name of {longest} bytes, over the file system's limit of {NAME_MAX}"
     if len(raw) > PATH_MAX:
         return f"is {len(raw)} bytes long, over the file system's limit of {PATH_MAX}"
+    return None
+
+
+def path_problem(arg: str) -> str | None:
+    """Why ``arg`` can be no usable path in any reading — a NUL byte, bytes that are not UTF-8, a component over
+    `NAME_MAX` bytes, over `PATH_MAX` in all, a loop of links — or None. Never raises (``Path.exists()`` raises
+    ``OSError: File name too long`` on Python 3.11, ``RuntimeError`` for a loop in ``Path.resolve()``)."""
+    try:
+        raw = os.fsencode(arg)
+    except (TypeError, ValueError):
+        return "is no path"
+    problem = name_problem(raw)
+    if problem:
+        return problem
     try:
         os.stat(raw)
     except OSError as e:
