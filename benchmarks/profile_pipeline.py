@@ -65,9 +65,10 @@ BATCH = 4
 def make_set(root: Path, clips: int) -> float:
     """A small set of the demo's frame size; returns the ms of one clip rendered and written (median)."""
     from stamlane.synth import generate_dataset
+    from stamlane.synth.layout import SplitCounts
 
     start = time.perf_counter()
-    generate_dataset(root, train=clips, val=0, test=clips, challenging=0, seed=0, progress=False, visibility=False)
+    generate_dataset(root, SplitCounts(train=clips, test=clips), seed=0, progress=False, visibility=False)
     return (time.perf_counter() - start) * 1000.0 / (2 * clips)
 
 

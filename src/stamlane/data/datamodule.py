@@ -180,7 +180,7 @@ class ClipDataModule(LightningDataModule):
             if (
                 info.get("format_version") != FORMAT_VERSION
                 or info.get("config") != wanted
-                or info.get("splits") != self.synth.splits()
+                or info.get("splits") != self.synth.splits().as_dict()
                 or info.get("seed") != self.synth.seed
             ):
                 warnings.warn(
@@ -202,7 +202,7 @@ class ClipDataModule(LightningDataModule):
         synth = self.synth
         generate_dataset(
             root,
-            **synth.splits(),
+            synth.splits(),
             seed=synth.seed,
             config=synth.config(),
             train_key_step=synth.train_key_step,

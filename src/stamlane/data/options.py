@@ -28,7 +28,7 @@ from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
 from stamlane.data.transforms import ClipTransform
 from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
-from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
+from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SplitCounts
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
@@ -177,25 +177,25 @@ class SynthOptions:
         size: frame size ``(H, W)``, pixels.
     """
 
-    train: int = DEMO_SPLITS["train"]
-    val: int = DEMO_SPLITS["val"]
-    test: int = DEMO_SPLITS["test"]
-    challenging: int = DEMO_SPLITS["challenging"]
-    train_factors: int = DEMO_SPLITS["train_factors"]
-    val_factors: int = DEMO_SPLITS["val_factors"]
-    reveal: int = DEMO_SPLITS["reveal"]
-    reveal_traffic: int = DEMO_SPLITS["reveal_traffic"]
-    train_motion: int = DEMO_SPLITS["train_motion"]
+    train: int = DEMO_SPLITS.train
+    val: int = DEMO_SPLITS.val
+    test: int = DEMO_SPLITS.test
+    challenging: int = DEMO_SPLITS.challenging
+    train_factors: int = DEMO_SPLITS.train_factors
+    val_factors: int = DEMO_SPLITS.val_factors
+    reveal: int = DEMO_SPLITS.reveal
+    reveal_traffic: int = DEMO_SPLITS.reveal_traffic
+    train_motion: int = DEMO_SPLITS.train_motion
     train_key_step: int = TRAIN_KEY_STEP
     eval_key_step: int = EVAL_KEY_STEP
     seed: int = 0
-    size: tuple[int, int] = (360, 640)
+    size: tuple[int, int] = (SynthConfig.height, SynthConfig.width)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _pair(self.size, int, "size"))
-        for name, count in self.splits().items():
-            if count < 0:
-                raise ValueError(f"synth.{name} must be >= 0, got {count}")
+        for name in SplitCounts.__dataclass_fields__:
+            if getattr(self, name) < 0:
+                raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
         for name in ("train_key_step", "eval_key_step"):
             if getattr(self, name) < 0:
                 raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
@@ -204,12 +204,9 @@ class SynthOptions:
         check_size(self.size, "data.synth.size")
         self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
-    def splits(self) -> dict[str, int]:
-        """Clips per split as ``dataset.json`` records them (the arguments of
-        `stamlane.synth.dataset.generate_dataset`)."""
-        names = ("train", "val", "test", "challenging", "reveal", "reveal_traffic")
-        names += ("train_factors", "val_factors", "train_motion")
-        return {name: getattr(self, name) for name in names}
+    def splits(self) -> SplitCounts:
+        """Clips per split (`stamlane.synth.dataset.generate_dataset`'s; ``dataset.json`` records them as a dict)."""
+        return SplitCounts(**{name: getattr(self, name) for name in SplitCounts.__dataclass_fields__})
 
     def config(self) -> SynthConfig:
         """The generator's settings of the set (its frame size; the rest the generator's defaults)."""

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.names import metric_name
 
-from stamlane.experiments.metrics import TUSIMPLE
+from stamlane.experiments.metrics import TUSIMPLE_F1
 from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.tables import REVEAL_SPLITS, headroom
 
@@ -84,7 +84,7 @@ def reveal_points(summary: Summary) -> list[RevealPoint]:
     for m in (m for m in summary.models if m.probes):
         for view in views:
             room = headroom(summary, view, m.frames)
-            use = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)
+            use = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE_F1.key)
             if room is not None and use is not None:
                 found.append(RevealPoint(m.name, view, m.frames, room, use))
     return found
@@ -162,7 +162,9 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
     series = []
     frames = max(m.frames for m in multi)
     series.append(("headroom (oracle)", [headroom(summary, v, frames) for v in views]))
-    series += [(m.label, [summary.difference(m.name, f"{m.name}@key", v, TUSIMPLE.key) for v in views]) for m in multi]
+    series += [
+        (m.label, [summary.difference(m.name, f"{m.name}@key", v, TUSIMPLE_F1.key) for v in views]) for m in multi
+    ]
     fig, ax = plt.subplots(figsize=(10, 4))
     width = 0.8 / len(series)
     for k, (name, diffs) in enumerate(series):

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
-from stamlane.experiments.metrics import METRICS
+from stamlane.experiments.metrics import REPORTED
 from stamlane.safety.guard import write_atomic
 from stamlane.synth.layout import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
@@ -95,7 +95,7 @@ def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict
 
     Returns:
         the totals: ``accuracy``, ``fp``, ``fn``, ``f1``, ``images``, ``late`` (TuSimple) and per metric key of
-        `METRICS` its value on the whole split (class recalls only where the set has visibility masks), and
+        `REPORTED` its value on the whole split (class recalls only where the set has visibility masks), and
         ``iou_width``.
     """
     from stamlane_eval import culane
@@ -129,7 +129,7 @@ def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict
     write_atomic(pred_dir / PER_IMAGE, "".join(json.dumps(row) + "\n" for row in rows))
     totals = {k: result.as_dict()[k] for k in ("accuracy", "fp", "fn", "f1", "images")}
     totals["late"] = sum(p["run_time"] > MAX_RUN_TIME_MS for p in preds)
-    for m in METRICS:
+    for m in REPORTED:
         values = [m.columns(row) for row in rows]
         if values and all(v is not None for v in values):
             totals[m.key] = m.statistic(np.mean(np.array(values, dtype=np.float64), axis=0))
@@ -142,7 +142,7 @@ def read_per_image(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     and each image's clip, in label order."""
     rows = [json.loads(line) for line in (pred_dir / PER_IMAGE).read_text().splitlines()]
     found = {}
-    for m in METRICS:
+    for m in REPORTED:
         values = [m.columns(row) for row in rows]
         if values and all(v is not None for v in values):
             found[m.key] = np.array(values, dtype=np.float64)
@@ -162,7 +162,7 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
     from stamlane_eval.io import read_tusimple, tusimple_points
     from stamlane_eval.video import Frame
 
-    from stamlane.experiments.metrics import TEMPORAL
+    from stamlane.experiments.metrics import TEMPORAL_STABILITY
 
     preds = {p["raw_file"]: p for p in read_tusimple(pred_dir / "predictions.json")}
     sequences: dict[str, list] = {}
@@ -181,17 +181,17 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
     ]
     write_atomic(pred_dir / PER_CLIP, "".join(json.dumps(row) + "\n" for row in rows))
     totals: dict = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
-    for m in TEMPORAL:
+    for m in TEMPORAL_STABILITY:
         totals[m.key] = m.statistic(np.mean(np.array([m.columns(r) for r in rows], dtype=np.float64), axis=0))
     return totals
 
 
 def read_per_clip(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     """Per temporal metric key, the per-clip ``(Ns, Nj, Nm)`` (N, 3) of a scored split, and the clips."""
-    from stamlane.experiments.metrics import TEMPORAL
+    from stamlane.experiments.metrics import TEMPORAL_STABILITY
 
     rows = [json.loads(line) for line in (pred_dir / PER_CLIP).read_text().splitlines()]
-    return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL}, [
+    return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL_STABILITY}, [
         r["clip"] for r in rows
     ]
 

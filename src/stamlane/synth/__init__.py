@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from stamlane.synth.clip import SynthClip, generate_clip
     from stamlane.synth.config import FACTORS, Factor, SynthConfig
     from stamlane.synth.dataset import generate_dataset
-    from stamlane.synth.layout import FORMAT_VERSION, SPLITS, key_frames
+    from stamlane.synth.layout import FORMAT_VERSION, SPLITS, SplitCounts, key_frames
     from stamlane.synth.writer import write_clip
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "FORMAT_VERSION",
     "SPLITS",
     "Factor",
+    "SplitCounts",
     "SynthClip",
     "SynthConfig",
     "generate_clip",
@@ -49,6 +50,7 @@ _HOMES = {
     "FORMAT_VERSION": "stamlane.synth.layout",
     "SPLITS": "stamlane.synth.layout",
     "Factor": "stamlane.synth.config",
+    "SplitCounts": "stamlane.synth.layout",
     "SynthClip": "stamlane.synth.clip",
     "SynthConfig": "stamlane.synth.config",
     "generate_clip": "stamlane.synth.clip",
