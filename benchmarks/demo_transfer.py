@@ -43,9 +43,9 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     """Score every demo run on test/challenging clips of generator seed ``seed``, as the demo scores its own."""
     from dataclasses import asdict
 
+    from stamlane.experiments.intervals import Scores, views
     from stamlane.experiments.metrics import TUSIMPLE_F1
     from stamlane.experiments.runner import Runner, frames_of
-    from stamlane.experiments.scores import Scores, views
     from stamlane.synth import generate_dataset
     from stamlane.synth.layout import SplitCounts
 

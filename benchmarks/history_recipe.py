@@ -162,8 +162,8 @@ def probe(runner: Runner, name: str, record: dict) -> dict:
     clip's history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
     from dataclasses import asdict
 
+    from stamlane.experiments.intervals import Scores, views
     from stamlane.experiments.metrics import TUSIMPLE_F1
-    from stamlane.experiments.scores import Scores, views
 
     if runner.score(name, record, {"val": PROBED}):
         runner.store.mark(name, record)

@@ -164,12 +164,12 @@ def profile(root: Path, repeats: int, render_ms: float) -> dict[str, list[float]
 
 
 def _score(preds: list[dict], gts: list[dict], size: tuple[int, int]) -> None:
-    """A prediction pass's scoring of a batch: TuSimple per image and the IoU F1 (`stamlane.experiments.scoring`)."""
+    """A prediction pass's scoring of a batch: TuSimple per image and the IoU F1 (`stamlane.experiments.split_scores`)."""
     from stamlane_eval import culane, tusimple
     from stamlane_eval.culane import IOU_THRESHOLDS
     from stamlane_eval.io import tusimple_points
 
-    from stamlane.experiments.scoring import iou_width
+    from stamlane.predict.image_score import iou_width
 
     tusimple.evaluate(preds, gts, time_limit=False)
     culane.evaluate(

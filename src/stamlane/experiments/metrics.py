@@ -4,7 +4,7 @@ A metric's name is the one `stamlane_eval.integrations.lightning.LaneEvalCallbac
 ``test/``), built by `stamlane_eval.names.metric_name`: ``tusimple_f1`` (the paper's TuSimple F1), ``culane_f1@0.5``
 and ``culane_f1@0.3`` (the CULane-style IoU F1 of the paper's ApolloScape tables), ``temporal_rs@0.5`` ... (RVLD's
 temporal stability). The same names key the summaries, the tables and the docs. Recall per paint-visibility class
-(``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.scoring`), stamlane's own,
+(``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.split_scores`), stamlane's own,
 is reported where the data has visibility masks.
 
 Two kinds of constant, two kinds of name: `stamlane_eval.names` spells the evaluators (``names.TUSIMPLE ==

@@ -12,7 +12,7 @@ priors (lane width, straightness, where lanes run) can beat a curve fitted to th
 absolute values are reported beside every difference.
 
 A point's class (``visible``, ``revealed``, ``hidden``: `stamlane.synth.visibility`) comes from the split's masks
-(`stamlane.experiments.scoring.read_visibility`, which also scores a model's recall per class). The oracles'
+(`stamlane.experiments.split_scores.read_visibility`, which also scores a model's recall per class). The oracles'
 predictions are scored as a model's are, so their intervals over clips come from the same bootstrap.
 """
 

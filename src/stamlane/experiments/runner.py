@@ -5,7 +5,7 @@ fit`` in this process, or reuses the run when its folder holds a finished record
 (`stamlane.experiments.store.RunStore.finished`); a run killed midway goes on from its last checkpoint.
 
 `Runner.score` predicts splits with a run's FINAL weights (``stamlane predict``), each split with its history probes
-(``data.history_source``), and scores them (`stamlane.experiments.scoring`). What decides whether a split's
+(``data.history_source``), and scores them (`stamlane.experiments.split_scores`). What decides whether a split's
 predictions are current is kept in the run's record: the SHA-256 of its label file, the digest of its frame files
 (`frame_files_digest`) and the scoring rules (`SCORING`). A split whose labels or frames changed is predicted again;
 one scored under older rules is scored again from its saved predictions.
@@ -30,7 +30,14 @@ import numpy as np
 import yaml
 
 from stamlane.experiments.recipes import CONFIG_DIR, Row, Stage
-from stamlane.experiments.scoring import SCORING, clip_of, read_per_clip, read_per_image, score_split, score_temporal
+from stamlane.experiments.split_scores import (
+    SCORING,
+    clip_of,
+    read_per_clip,
+    read_per_image,
+    score_split,
+    score_temporal,
+)
 from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.safety.guard import file_sha256
 from stamlane.synth.layout import TEMPORAL_LABELS
@@ -60,7 +67,7 @@ SAME_AS_KEY = ("warped_key",)
 """Probes whose input equals ``key``'s for a run that does not align: scored as ``key`` without predicting."""
 TEMPORAL_SPLIT = TEMPORAL_LABELS.removesuffix(".json")
 """The label file (stem) of a synthetic set whose every frame is a key frame: predicted frame after frame, each with
-its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.scoring.score_temporal`)."""
+its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.split_scores.score_temporal`)."""
 
 
 def _say(line: str) -> None:

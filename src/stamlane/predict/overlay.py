@@ -135,7 +135,7 @@ def draw_legend(
     Args:
         image: ``(H, W, 3)`` uint8 BGR, usually what `draw_lanes` returned.
         model: the model's name (first line); None: none.
-        score: the image's score against its labels (last line, `stamlane.predict.scores.image_score`); None: none.
+        score: the image's score against its labels (last line, `stamlane.predict.image_score.image_score`); None: none.
         ground_truth: the picture shows annotated lanes: their sample is drawn.
         predictions: the sample of a predicted lane is drawn.
         corner: ``"top"`` (top left) or ``"bottom"`` (bottom left).

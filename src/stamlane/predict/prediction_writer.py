@@ -7,7 +7,7 @@
 - ``lines/<raw_file stem>.lines.txt`` — CULane text, one per key frame without ``h_samples`` (CULane,
   ApolloScape, VIL-100, folders, videos), scored by ``stamlane-eval culane <output_dir>/lines <gt_dir>``;
 - ``overlays/<raw_file stem>.jpg`` — the original key frame with the predicted lanes and a legend (the model's
-  name; where the split has labels, the annotated lanes and the image's score: `stamlane.predict.scores`), at most
+  name; where the split has labels, the annotated lanes and the image's score: `stamlane.predict.image_score`), at most
   ``max_overlays`` of them;
 - ``overlay.mp4`` — for a video source, every frame with its lanes and legend, at the video's frame rate (mp4v),
   written under a temporary name and renamed when prediction ends.
@@ -36,8 +36,8 @@ from lightning.pytorch.callbacks import BasePredictionWriter
 from stamlane_eval.integrations.distributed import gather_records
 from stamlane_eval.io import culane_lines_path
 
+from stamlane.predict.image_score import image_score
 from stamlane.predict.overlay import draw_lanes, draw_legend
-from stamlane.predict.scores import image_score
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
 from stamlane.safety.guard import temporary_name
 from stamlane.safety.images import read_image

@@ -23,6 +23,7 @@ import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
 from stamlane.experiments.metrics import REPORTED
+from stamlane.predict.image_score import iou_width
 from stamlane.safety.guard import write_atomic
 from stamlane.synth.layout import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
@@ -34,7 +35,6 @@ __all__ = [
     "class_counts",
     "clip_of",
     "image_size",
-    "iou_width",
     "point_hits",
     "read_per_clip",
     "read_per_image",
@@ -49,15 +49,6 @@ SCORING = "no-time-limit+culane+classes"
 """How `score_split` scores (kept in each run's record): a run scored otherwise is scored again from its saved
 predictions (``no-time-limit+iou``: before the recall per visibility class; ``no-time-limit``: TuSimple F1
 only)."""
-
-
-def iou_width(size: tuple[int, int]) -> int:
-    """The CULane metric's line thickness for images of ``size`` (H, W): the protocol's 30 px on CULane's
-    1640-px-wide frames, scaled with the image width (12 px at 640), so that a lane covers the same fraction of
-    the image as in the benchmark."""
-    from stamlane_eval.culane import CULANE_SIZE, LANE_WIDTH
-
-    return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
 
 
 def image_size(root: Path, split: str) -> tuple[int, int]:

@@ -19,7 +19,7 @@ __all__ = ["image_score", "iou_width"]
 def iou_width(size: tuple[int, int]) -> int:
     """The CULane metric's line thickness for images of ``size`` (H, W): the protocol's 30 px on CULane's
     1640-px-wide frames, scaled with the image width (12 px at 640), so that a lane covers the same fraction of
-    the image as in the benchmark (the experiment engine scores with the same width)."""
+    the image as in the benchmark (`stamlane.experiments.split_scores` scores whole splits with it)."""
     from stamlane_eval.culane import CULANE_SIZE, LANE_WIDTH
 
     return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
