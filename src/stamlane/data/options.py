@@ -22,7 +22,7 @@ Configs written before the groups existed (flat ``data.num_frames`` ...) are rea
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
@@ -31,7 +31,7 @@ from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
 
-__all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
+__all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SplitCounts", "SynthOptions"]
 
 
 def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple[Any, Any]:
@@ -156,6 +156,21 @@ class AugmentOptions:
         return KeyFrameCorruption(self.key_corruption, self.key_corruption_kinds) if self.key_corruption > 0 else None
 
 
+class SplitCounts(TypedDict):
+    """Clips per split of a synthetic set (`SynthOptions.splits`): the count arguments of
+    `stamlane.synth.dataset.generate_dataset`."""
+
+    train: int
+    val: int
+    test: int
+    challenging: int
+    reveal: int
+    reveal_traffic: int
+    train_factors: int
+    val_factors: int
+    train_motion: int
+
+
 @dataclass(frozen=True)
 class SynthOptions:
     """The synthetic set `ClipDataModule` generates (with a progress bar) when ``data.root`` is null and
@@ -195,7 +210,7 @@ class SynthOptions:
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _pair(self.size, int, "size"))
         for name, count in self.splits().items():
-            if count < 0:
+            if not isinstance(count, int) or count < 0:  # (a TypedDict's values read as object)
                 raise ValueError(f"synth.{name} must be >= 0, got {count}")
         for name in ("train_key_step", "eval_key_step"):
             if getattr(self, name) < 0:
@@ -205,12 +220,20 @@ class SynthOptions:
         check_size(self.size, "data.synth.size")
         self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
-    def splits(self) -> dict[str, int]:
+    def splits(self) -> SplitCounts:
         """Clips per split as ``dataset.json`` records them (the arguments of
         `stamlane.synth.dataset.generate_dataset`)."""
-        names: tuple[str, ...] = ("train", "val", "test", "challenging", "reveal", "reveal_traffic")
-        names += ("train_factors", "val_factors", "train_motion")
-        return {name: getattr(self, name) for name in names}
+        return SplitCounts(
+            train=self.train,
+            val=self.val,
+            test=self.test,
+            challenging=self.challenging,
+            reveal=self.reveal,
+            reveal_traffic=self.reveal_traffic,
+            train_factors=self.train_factors,
+            val_factors=self.val_factors,
+            train_motion=self.train_motion,
+        )
 
     def config(self) -> SynthConfig:
         """The generator's settings of the set (its frame size; the rest the generator's defaults)."""
