@@ -38,12 +38,13 @@ from stamlane.data.labels import DataError
 
 if TYPE_CHECKING:
     from stamlane.align.homography import Alignment
+    from stamlane.align.warp import Strategy
 
 __all__ = ["ALIGN_MODES", "ALIGN_STRATEGIES", "WARP_MODES", "ClipAligner"]
 
 ALIGN_MODES = ("none", "fly", "cache", "true")
 
-ALIGN_STRATEGIES = ("chain", "direct")
+ALIGN_STRATEGIES: tuple[Strategy, ...] = ("chain", "direct")
 """How ``"fly"`` matches a clip: consecutive frames, the homographies multiplied, or each history frame directly
 against the key frame."""
 
