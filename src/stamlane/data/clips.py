@@ -88,7 +88,7 @@ FRAME_LOOKUPS = ("number", "sorted")
 ``20.jpg``), or by position in the folder's sorted listing (timestamps: ApolloScape, a folder of frames)."""
 
 
-class ClipDataset(Dataset):
+class ClipDataset(Dataset[dict[str, Any]]):
     """Shared machinery of the clip datasets; subclasses implement ``_index``.
 
     Args:
@@ -198,7 +198,7 @@ class ClipDataset(Dataset):
         """Frame paths of the clip ending at ``key_rel`` (relative to root), oldest first."""
         key_path = resolve_inside(self.root, key_rel, source)
         rel = key_path.relative_to(self.root.resolve()).as_posix()
-        paths = []
+        paths: list[str | None] = []
         stride = self.clip.stride
         for k in range(self.num_frames - 1, 0, -1):
             back = k * stride
@@ -212,12 +212,13 @@ class ClipDataset(Dataset):
         paths.append(rel)
         if self.clip.repeat_missing_history:
             for i in range(len(paths) - 2, -1, -1):
-                if paths[i] is None or not (self.root / paths[i]).is_file():
+                path = paths[i]
+                if path is None or not (self.root / path).is_file():
                     paths[i] = paths[i + 1]
-        missing = [p for p in paths if p is None]
-        if missing:
+        found = [p for p in paths if p is not None]
+        if len(found) < len(paths):
             raise DataError(f"{source}: {rel} has no history frame {stride * (self.num_frames - 1)} frames back")
-        return paths
+        return found
 
     def _sorted_listing(self, folder: Path) -> list[str]:
         if folder not in self._listing:
@@ -256,7 +257,7 @@ class ClipDataset(Dataset):
 
     def read_frames(self, entry: ClipEntry) -> list[np.ndarray]:
         """The clip's BGR uint8 frames in original size; raises ``DataError`` on a missing/unreadable one."""
-        frames = []
+        frames: list[np.ndarray] = []
         for p in entry.frame_paths:
             path = self.root / p
             img = read_image(path)

@@ -13,6 +13,7 @@ import tempfile
 import warnings
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import torch
 from lightning import LightningDataModule
@@ -45,7 +46,7 @@ INDEX_KEY = "index"
 """Meta entry of an evaluation or prediction sample: its index in the split (`Indexed`)."""
 
 
-class Indexed(Dataset):
+class Indexed(Dataset[dict[str, Any]]):
     """A split whose samples carry their index in it, ``meta[INDEX_KEY]``: the key by which the scores and the
     predictions of several processes are put back in the order of the split, each image once
     (`stamlane_eval.integrations.distributed.gather_records`).
@@ -54,19 +55,19 @@ class Indexed(Dataset):
         dataset: a map-style dataset of sample dicts with a ``meta`` dict (`stamlane.data.clips.ClipDataset`).
     """
 
-    def __init__(self, dataset: Dataset) -> None:
+    def __init__(self, dataset: ClipDataset) -> None:
         self.dataset = dataset
 
     def __len__(self) -> int:
         return len(self.dataset)
 
-    def __getitem__(self, index: int) -> dict:
+    def __getitem__(self, index: int) -> dict[str, Any]:
         sample = self.dataset[index]
         sample["meta"] = {**sample["meta"], INDEX_KEY: int(index)}
         return sample
 
 
-def eval_sampler(dataset: Dataset, split: str) -> UnrepeatedDistributedSampler | None:
+def eval_sampler(dataset: ClipDataset | Indexed, split: str) -> UnrepeatedDistributedSampler | None:
     """The sampler of an evaluation or prediction split under several processes: each process a strided share of
     the split (process r: images r, r + W, r + 2W, ...), no image repeated (PyTorch's ``DistributedSampler``, which
     Lightning puts in otherwise, pads the shards with repeats, scored twice); shares differ by one image at most.
@@ -255,7 +256,7 @@ class ClipDataModule(LightningDataModule):
                         stacklevel=2,
                     )
 
-    def _loader(self, split: str) -> DataLoader:
+    def _loader(self, split: str) -> DataLoader[dict[str, Any]]:
         if split not in self.datasets:
             self.datasets[split] = self.make_dataset(split)
         dataset = self.datasets[split] if split == "train" else Indexed(self.datasets[split])
@@ -270,16 +271,16 @@ class ClipDataModule(LightningDataModule):
             persistent_workers=self.loader.num_workers > 0,
         )
 
-    def train_dataloader(self) -> DataLoader:
+    def train_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("train")
 
-    def val_dataloader(self) -> DataLoader:
+    def val_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("val")
 
-    def test_dataloader(self) -> DataLoader:
+    def test_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("test")
 
-    def predict_dataloader(self) -> DataLoader:
+    def predict_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("predict")
 
 
@@ -327,7 +328,7 @@ class FramesDataModule(LightningDataModule):
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
         if path.is_file() and not self.is_video:
             raise DataError(f"{path} is neither a folder of frames nor a video ({', '.join(VIDEO_SUFFIXES)})")
-        self._decoded: tempfile.TemporaryDirectory | None = None
+        self._decoded: tempfile.TemporaryDirectory[str] | None = None
         if self.is_video and not frames_dir:
             self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
             frames_dir = self._decoded.name
@@ -367,8 +368,9 @@ class FramesDataModule(LightningDataModule):
                     stacklevel=2,
                 )
 
-    def predict_dataloader(self) -> DataLoader:
+    def predict_dataloader(self) -> DataLoader[dict[str, Any]]:
         self.setup("predict")
+        assert self.dataset is not None  # setup made it
         dataset = Indexed(self.dataset)
         return DataLoader(
             dataset,

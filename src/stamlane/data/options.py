@@ -22,6 +22,7 @@ Configs written before the groups existed (flat ``data.num_frames`` ...) are rea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
@@ -33,7 +34,7 @@ from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, Sp
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
 
-def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple:
+def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple[Any, Any]:
     """``value`` as a tuple of two ``kind`` (YAML gives lists)."""
     if len(value) != 2:
         raise ValueError(f"{name} must have two values, got {value}")

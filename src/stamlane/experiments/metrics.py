@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from stamlane_eval import names
@@ -44,22 +45,22 @@ class Metric:
 
     key: str
     label: str
-    columns: Callable[[dict], list[float] | None]
+    columns: Callable[[dict[str, Any]], list[float] | None]
     statistic: Callable[[np.ndarray], float]
 
 
-def _culane_counts(threshold: float) -> Callable[[dict], list[float] | None]:
-    def columns(row: dict) -> list[float] | None:
+def _culane_counts(threshold: float) -> Callable[[dict[str, Any]], list[float] | None]:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("culane") or row.get("iou")  # "iou": summaries written before the one name
         return None if counts is None else counts[f"{threshold:g}"]
 
     return columns
 
 
-def _class_counts(cls: str) -> Callable[[dict], list[float] | None]:
+def _class_counts(cls: str) -> Callable[[dict[str, Any]], list[float] | None]:
     i = VISIBILITY_CLASSES.index(cls)
 
-    def columns(row: dict) -> list[float] | None:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("classes")
         return None if counts is None else counts[2 * i : 2 * i + 2]
 
@@ -71,8 +72,8 @@ def _recall(means: np.ndarray) -> float:
     return float(means[0] / means[1]) if means[1] > 0 else 0.0
 
 
-def _temporal_counts(threshold: float) -> Callable[[dict], list[float] | None]:
-    def columns(row: dict) -> list[float] | None:
+def _temporal_counts(threshold: float) -> Callable[[dict[str, Any]], list[float] | None]:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("temporal")
         return None if counts is None else counts[f"{threshold:g}"]
 

@@ -9,7 +9,7 @@ import numpy as np
 from stamlane_eval.names import parse_metric_name
 
 from stamlane.experiments.metrics import CULANE_F1, TUSIMPLE_F1
-from stamlane.experiments.summary import Summary
+from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.table_index import PaperTable, TableIndex
 from stamlane.experiments.tables import SPLITS, diff_text, markdown_table, value_text
 
@@ -48,7 +48,7 @@ def paper_tables(
 
 def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str, splits: Sequence[str]) -> list[str]:
     rows_in = [_by_row(s) for s in summaries]
-    where = {}  # row -> the first run set that measured it in this metric
+    where: dict[str, int] = {}  # row -> the first run set that measured it in this metric
     for i, found in enumerate(rows_in):
         for row, name in found.items():
             if any(summaries[i].value(name, metric, s) for s in splits):
@@ -131,13 +131,15 @@ def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> l
         return []
     pairs, claims = [], []
     for row in (set(rows_in[0]) & set(rows_in[1])) - {SINGLE_ROW}:
-        found = []
+        found: list[Difference] = []
         for i in (0, 1):
             single = rows_in[i].get(SINGLE_ROW)
-            found.append(
+            difference = (
                 summaries[i].difference(rows_in[i][row], single, "challenging", TUSIMPLE_F1.key) if single else None
             )
-        if None in found:
+            if difference is not None:
+                found.append(difference)
+        if len(found) < 2:  # a set without this difference
             continue
         pairs.append([d.diff for d in found])
         claimed = [d.supported for d in found]

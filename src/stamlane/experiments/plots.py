@@ -8,6 +8,7 @@ import csv
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 from stamlane_eval.names import metric_name
@@ -23,6 +24,7 @@ __all__ = [
     "SERIES_LINES",
     "SERIES_MARKERS",
     "RevealPoint",
+    "SeriesStyle",
     "plot_history_use",
     "plot_reveal",
     "plot_val_curves",
@@ -50,7 +52,15 @@ NEUTRAL = "#888888"
 """The colour of what is not a model's series (an oracle's headroom, a reference line)."""
 
 
-def series_style(k: int) -> dict[str, str]:
+class SeriesStyle(TypedDict):
+    """Keyword arguments of matplotlib's ``plot`` that draw one series (`series_style`)."""
+
+    color: str
+    marker: str
+    linestyle: str
+
+
+def series_style(k: int) -> SeriesStyle:
     """The matplotlib ``color``, ``marker`` and ``linestyle`` of the ``k``-th series of a plot: a colour-blind-safe
     colour (`SERIES_COLOURS`), a marker of its own beside its neighbours' (series that overlap stay apart), and
     past the colours another line style: no two of the first 28 series look alike."""

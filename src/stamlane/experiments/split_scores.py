@@ -18,6 +18,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
@@ -75,7 +76,7 @@ def clip_of(raw_file: str) -> str:
     return raw_file.rsplit("/", 1)[0]
 
 
-def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict:
+def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict[str, Any]:
     """Score ``pred_dir/predictions.json`` against ``root/<split>.json``; write ``pred_dir/per_image.jsonl``.
 
     Args:
@@ -140,7 +141,7 @@ def read_per_image(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     return found, [row["clip"] for row in rows]
 
 
-def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
+def score_temporal(pred_dir: Path, root: Path, split: str) -> dict[str, Any]:
     """Score the frame-after-frame predictions ``pred_dir/predictions.json`` of the clips of ``root/<split>.json``
     (every frame of each clip, oldest first) with RVLD's temporal stability (`stamlane_eval.temporal`, the VIL-100
     protocol at the frames' size); write ``pred_dir/per_clip.jsonl`` (each clip's ``(Ns, Nj, Nm)`` per IoU
@@ -156,7 +157,7 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
     from stamlane.experiments.metrics import TEMPORAL_STABILITY
 
     preds = {p["raw_file"]: p for p in read_tusimple(pred_dir / "predictions.json")}
-    sequences: dict[str, list] = {}
+    sequences: dict[str, list[Any]] = {}
     for gt in read_tusimple(root / f"{split}.json"):
         pred = preds[gt["raw_file"]]
         frame = Frame(tusimple_points(pred["lanes"], gt["h_samples"]), tusimple_points(gt["lanes"], gt["h_samples"]))
@@ -171,7 +172,7 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
         for (clip, frames), seq in zip(sequences.items(), result.per_sequence)
     ]
     write_atomic(pred_dir / PER_CLIP, "".join(json.dumps(row) + "\n" for row in rows))
-    totals: dict = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
+    totals: dict[str, Any] = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
     for m in TEMPORAL_STABILITY:
         totals[m.key] = m.statistic(np.mean(np.array([m.columns(r) for r in rows], dtype=np.float64), axis=0))
     return totals
@@ -206,7 +207,8 @@ def _threshold(gt: np.ndarray, ys: np.ndarray) -> float:
     if on.sum() < 2:
         return PIXEL_THRESH
     k = np.polyfit(ys[on], gt[on], 1)[0]
-    return PIXEL_THRESH / np.cos(np.arctan(k))
+    threshold: float = PIXEL_THRESH / np.cos(np.arctan(k))
+    return threshold
 
 
 def point_hits(
@@ -248,4 +250,5 @@ def class_counts(hits: list[list[bool]], masks: list[list[int]], num_frames: int
             cls = visibility_class(mask, num_frames, stride)
             if cls is not None:
                 counts[VISIBILITY_CLASSES.index(cls)] += (float(hit), 1.0)
-    return counts.ravel().tolist()
+    per_class: list[float] = counts.ravel().tolist()
+    return per_class

@@ -113,7 +113,8 @@ class TableIndex:
 
 def default_index_path() -> Path:
     """stamlane's ``configs/paper/tables.yaml`` (`stamlane.configs.configs_dir`), installed or in a checkout."""
-    return configs_dir() / "paper" / "tables.yaml"
+    index: Path = configs_dir() / "paper" / "tables.yaml"
+    return index
 
 
 def load_tables(path: str | Path | None = None) -> TableIndex:
@@ -193,6 +194,6 @@ def baseline_pairs(models: dict[str, str], index: TableIndex | None = None) -> l
     summed) whose row and baseline are both among ``models`` (paper row id -> model name)."""
     found = []
     for table in (index or load_tables()).tables.values():
-        base = models.get(table.baseline)
+        base = models.get(table.baseline) if table.baseline is not None else None
         found += [(models[r.id], base) for r in table.rows if base and models.get(r.id, base) != base]
     return list(dict.fromkeys(found))

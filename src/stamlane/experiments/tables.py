@@ -17,7 +17,7 @@ from pathlib import Path
 from stamlane_eval.names import parse_metric_name
 
 from stamlane.experiments.metrics import CLASS_RECALL, CULANE_F1, TEMPORAL_STABILITY, TUSIMPLE_F1
-from stamlane.experiments.summary import Difference, Summary, Value
+from stamlane.experiments.summary import Difference, ModelEntry, Summary, Value
 
 __all__ = [
     "NO_HEADROOM",
@@ -83,7 +83,7 @@ def reads_history(summary: Summary, model: str, view: str, metric: str = TUSIMPL
     return d is not None and d.diff > 0 and d.supported
 
 
-def markdown_table(header: Sequence[str], rows: list[Sequence[str]]) -> list[str]:
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     """A markdown table: the header row, its rule, one row per cell list, then an empty line."""
     return [
         "| " + " | ".join(header) + " |",
@@ -93,7 +93,7 @@ def markdown_table(header: Sequence[str], rows: list[Sequence[str]]) -> list[str
     ]
 
 
-def _kept(summary: Summary, only: Sequence[str] | None) -> list:
+def _kept(summary: Summary, only: Sequence[str] | None) -> list[ModelEntry]:
     if not only:
         return summary.models
     names = {m.name for m in summary.models}
@@ -174,7 +174,7 @@ def _multiple_note(cells: int) -> str:
     )
 
 
-def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _reveal(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     """The reveal splits: the oracles' absolute values and differences, each model's value and its history probes."""
     views = [v for v in summary.views() if v.split(":")[0] in REVEAL_SPLITS]
     if not views:
@@ -268,7 +268,7 @@ def _spans(summary: Summary) -> list[str]:
     ]
 
 
-def _history_use(summary: Summary, models: list) -> list[str]:
+def _history_use(summary: Summary, models: list[ModelEntry]) -> list[str]:
     if not models:
         return []
     rows = []
@@ -298,7 +298,7 @@ def headroom(summary: Summary, view: str, frames: int) -> Difference | None:
     return summary.difference(f"oracle:history-{frames}f", "oracle:key", view, TUSIMPLE_F1.key)
 
 
-def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _factors(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     factors = [v for v in summary.views() if v.startswith("challenging:")]
     if not factors:
         return []
@@ -329,7 +329,7 @@ def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> li
     return [text, "", *markdown_table(header, rows), _multiple_note(tested), ""]
 
 
-def _recall(summary: Summary, models: list) -> list[str]:
+def _recall(summary: Summary, models: list[ModelEntry]) -> list[str]:
     rows = []
     for m in models:
         for split in [v for v in summary.views() if ":" not in v or v.split(":")[0] in REVEAL_SPLITS]:
@@ -346,7 +346,7 @@ def _recall(summary: Summary, models: list) -> list[str]:
     ]
 
 
-def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _temporal(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     frames = next(
         (v for v in summary.views() if ":" not in v and summary.value(models[0].name, TEMPORAL_STABILITY[0].key, v)),
         None,
@@ -354,6 +354,7 @@ def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> l
     if frames is None:
         return []
     first = summary.value(models[0].name, TEMPORAL_STABILITY[0].key, frames)
+    assert first is not None  # frames is a view where this value was found
     rows = [[m.label, *(value_text(summary.value(m.name, t.key, frames)) for t in TEMPORAL_STABILITY)] for m in models]
     lines = [
         f"Temporal stability (RVLD's Rs / Rj / Rm, %): the clips of `{frames}` ({first.images} clips) predicted frame "

@@ -36,15 +36,16 @@ def image_score(lanes: Lanes, gt_lanes: Lanes, h_samples: Sequence[int] | None, 
         size: the image's ``(H, W)``.
     """
     if h_samples:
-        from stamlane_eval.tusimple import evaluate_image, lanes_to_xs
+        from stamlane_eval.tusimple import evaluate_image as tusimple_image
+        from stamlane_eval.tusimple import lanes_to_xs
 
         rows = list(h_samples)
-        result = evaluate_image(lanes_to_xs(lanes, rows), lanes_to_xs(gt_lanes, rows), rows)
+        result = tusimple_image(lanes_to_xs(lanes, rows), lanes_to_xs(gt_lanes, rows), rows)
         return f"TuSimple acc {100 * result.acc:.1f} %, {result.matched}/{result.n_gt} lanes"
     from stamlane_eval.aggregate import prf
-    from stamlane_eval.culane import evaluate_image
+    from stamlane_eval.culane import evaluate_image as culane_image
 
-    result = evaluate_image(lanes, gt_lanes, (0.5,), iou_width(size), size)
-    tp, fp, fn = result.counts[0.5]
+    counts = culane_image(lanes, gt_lanes, (0.5,), iou_width(size), size).counts
+    tp, fp, fn = counts[0.5]
     f1 = prf(tp, fp, fn)[2]  # the evaluators' convention: 0 where nothing was labelled or predicted
     return f"IoU F1@0.5 {f1:.2f} ({tp} of {tp + fn} lanes, {fp} false)"

@@ -13,6 +13,7 @@ import json
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path, PurePosixPath
+from typing import Any
 
 import cv2
 import numpy as np
@@ -78,7 +79,7 @@ class _ClipJob:
     """Where the clip's frames go and the rows its lanes are labelled at (`stamlane.synth.tusimple_layout`)."""
 
 
-def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]:
+def _make_clip(job: _ClipJob) -> tuple[list[dict[str, Any]], dict[str, float], list[dict[str, Any]]]:
     """Render and write one clip (a worker of `generate_dataset`): its key-frame records, `clip_statistics` and,
     when asked, the visibility records of its key frames (`key_frame_visibility`)."""
     cv2.setNumThreads(1)  # the pool already runs one clip per core
@@ -110,7 +111,7 @@ def generate_dataset(
     workers: int = 1,
     visibility: bool = True,
     layout: str = "stamlane",
-) -> dict:
+) -> dict[str, Any]:
     """Write a synthetic clip set (the layout of `stamlane.synth.layout`).
 
     Args:
@@ -185,9 +186,9 @@ def generate_dataset(
                 see = visibility and split != "train"
                 job = _ClipJob(root, split, split_cfg, seed, code, i, steps[split], see, reach_of[split], layout)
                 jobs.append(job)
-            records: list[dict] = []
-            by_file: dict[str, list[dict]] = {name: [] for name in split_label_files(layout, split)}
-            seen: list[dict] = []
+            records: list[dict[str, Any]] = []
+            by_file: dict[str, list[dict[str, Any]]] = {name: [] for name in split_label_files(layout, split)}
+            seen: list[dict[str, Any]] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
             for index, kind, (clip_records, clip_stats, clip_seen) in zip(
                 range(len(jobs)), kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)

@@ -231,7 +231,8 @@ def upgrade_names(value: Any, where: str = "") -> Any:
     if not isinstance(value, Mapping):
         return value
     out = {key: upgrade_names(item, f"{where}.{key}" if where else str(key)) for key, item in value.items()}
-    renamed = RENAMED_OPTIONS.get(out.get("class_path")) if isinstance(out.get("class_path"), str) else None
+    class_path = out.get("class_path")
+    renamed = RENAMED_OPTIONS.get(class_path) if isinstance(class_path, str) else None
     if renamed and isinstance(out.get("init_args"), Mapping):
         out["init_args"] = _renamed_keys(out["init_args"], renamed, f"{where}.init_args" if where else "init_args")
     return out
