@@ -15,6 +15,7 @@ import torch
 
 from stamlane.data import collate_clips
 from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
+from stamlane.data.frame_store import DEFAULT_MEMORY_MB
 from stamlane.data.labels import history_name
 from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
@@ -148,7 +149,8 @@ def test_a_datamodule_made_in_python_stores_plain_hyperparameters(tmp_path: Path
     from stamlane.training.compat import clip_options
 
     dm = ClipDataModule(clip=ClipOptions(num_frames=2), loader=LoaderOptions(batch_size=3))
-    assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == {"batch_size": 3, "num_workers": 0}
+    loader = {"batch_size": 3, "num_workers": 0, "memory_mb": DEFAULT_MEMORY_MB}
+    assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == loader
     assert dm.hparams_initial["clip"] == dm.hparams["clip"]  # what the loggers write
     torch.save({"datamodule_hyper_parameters": dict(dm.hparams)}, tmp_path / "h.ckpt")  # as a checkpoint holds them
     stored = torch.load(tmp_path / "h.ckpt", weights_only=True)["datamodule_hyper_parameters"]  # no dataclass

@@ -99,18 +99,26 @@ class ClipAligner:
         self._warned_cache_miss = False
         self.failures = 0
 
-    def __call__(self, frame_paths: list[str], frames: list[np.ndarray]) -> tuple[np.ndarray, list[bool]]:
+    @property
+    def reads_pixels(self) -> bool:
+        """Whether the alignment is estimated from the frames' pixels (``"fly"``, ``"cache"``); the other modes need
+        only the paths (``frames`` may then be None)."""
+        return self.mode in ("fly", "cache")
+
+    def __call__(self, frame_paths: list[str], frames: list[np.ndarray] | None) -> tuple[np.ndarray, list[bool]]:
         """Alignment of every frame to the last one.
 
         Args:
             frame_paths: the frames' paths relative to the root, oldest first, key last.
-            frames: the BGR uint8 images (H, W, 3) in original size, same order.
+            frames: the BGR uint8 images (H, W, 3) in original size, same order (None where not `reads_pixels`).
 
         Returns:
             ``key_from_hist`` float64 (T, 3, 3) in original pixels (identity for the key frame) and
             ``ok`` per frame (True for the key frame and for ``"none"``).
         """
-        t = len(frames)
+        t = len(frame_paths)
+        if frames is None and self.reads_pixels and t > 1:
+            raise ValueError(f"align {self.mode!r} estimates from the frames' pixels: frames must be given")
         eye = np.repeat(np.eye(3)[None], t, axis=0)
         if self.mode == "none" or t == 1:
             return eye, [True] * t

@@ -22,6 +22,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from stamlane.data.clips import HISTORY_SOURCES, ClipDataset
 from stamlane.data.collate import collate_clips
+from stamlane.data.frame_store import FRAME_STORE
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
@@ -223,7 +224,7 @@ class ClipDataModule(LightningDataModule):
     def make_dataset(self, split: str) -> ClipDataset:
         """Build the dataset of one split (``train`` augments; the others only resize)."""
         train = split == "train"
-        return make_clips(
+        dataset = make_clips(
             self.format,
             self.root,
             self.split_labels(split),
@@ -236,6 +237,10 @@ class ClipDataModule(LightningDataModule):
             history_source="real" if train else self.history_source,
             key_corruption=self.key_corruption if train else None,
         )
+        if self.loader.memory_mb > 0:  # evaluation frames read once per process (training samples are never kept)
+            FRAME_STORE.reserve(self.loader.memory_mb * 2**20)
+            dataset.frame_store = FRAME_STORE
+        return dataset
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {
@@ -261,6 +266,8 @@ class ClipDataModule(LightningDataModule):
             self.datasets[split] = self.make_dataset(split)
         dataset = self.datasets[split] if split == "train" else Indexed(self.datasets[split])
         sampler = None if split == "train" else eval_sampler(dataset, split)  # each image once under DDP
+        if split in ("test", "predict") and sampler is None:
+            self._materialise(self.datasets[split])
         return DataLoader(
             dataset,
             batch_size=self.loader.batch_size,
@@ -270,6 +277,16 @@ class ClipDataModule(LightningDataModule):
             collate_fn=collate_clips,
             persistent_workers=self.loader.num_workers > 0,
         )
+
+    def _materialise(self, dataset: ClipDataset) -> None:
+        """A test or prediction split read whole: its frames into the process's store now, by ``min(4, cores)``
+        threads, when they fit ``loader.memory_mb`` (`stamlane.data.frame_store`); the loader's workers, forked
+        after, and every later pass on the same frames read them from memory. (Validation during training reads a
+        part of its split: its worker keeps what it reads.)"""
+        height, width = self.clip.image_size
+        need = len(dataset) * self.clip.num_frames * height * width * 3
+        if dataset.stores_frames and need <= self.loader.memory_mb * 2**20:
+            dataset.materialise(threads=max(1, min(4, os.cpu_count() or 1)))
 
     def train_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("train")

@@ -26,6 +26,7 @@ from typing import Any
 
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
+from stamlane.data.frame_store import DEFAULT_MEMORY_MB
 from stamlane.data.transforms import ClipTransform
 from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
@@ -221,10 +222,14 @@ class LoaderOptions:
     Attributes:
         batch_size: clips per batch (>= 1).
         num_workers: DataLoader worker processes (>= 0; 0 loads in the main process).
+        memory_mb: MiB of this process kept for evaluation frames decoded, aligned and resized once and read again
+            by every later pass, probe and model on them (`stamlane.data.frame_store`; the same tensors bit for
+            bit); 0: every pass reads and resizes its frames afresh.
     """
 
     batch_size: int = 4
     num_workers: int = 0
+    memory_mb: int = DEFAULT_MEMORY_MB
 
     def __post_init__(self) -> None:
         if self.batch_size < 1:
@@ -232,6 +237,8 @@ class LoaderOptions:
         if self.num_workers < 0:
             raise ValueError(f"num_workers must be >= 0, got {self.num_workers}")
         check_workers(self.num_workers, "data.loader.num_workers")
+        if self.memory_mb < 0:
+            raise ValueError(f"memory_mb must be >= 0, got {self.memory_mb}")
 
 
 GROUPS: dict[str, type] = {

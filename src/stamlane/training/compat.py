@@ -83,8 +83,8 @@ def _flat_name(group: str, field: str) -> str:
     return f"synth_{field}" if group == "synth" else field
 
 
-GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion")}
-"""Options added after the groups (generator format 6): they never had a flat name."""
+GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion"), ("loader", "memory_mb")}
+"""Options added after the groups (generator format 6; the frame store): they never had a flat name."""
 FLAT_KEYS: dict[str, tuple[str, str]] = {
     _flat_name(group, f.name): (group, f.name)
     for group, cls in GROUPS.items()
