@@ -90,9 +90,10 @@ def build_parser() -> argparse.ArgumentParser:
         choices=WORLDS,
         default="classic",
         help="classic: the world of formats 1-6 (default); dashcam: format 7's camera, markings, surfaces, barriers, "
-        "skies and sensor effects (docs/data.md)",
+        "skies and sensor effects; dashcam2: the dashcam world plus sun shadows, curbs, poles, surface repairs and "
+        "vehicles with bodies (docs/data.md)",
     )
-    p.add_argument("--randomise", action="store_true", help="dashcam world: a random colour cast per clip")
+    p.add_argument("--randomise", action="store_true", help="dashcam worlds: a random colour cast per clip")
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -158,8 +159,8 @@ def _synth(args: argparse.Namespace) -> int:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
     check_workers(args.workers, "--workers", minimum=1)
-    if args.randomise and args.world != "dashcam":
-        print("stamlane synth: --randomise is an option of --world dashcam", file=sys.stderr)
+    if args.randomise and not args.world.startswith("dashcam"):
+        print("stamlane synth: --randomise is an option of --world dashcam2 or --world dashcam", file=sys.stderr)
         return 2
     cfg = SynthConfig(
         height=args.size[0],
