@@ -42,7 +42,12 @@ __all__ = [
     "open_run",
     "overrides_of",
     "predict",
+    "run_cli",
 ]
+
+
+EXACT_ALIGN = "true"
+"""``data.clip.align`` of `Probe.exact`: the generator's exact homographies (`stamlane.data.alignment.ALIGN_MODES`)."""
 
 
 class RunError(ValueError):
@@ -143,13 +148,15 @@ class RunSpec:
         return [*args, *flags_of(self.overrides)]
 
 
-def _cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
-    """LightningCLI (`StamLaneCLI`) run on ``args`` (the subcommand first): never on ``sys.argv``."""
+def run_cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
+    """LightningCLI (`StamLaneCLI`, or its subclass ``cli``) run on ``args`` (the subcommand first), never on
+    ``sys.argv``: the one call of LightningCLI, from Python and from ``stamlane fit|validate|test|predict``.
+    ``kwargs`` go to `StamLaneCLI` (``report`` False unless given: the caller reports)."""
     from stamlane.training.lightning_cli import StamLaneCLI
 
     with warnings.catch_warnings():  # args are given on purpose: sys.argv is this process's, not the run's
         warnings.filterwarnings("ignore", message=r".*LightningCLI's args parameter is intended", category=UserWarning)
-        return (cli or StamLaneCLI)(args=args, report=False, **kwargs)
+        return (cli or StamLaneCLI)(args=args, **{"report": False, **kwargs})
 
 
 # ---------------------------------------------------------------------- making a run
@@ -178,7 +185,7 @@ def fit(spec: RunSpec, seed: int = 0, init: Path | None = None, *, run_dir: Path
     spec = spec.with_overrides(options).with_overrides(where)
     start = time.perf_counter()
     try:
-        cli = _cli(["fit", *([f"--ckpt_path={last}"] if last.is_file() else []), *spec.args()])
+        cli = run_cli(["fit", *([f"--ckpt_path={last}"] if last.is_file() else []), *spec.args()])
     except CheckpointError as err:  # a tampered checkpoint to resume or start from: one line
         raise RunError(f"{run_dir}: {one_line(err)}") from None
     folder = Path(cli.trainer.logger.log_dir)
@@ -308,7 +315,7 @@ class Run:
             **({"data.root": root} if root is not None else {}),
             "data.predict_labels": [f"{split}.json"],
             "data.history_source": probe.history,
-            **({"data.clip.align": True} if probe.exact else {}),
+            **({"data.clip.align": EXACT_ALIGN} if probe.exact else {}),
             "trainer.logger": False,
             "trainer.callbacks": [],
             "trainer.enable_progress_bar": False,
@@ -319,7 +326,7 @@ class Run:
         try:
             if self._cli is None:  # the first prediction builds the model and loads the checkpoint
                 args = ["predict", "--config", str(self.config_file), f"--ckpt_path={self.ckpt}", *flags_of(options)]
-                self._cli = _cli(args, parser_kwargs={"exit_on_error": False})
+                self._cli = run_cli(args, parser_kwargs={"exit_on_error": False})
                 first = self._cli.datamodule
                 self._align = first.clip.align if not probe.exact else self._run_align()
             else:
@@ -342,7 +349,7 @@ class Run:
         kwargs = {n: first.hparams[n] for n in names}
         kwargs |= {"augment": first.augment, "synth": first.synth, "loader": first.loader}
         kwargs |= {
-            "clip": replace(first.clip, align=True if probe.exact else self._align),
+            "clip": replace(first.clip, align=EXACT_ALIGN if probe.exact else self._align),
             "root": str(root) if root is not None else first.hparams["root"],
             "predict_labels": [f"{split}.json"],
             "history_source": probe.history,
