@@ -172,15 +172,12 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     from stamlane.training.registry import check_data_hparams
 
     if args.config:
-        from stamlane.training.lightning_cli import StamLaneCLI as build_cli
+        from stamlane.training.runs import run_cli
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")
-        argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own
-        try:  # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
-            cli = build_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
-        finally:
-            sys.argv = argv
+        # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
+        cli = run_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
         module = cli.model
         if args.ckpt:
             try:
