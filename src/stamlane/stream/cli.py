@@ -167,9 +167,7 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
     of an older checkpoint too); None for a checkpoint without data options."""
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.training.compat import clip_options
-    from stamlane.training.module import StamLaneModule
-    from stamlane.training.registry import check_data_hparams
+    from stamlane.training.runs import open_model
 
     if args.config:
         from stamlane.training.runs import run_cli
@@ -192,15 +190,10 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
         return module, cli.datamodule.clip
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
-    try:
-        module = StamLaneModule.from_checkpoint(args.ckpt)  # built from the closed registry, nothing imported
-        data = read_checkpoint(args.ckpt).get("datamodule_hyper_parameters")
-        if data is not None:
-            check_data_hparams(data, args.ckpt)
-        clip = clip_options(data) if isinstance(data, dict) else None
+    try:  # built from the closed registry, nothing imported; the checkpoint read once
+        return open_model(args.ckpt)
     except CheckpointError as err:
         raise StreamError(str(err)) from None
-    return module, clip
 
 
 def _device(name: str) -> Any:
