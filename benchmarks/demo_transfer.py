@@ -48,6 +48,7 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     from stamlane.experiments.runner import Runner, frames_of
     from stamlane.synth import generate_dataset
     from stamlane.synth.layout import SplitCounts
+    from stamlane.training.runs import RunRecord
 
     root = out / f"synthetic-seed{seed}"
     if not (root / "dataset.json").is_file():
@@ -58,7 +59,8 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
         for seed in seeds:
             name = runs.run_name(model, seed)
             run = runs.run_dir(name)
-            record = {"run": str(run), "frames": frames_of(run)}  # scored on these clips, not kept in the demo's
+            # scored on these clips, not kept in the demo's
+            record = RunRecord(run, runs.last_ckpt(name), frames_of(run), seed, train_minutes=0.0)
             runner.score(name, record, dict.fromkeys(SPLITS, ()))
             for split in SPLITS:
                 per_image, groups = runner.scored(name, record, split)

@@ -30,29 +30,33 @@ import hashlib
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from stamlane.experiments.recipes import PRETRAIN, Recipe, Row
 from stamlane.experiments.runner import Runner
+from stamlane.training.runs import RunRecord, flags_of
 
 MODEL = Row("stam4", "4 frames, pre-aligned, STAM", ("demo.yaml",))
 PROBED = ("key", "other_clip")
 """The history probes of the final weights on val."""
-CLEAN = ("--data.train_labels=[train-clean.json]",)
-FACTORS = ()  # train.json: the clean clips and as many factor clips
-CORRUPT = ("--data.augment.key_corruption=0.5",)
-VAL = ("--data.val_labels=[val.json]",)
-MONITOR = ("--trainer.callbacks+=stamlane.training.history_use_monitor.HistoryUseMonitor",)
-TRUE = ("--data.clip.align=true",)  # the generator's exact homographies: alignment taken out of the question
-STRIDE8 = ("--model.fuse_skip=true",)  # measured as --model.skip_fusion=STAM (reduction 4, features): the same network
+Options = dict[str, Any]
+"""A recipe's options over the configs, keyed by dotted names (`stamlane.training.runs.RunSpec`)."""
+CLEAN: Options = {"data.train_labels": ["train-clean.json"]}
+FACTORS: Options = {}  # train.json: the clean clips and as many factor clips
+CORRUPT: Options = {"data.augment.key_corruption": 0.5}
+VAL: Options = {"data.val_labels": ["val.json"]}
+MONITOR: Options = {"trainer.callbacks+": "stamlane.training.history_use_monitor.HistoryUseMonitor"}
+TRUE: Options = {"data.clip.align": True}  # the generator's exact homographies: alignment taken out of the question
+STRIDE8: Options = {"model.fuse_skip": True}  # measured as --model.skip_fusion=STAM (reduction 4, features): the same
 
 
 def _two_stage(
     name: str,
     description: str,
-    data: tuple[str, ...],
+    data: Options,
     steps2: int = 300,
-    extra: tuple = (),
-    stage1_data: tuple[str, ...] | None = None,
+    extra: Options | None = None,
+    stage1_data: Options | None = None,
 ) -> Recipe:
     """Stage 1 (1,200 single-frame steps on ``stage1_data``, default ``data``), then 300 steps of the model."""
     return Recipe(
@@ -60,8 +64,8 @@ def _two_stage(
         steps=steps2,
         pretrain_steps=1200,
         pretrain=PRETRAIN,
-        row_args=(*data, *VAL, *MONITOR, *extra),
-        pretrain_args=(*(data if stage1_data is None else stage1_data), *VAL, *MONITOR),
+        row_overrides={**data, **VAL, **MONITOR, **(extra or {})},
+        pretrain_overrides={**(data if stage1_data is None else stage1_data), **VAL, **MONITOR},
         val_checks=6,
         description=description,
     )
@@ -72,66 +76,68 @@ VARIANTS = {
     for v in (
         _two_stage("clean", "README command 1 before: clean clips, stage 2 of 300 steps", CLEAN),
         _two_stage("factors", "half the train clips with a challenging factor", FACTORS),
-        _two_stage("factors_corrupt", "factor clips and the key frame corrupted in half the clips", FACTORS + CORRUPT),
-        _two_stage("factors_corrupt_long", "the same with a stage 2 of 900 steps", FACTORS + CORRUPT, steps2=900),
+        _two_stage(
+            "factors_corrupt", "factor clips and the key frame corrupted in half the clips", {**FACTORS, **CORRUPT}
+        ),
+        _two_stage("factors_corrupt_long", "the same with a stage 2 of 900 steps", {**FACTORS, **CORRUPT}, steps2=900),
         _two_stage(
             "factors_corrupt_lr10",
             "the same (300 steps) with the fusion's learning rate x10",
-            FACTORS + CORRUPT,
-            extra=("--model.fusion_lr_scale=10",),
+            {**FACTORS, **CORRUPT},
+            extra={"model.fusion_lr_scale": 10},
         ),
-        _two_stage("corrupt", "clean clips, the key frame corrupted in half of them", CLEAN + CORRUPT),
+        _two_stage("corrupt", "clean clips, the key frame corrupted in half of them", {**CLEAN, **CORRUPT}),
         _two_stage(
             "factors_corrupt_stride8",
             "factor clips and corruption, the stride-8 stage fused too (skip_fusion)",
-            FACTORS + CORRUPT,
+            {**FACTORS, **CORRUPT},
             extra=STRIDE8,
         ),
         _two_stage(
-            "factors_corrupt_stride8_long", "the same with a stage 2 of 900 steps", FACTORS + CORRUPT, 900, STRIDE8
+            "factors_corrupt_stride8_long", "the same with a stage 2 of 900 steps", {**FACTORS, **CORRUPT}, 900, STRIDE8
         ),
         _two_stage(
             "factors_corrupt2_stride8",
             "the key frame corrupted in stage 2 only (stage 1: factor clips, no corruption), stride-8 fusion",
-            FACTORS + CORRUPT,
+            {**FACTORS, **CORRUPT},
             extra=STRIDE8,
             stage1_data=FACTORS,
         ),
         _two_stage(
             "factors_blank2_stride8",
             "stage 2 only: the near road of the key frame blanked or the frame overexposed in half the clips",
-            (*FACTORS, *CORRUPT, "--data.augment.key_corruption_kinds=[blank, glare]"),
+            {**FACTORS, **CORRUPT, "data.augment.key_corruption_kinds": ["blank", "glare"]},
             extra=STRIDE8,
             stage1_data=FACTORS,
         ),
         _two_stage(
             "factors_blank2",
             "the same without the stride-8 fusion",
-            (*FACTORS, *CORRUPT, "--data.augment.key_corruption_kinds=[blank, glare]"),
+            {**FACTORS, **CORRUPT, "data.augment.key_corruption_kinds": ["blank", "glare"]},
             stage1_data=FACTORS,
         ),
         _two_stage(
             "factors_corrupt25_stride8",
             "the key frame corrupted in a quarter of the clips (both stages), stride-8 fusion",
-            (*FACTORS, "--data.augment.key_corruption=0.25"),
+            {**FACTORS, "data.augment.key_corruption": 0.25},
             extra=STRIDE8,
         ),
         _two_stage(
             "factors_corrupt_true",
             "factor clips and corruption, exact alignment (the generator's homographies) in training and validation",
-            FACTORS + CORRUPT,
+            {**FACTORS, **CORRUPT},
             extra=TRUE,
         ),
         _two_stage(
             "factors_corrupt_stride8_true",
             "the same with the stride-8 stage fused too",
-            FACTORS + CORRUPT,
-            extra=(*TRUE, *STRIDE8),
+            {**FACTORS, **CORRUPT},
+            extra={**TRUE, **STRIDE8},
         ),
         Recipe(
             "end_to_end",
             steps=1500,
-            row_args=(*FACTORS, *CORRUPT, *VAL, *MONITOR),
+            row_overrides={**FACTORS, **CORRUPT, **VAL, **MONITOR},
             val_checks=6,
             description="factor clips and corruption, the 4-frame model from scratch for 1,500 steps",
         ),
@@ -157,7 +163,7 @@ def _curve(run: Path, offset: int) -> list[dict]:
     return [{"step": step, **values} for step, values in sorted(found.items())]
 
 
-def probe(runner: Runner, name: str, record: dict) -> dict:
+def probe(runner: Runner, name: str, record: RunRecord) -> dict:
     """The final weights of run ``name`` on the val split with the real history, the key frame copied and another
     clip's history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
     from dataclasses import asdict
@@ -191,10 +197,10 @@ def run_variant(runner: Runner, recipe: Recipe, seed: int) -> dict:
     init, offset, minutes = None, 0, 0.0
     stage1 = recipe.pretraining()
     if stage1 is not None:  # named by what it is: variants with the same stage 1 share its run
-        key = json.dumps([*PRETRAIN.configs, stage1.steps, *stage1.args])
+        key = json.dumps([*PRETRAIN.configs, stage1.steps, *flags_of(stage1.overrides)])
         row = replace(PRETRAIN, name=f"stage1-{hashlib.sha256(key.encode()).hexdigest()[:10]}")
         first = runner.train(row, seed, stage1, settings | {"stage": key}, label=f"stage 1 of {recipe.name}")
-        init, offset, minutes = Path(first["last_ckpt"]), stage1.steps, first["train_minutes"]
+        init, offset, minutes = first.last_ckpt, stage1.steps, first.train_minutes
     row = replace(MODEL, name=recipe.name)
     record = runner.train(row, seed, recipe.training(row), settings | recipe.settings(), init, recipe.name)
     name = runner.store.run_name(row.name, seed)
@@ -204,8 +210,8 @@ def run_variant(runner: Runner, recipe: Recipe, seed: int) -> dict:
         "recipe": recipe.settings(),
         "seed": seed,
         "bf16": runner.bf16,
-        "minutes": round(minutes + record["train_minutes"], 2),
-        "curve": _curve(Path(record["run"]), offset),
+        "minutes": round(minutes + record.train_minutes, 2),
+        "curve": _curve(record.run, offset),
         "probes": probe(runner, name, record),
     }
 

@@ -100,13 +100,14 @@ def fit(root: Path, out: Path, steps: int) -> tuple[float, dict]:
     import torch
 
     from stamlane.experiments.recipes import KEY_CORRUPTION
+    from stamlane.training.runs import flags_of
 
     seconds = _stamlane(
         "fit",
         "--config",
         str(REPO / "configs" / "demo.yaml"),
         f"--data.root={root}",
-        *KEY_CORRUPTION,
+        *flags_of(KEY_CORRUPTION),
         "--seed_everything=0",
         f"--trainer.max_steps={steps}",
         f"--trainer.val_check_interval={steps}",

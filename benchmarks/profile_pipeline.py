@@ -105,6 +105,7 @@ def profile(root: Path, repeats: int, render_ms: float) -> dict[str, list[float]
     from stamlane.experiments.recipes import KEY_CORRUPTION
     from stamlane.predict.writers import tusimple_record
     from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.training.runs import flags_of
     from stamlane.weights import shipped_path
 
     times: dict[str, list[float]] = {name: [] for name in (*SAMPLE_STAGES, *BATCH_STAGES, *RUN_STAGES)}
@@ -116,7 +117,7 @@ def profile(root: Path, repeats: int, render_ms: float) -> dict[str, list[float]
         times[stage].append((time.perf_counter() - start) * 1000.0)
         return result
 
-    cli = _cli(root, *KEY_CORRUPTION)
+    cli = _cli(root, *flags_of(KEY_CORRUPTION))
     module, data = cli.model, cli.datamodule
     data.setup("fit")
     train, evaluation = data.datasets["train"], data.make_dataset("test")
@@ -139,7 +140,7 @@ def profile(root: Path, repeats: int, render_ms: float) -> dict[str, list[float]
         scheduler.step()
 
     for r in range(repeats):
-        timed("LightningCLI", _cli, root, *KEY_CORRUPTION)
+        timed("LightningCLI", _cli, root, *flags_of(KEY_CORRUPTION))
         entry = train.entries[(r * 7) % len(train.entries)]
         frames = timed("decode", train.read_frames, entry)
         timed("digest", aligner.digests, frames)

@@ -84,22 +84,27 @@ def test_help_is_not_taken_for_a_missing_argument():
 
 
 def test_a_relative_data_root_is_found_from_the_start_folder_then_the_run_folder(tmp_path, monkeypatch):
+    """`stamlane.training.runs.Run.data_root`: what ``validate|test|predict --ckpt_path`` give the run as its root."""
+    from pathlib import Path
+
     from stamlane.data.labels import DataError
+    from stamlane.training.runs import Run
+
+    def run(root, ckpt, start=None):
+        return Run(Path(ckpt), {"data": {"root": root}}, Path(ckpt), "", start)
 
     start, elsewhere = tmp_path / "start", tmp_path / "elsewhere"
     (start / "data" / "set").mkdir(parents=True)
     elsewhere.mkdir()
-    ckpt = str(start / "runs" / "stam4" / "version_0" / "checkpoints" / "last.ckpt")
-    config = {"data": {"root": "data/set"}}
+    ckpt = start / "runs" / "stam4" / "version_0" / "checkpoints" / "last.ckpt"
     monkeypatch.chdir(elsewhere)
-    found = ["--data.root", str(start / "data" / "set")]
-    assert cli._data_root_args(config, ckpt, str(start), []) == found  # the recorded start folder
-    assert cli._data_root_args(config, ckpt, None, []) == found  # an ancestor of the run folder
-    assert cli._data_root_args(config, ckpt, None, ["--data.root", "x"]) == []  # given: kept
-    assert cli._data_root_args({"data": {"root": str(tmp_path)}}, ckpt, None, []) == []  # absolute: as it is
-    far = str(tmp_path / "far" / "last.ckpt")
+    found = start / "data" / "set"
+    assert run("data/set", ckpt, str(start)).data_root() == found  # the recorded start folder
+    assert run("data/set", ckpt).data_root() == found  # an ancestor of the run folder
+    assert run(str(tmp_path), ckpt).data_root() is None  # absolute: as it is
+    far = tmp_path / "far" / "last.ckpt"
     with pytest.raises(DataError, match=r"data root data/set .* give --data.root DIR$"):
-        cli._data_root_args(config, far, None, [])
-    assert cli._data_root_args({"data": {"root": None}}, far, None, []) == []  # the default synthetic set: made
+        run("data/set", far).data_root()
+    assert run(None, far).data_root() is None  # the default synthetic set: made
     monkeypatch.chdir(start)
-    assert cli._data_root_args(config, far, None, []) == []  # here, as before
+    assert run("data/set", far).data_root() is None  # here, as before

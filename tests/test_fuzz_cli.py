@@ -623,7 +623,7 @@ def test_demo_run_records(kind: str, changes: dict[str, object]) -> None:
                 assert len(str(err).splitlines()) == 1
                 got = None
         if got is not None:  # what is reused holds what it is used with, inside the experiment
-            assert isinstance(got["frames"], int) and not isinstance(got["frames"], bool)
+            assert isinstance(got.frames, int) and not isinstance(got.frames, bool)
             assert Path(got["run"]).resolve().is_relative_to(top.resolve())
             assert kind not in ("link-outside", "folder-linked", "truncated-ckpt", "fifo", "deep", "binary")
         assert _fingerprint(outside) == seen

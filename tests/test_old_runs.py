@@ -165,10 +165,10 @@ def test_the_engine_reuses_and_scores_an_old_run(old_run: Path, tiny_set: Path, 
     old = {k: v for k, v in settings.items() if k != "pretrain_args"}  # recorded before stage 1 took arguments
     record = old | {"row_args": OLD_KEY_CORRUPTION, "seed": 0, "train_minutes": 0.1, "frames": 2}
     record |= {"run": str(run), "last_ckpt": str(run / "checkpoints" / "last.ckpt")}
-    experiment.store.mark("stam4-s0", record)
+    (experiment.store.folder("stam4-s0") / "done.json").write_text(json.dumps(record))  # as stamlane wrote it
     stage = experiment.recipe.training(experiment.rows[0])
     reused = experiment.runner.train(experiment.rows[0], 0, stage, settings, label="stage 2")
     assert [line.split(" min  ", 1)[1] for line in said] == ["seed 0, stage 2: 4 frames, done before, reused"]
-    assert reused["row_args"] == settings["row_args"] and reused["pretrain_args"] == []
+    assert reused.settings["row_args"] == settings["row_args"] and reused.settings["pretrain_args"] == []
     assert experiment.runner.score("stam4-s0", reused, {"test": ()})  # predicts with the old run's config.yaml
-    assert "test" in reused["scores"] and 0 <= reused["scores"]["test"]["f1"] <= 1
+    assert "test" in reused.scores and 0 <= reused.scores["test"]["f1"] <= 1

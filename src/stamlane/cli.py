@@ -26,17 +26,13 @@ import importlib
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
-from typing import Any
 
 from stamlane.safety.boundary import one_line
 from stamlane.safety.paths import (
     CKPT_NAMES,
-    MAX_CONFIG_BYTES,
     PathError,
     check_arguments,
     check_command_files,
-    check_config_paths,
     inspect_path,
 )
 
@@ -121,42 +117,23 @@ def _stream_args(rest: list[str]) -> list[str]:
 
 @contextmanager
 def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]]:
-    """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the config stored in the
-    checkpoint (written to a temporary file while the command runs), else the run's ``config.yaml`` beside
-    ``checkpoints/``; with it, the run's data root when it was recorded relative to the folder the run was started
-    in (`_data_root_args`); for ``predict``, no output folder (the run's config may name one: the command chooses
-    one per model and source, `stamlane.predict.prediction_writer.default_output_dir`). Yields the arguments to put
-    in front (none when a config is given or nothing is needed)."""
+    """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the run opened through the one
+    gate (`stamlane.training.runs.open_run`: its config checked against the closed registry, read in today's names),
+    with its data root when it was recorded relative to the folder the run was started in
+    (`stamlane.training.runs.Run.data_root`); for ``predict``, no output folder (the run's config may name one: the
+    command chooses one per model and source, `stamlane.predict.prediction_writer.default_output_dir`). Yields the
+    arguments to put in front (none when a config is given or nothing is needed)."""
     given = any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
     ckpt = _option(rest, "--ckpt_path")
     if command == "fit" or given or ckpt in (None, "last", "best"):
         yield []
         return
-    from stamlane_eval.cli_tools import check_input_file
-    from stamlane_eval.io import read_text
+    from stamlane.training.runs import open_run
 
-    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
-    from stamlane.training.registry import check_run_config, safe_config_file
-
-    content = read_checkpoint(ckpt)
-    config = content.get(CONFIG_KEY)
-    start = content.get(START_DIR_KEY)
-    source: str | Path = ckpt
-    if not isinstance(config, str):
-        beside = Path(ckpt).resolve().parent.parent / "config.yaml"
-        if not beside.is_file():
-            raise CheckpointError(f"checkpoint {ckpt} carries no config and none is beside it: give --config")
-        check_input_file(beside, "run config")
-        config, source = read_text(beside, limit=MAX_CONFIG_BYTES), beside
-    # data, not the user's code: checked against the closed registry and its paths through the gate, then a copy read
-    checked = check_run_config(config, source)
-    check_config_paths(checked)
-    root = _data_root_args(checked, ckpt, start if isinstance(start, str) else None, rest)
-    # where the run's config wrote predictions is not where this call's go: one folder per model and source
-    fresh = ["--predictions.output_dir=null"] if command == "predict" else []
-    with safe_config_file(config, source) as path:
-        yield ["--config", str(path), *root, *fresh]
+    with open_run(ckpt) as run:
+        root = run.data_root() if _option(rest, "--data.root") is None else None
+        fresh = ["--predictions.output_dir=null"] if command == "predict" else []
+        yield ["--config", str(run.config_file), *(["--data.root", str(root)] if root else []), *fresh]
 
 
 def _option(rest: list[str], name: str) -> str | None:
@@ -168,40 +145,6 @@ def _option(rest: list[str], name: str) -> str | None:
         elif arg == name and i + 1 < len(rest):
             value = rest[i + 1]
     return value
-
-
-def _data_root_args(config: dict[str, Any], ckpt: str, start: str | None, rest: list[str]) -> list[str]:
-    """``["--data.root", DIR]`` for a run whose config records its data root relative to the folder it was started
-    in (``data/synthetic-v7``), so that its checkpoint works from any folder: the root is looked for under the
-    folder the run was started in (recorded in the checkpoints of ``stamlane fit``), then under the run folder's
-    ancestors, then here. ``[]`` when ``--data.root`` is given, the root is absolute or found nowhere but here; a
-    default synthetic set (``data.root: null``) found nowhere is generated here, as ``fit`` would.
-
-    Raises:
-        DataError: a relative root found nowhere, naming the flag to give.
-    """
-    from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT
-    from stamlane.data.labels import DataError
-
-    if _option(rest, "--data.root") is not None:
-        return []
-    data = config.get("data")
-    recorded = data.get("root") if isinstance(data, dict) else None
-    root = Path(recorded) if isinstance(recorded, str) else Path(DEFAULT_SYNTHETIC_ROOT)
-    if root.is_absolute():
-        return []
-    bases = [Path(start)] if start else []
-    bases += list(Path(ckpt).resolve().parent.parents)
-    for base in bases:
-        if base.is_absolute() and (base / root).is_dir():
-            return [] if (base / root).resolve() == root.resolve() else ["--data.root", str(base / root)]
-    if root.is_dir() or recorded is None:
-        return []
-    where = f" (the run was started in {start})" if start else ""
-    raise DataError(
-        f"data root {root} of the run is relative to the folder it was started in{where} and found neither there "
-        f"nor beside the run nor here: give --data.root DIR"
-    )
 
 
 _NO_RUN = ("-h", "--help", "--print_config", "--print-config")
@@ -305,8 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         except PathError as err:
             print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
             return 2
-        if shipped != rest:  # LightningCLI reads the rewritten arguments, not sys.argv's
-            rest, argv = shipped, [command, *shipped]
+        rest = shipped
         missing = _missing_input(command, rest)
         if missing is not None:  # said in a fraction of a second, before torch and Lightning are imported
             print(f"stamlane {command}: {missing}", file=sys.stderr)
@@ -318,23 +260,17 @@ def main(argv: list[str] | None = None) -> int:
         from stamlane.training.quiet import quiet_libraries
 
         if "--verbose" in rest:  # everything the libraries say (not an option of LightningCLI's: taken out)
-            was_own = argv == sys.argv[1:]
-            rest, argv = [a for a in rest if a != "--verbose"], [a for a in argv if a != "--verbose"]
-            if was_own:
-                sys.argv = [sys.argv[0], *argv]
+            rest = [a for a in rest if a != "--verbose"]
         else:
             quiet_libraries()
 
         try:
             with _config_from_checkpoint(command, rest) as extra:
-                from stamlane.training.lightning_cli import StamLaneCLI  # once the libraries are quieted
+                from stamlane.training.runs import run_cli  # once the libraries are quieted
 
-                # args=None when they are sys.argv's own (LightningCLI warns when given both); a bad option or
-                # config raises instead of printing jsonargparse's hundred-line usage
-                StamLaneCLI(
-                    None if argv == sys.argv[1:] and not extra else [command, *extra, *rest],
-                    parser_kwargs={"exit_on_error": False},
-                )
+                # the arguments as given (never sys.argv's); a bad option or config raises instead of printing
+                # jsonargparse's hundred-line usage
+                run_cli([command, *extra, *rest], report=True, parser_kwargs={"exit_on_error": False})
         except ArgumentError as err:
             print(f"stamlane {command}: {one_line(err)} (see stamlane {command} --help)", file=sys.stderr)
             return 2

@@ -32,8 +32,8 @@ def test_weights_and_predictions_are_the_same_with_and_without_the_cache(
                 patch.setattr(PairCache, "put", lambda self, key, alignment: None)
             experiment = Experiment([row], recipe, [0], root, tmp_path / name, extra=SHRINK, max_overlays=0)
             record = experiment.runner.train(row, 0, recipe.training(row), experiment.settings())
-            pred = experiment.runner.predict(f"{row.name}-s0", Path(record["run"]), "test")
-        weights = torch.load(Path(record["run"]) / "checkpoints" / "last.ckpt", weights_only=True)["state_dict"]
+            pred = experiment.runner.predict(f"{row.name}-s0", record.run, "test")
+        weights = torch.load(record.run / "checkpoints" / "last.ckpt", weights_only=True)["state_dict"]
         lines = (pred / "predictions.json").read_text().splitlines()
         lanes = [{k: v for k, v in json.loads(line).items() if k != "run_time"} for line in lines]  # not timings
         results.append((weights, lanes))

@@ -22,6 +22,7 @@ from stamlane.experiments.store import file_sha256
 from stamlane.experiments.summary import DIFFERENCE_KINDS, Summary
 from stamlane.predict.image_score import iou_width
 from stamlane.synth.generator import FACTORS, REVEAL, REVEAL_TRAFFIC
+from stamlane.training.runs import flags_of
 
 torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[2]
@@ -58,7 +59,7 @@ def test_quick_demo_writes_a_summary_that_its_files_account_for(quick: Path) -> 
         "name": "cpu",
         "pretrain_steps": 3,
         "steps": 2,
-        "row_args": list(KEY_CORRUPTION),
+        "row_args": flags_of(KEY_CORRUPTION),
         "pretrain_args": [],
     }
     assert (

@@ -6,6 +6,7 @@ final weights)."""
 from __future__ import annotations
 
 import csv
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ import torch
 from stamlane.experiments.engine import ALL_PROBES, PROBES, REVEAL_PROBES, Experiment
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import predicted_as
+from stamlane.training.run_record import RunRecord
 
 torch.set_num_threads(1)
 SHRINK = (
@@ -26,11 +28,11 @@ SHRINK = (
 )
 
 
-def _run_folder(tmp_path: Path, align: str) -> dict:
+def _run_folder(tmp_path: Path, align: str) -> RunRecord:
     run = tmp_path / f"run-{align}"
     run.mkdir()
     (run / "config.yaml").write_text(f"data:\n  clip:\n    align: {align}\n")
-    return {"frames": 4, "run": str(run)}
+    return RunRecord(run, run / "checkpoints" / "last.ckpt", frames=4, seed=0, train_minutes=0.0)
 
 
 def test_which_probes_each_split_gets(tmp_path: Path) -> None:
@@ -40,7 +42,7 @@ def test_which_probes_each_split_gets(tmp_path: Path) -> None:
     assert experiment.probes_of("test", aligned) == PROBES == experiment.probes_of("challenging", unaligned)
     assert experiment.probes_of("reveal", aligned) == REVEAL_PROBES
     assert experiment.probes_of("reveal-traffic", unaligned) == tuple(p for p in REVEAL_PROBES if p != "exact")
-    assert experiment.probes_of("test", {**aligned, "frames": 1}) == ()  # a single frame has no history
+    assert experiment.probes_of("test", replace(aligned, frames=1)) == ()  # a single frame has no history
     everywhere = Experiment([], Recipe("paper", steps=1), [0], tmp_path, tmp_path / "out", all_probes=True)
     assert everywhere.probes_of("challenging", aligned) == ALL_PROBES
     # the matched null of a run that does not align is the key copied: predicted once, under the key's name
@@ -83,7 +85,7 @@ def test_validating_on_fewer_batches_leaves_the_final_weights_bit_for_bit(tiny_s
     for batches in (None, 1):
         recipe = Recipe("paper", steps=6, val_checks=3, val_batches=batches)
         experiment = Experiment([row], recipe, [0], root, tmp_path / f"out{batches}", extra=SHRINK)
-        run = Path(experiment.runner.train(row, 0, recipe.training(row), experiment.settings())["run"])
+        run = experiment.runner.train(row, 0, recipe.training(row), experiment.settings()).run
         weights.append(torch.load(run / "checkpoints" / "last.ckpt", weights_only=True)["state_dict"])
         with (run / "metrics.csv").open() as f:
             validated = [r for r in csv.DictReader(f) if r.get("val/tusimple_f1")]

@@ -14,6 +14,7 @@ import torch
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import Runner, frame_files_digest
 from stamlane.experiments.store import RunStore
+from stamlane.training.runs import RunRecord
 
 torch.set_num_threads(1)
 pytestmark = pytest.mark.usefixtures("plain_argv")
@@ -29,7 +30,7 @@ ROW = Row.paper_row("f2_mixed_cs_features")
 
 
 @pytest.fixture
-def trained(tiny_synthetic: Callable[..., Path], tmp_path: Path) -> tuple[Runner, dict, list[str]]:
+def trained(tiny_synthetic: Callable[..., Path], tmp_path: Path) -> tuple[Runner, RunRecord, list[str]]:
     """A two-frame run of two steps on a tiny set of its own (its frames are changed by the tests), and the
     progress lines said."""
     root = tiny_synthetic(128, 72, 4, train=2, val=1, test=2, challenging=0)
@@ -44,12 +45,14 @@ def _predicted(said: list[str]) -> list[str]:
     return [line.split(": predicting ", 1)[1] for line in said if ": predicting " in line]
 
 
-def test_a_run_is_trained_once_and_scored_once(trained: tuple[Runner, dict, list[str]]) -> None:
+def test_a_run_is_trained_once_and_scored_once(trained: tuple[Runner, RunRecord, list[str]]) -> None:
     runner, record, said = trained
     name = runner.store.run_name(ROW.name, 0)
     assert said == [f"seed 0, training: {ROW.label}, 2 steps"]
-    assert Path(record["run"]) == runner.store.run_dir(name) and record["frames"] == 2
-    assert runner.train(ROW, 0, Recipe("paper", steps=2).training(ROW), {k: record[k] for k in ("data", "steps")})
+    assert record.run == runner.store.run_dir(name) and record.frames == 2
+    assert runner.train(
+        ROW, 0, Recipe("paper", steps=2).training(ROW), {k: record.setting(k) for k in ("data", "steps")}
+    )
     assert said[-1] == f"seed 0, training: {ROW.label}, done before, reused"
     assert runner.score(name, record, {"test": ("key",)})
     assert _predicted(said) == ["test", "test@key"]
@@ -61,7 +64,7 @@ def test_a_run_is_trained_once_and_scored_once(trained: tuple[Runner, dict, list
 
 
 def test_a_frame_written_again_under_the_same_labels_is_predicted_again(
-    trained: tuple[Runner, dict, list[str]],
+    trained: tuple[Runner, RunRecord, list[str]],
 ) -> None:
     """A generator that moves pixels and leaves the labels as they were: the split's predictions are stale."""
     runner, record, said = trained
@@ -75,7 +78,7 @@ def test_a_frame_written_again_under_the_same_labels_is_predicted_again(
     assert runner.score(name, record, {"test": ("key",), "val": ()})
     assert said[0] == f"{name}: the test frames changed, predicting them again"
     assert _predicted(said) == ["test", "test@key"]  # val's frames are as they were: not predicted again
-    assert record["frame_files"]["test"] == frame_files_digest(runner.root, "test")
+    assert record.frame_files["test"] == frame_files_digest(runner.root, "test")
     other = runner.root / "clips" / "train-0000" / "2.jpg"  # a frame of no scored split
     os.utime(other, ns=(0, 0))
     said.clear()
@@ -83,7 +86,7 @@ def test_a_frame_written_again_under_the_same_labels_is_predicted_again(
 
 
 def test_a_record_of_before_the_frames_were_digested_keeps_its_predictions(
-    trained: tuple[Runner, dict, list[str]],
+    trained: tuple[Runner, RunRecord, list[str]],
 ) -> None:
     """A record ``done.json`` written by the version before (the labels' digest, no ``frame_files``): its
     predictions stand for the frames found at its next scoring, and a frame changed after that is seen."""
@@ -96,9 +99,25 @@ def test_a_record_of_before_the_frames_were_digested_keeps_its_predictions(
     del old["frame_files"], old["pretrain_args"]
     done.write_text(json.dumps(old, indent=2))
     again = runner.store.finished(name, {"data": old["data"], "pretrain_args": []})
-    assert again is not None and "frame_files" not in again
+    assert again is not None and again.frame_files == {}
     said.clear()
     assert not runner.score(name, again, {"test": ()}) and said == []  # not predicted again
-    assert again["frame_files"]["test"] == frame_files_digest(runner.root, "test")
+    assert again.frame_files["test"] == frame_files_digest(runner.root, "test")
     os.utime(runner.root / "clips" / "test-0000" / "4.jpg", ns=(1, 1))
     assert runner.score(name, again, {"test": ()}) and _predicted(said) == ["test"]
+
+
+def test_recipes_hold_options_as_data_and_record_the_flags_of_before() -> None:
+    """A store of before (its records hold the row arguments as flags) is reused: the same flags are recorded."""
+    from stamlane.experiments.recipes import KEY_CORRUPTION, RECIPES
+    from stamlane.training.runs import flags_of
+
+    assert KEY_CORRUPTION == {
+        "data.augment.key_corruption": 0.5,
+        "data.augment.key_corruption_kinds": ["blank", "glare"],
+    }
+    assert RECIPES["cpu"].settings()["row_args"] == [
+        "--data.augment.key_corruption=0.5",
+        "--data.augment.key_corruption_kinds=[blank, glare]",
+    ]
+    assert flags_of(KEY_CORRUPTION) == RECIPES["cpu"].settings()["row_args"]

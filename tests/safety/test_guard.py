@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -23,6 +24,7 @@ from stamlane.safety.guard import (
     read_inside,
     temporary_name,
 )
+from stamlane.training.run_record import RunRecord
 
 
 def test_an_output_that_is_an_input_or_lies_in_a_protected_one_is_refused(tmp_path: Path) -> None:
@@ -119,9 +121,9 @@ def test_run_records_that_link_out_or_hold_the_wrong_types_are_refused(tmp_path:
 def test_a_truncated_checkpoint_without_its_digest_is_not_reused(tmp_path: Path) -> None:
     ckpt = tmp_path / "last.ckpt"
     torch.save({"state_dict": {"w": torch.zeros(1000)}}, ckpt)
-    record = {"last_ckpt": str(ckpt), "run": str(tmp_path), "frames": 4}
+    record = RunRecord(run=tmp_path, last_ckpt=ckpt, frames=4, seed=0, train_minutes=0.1)
     _verify_checkpoint(record, tmp_path)  # whole: reused
-    _verify_checkpoint(record | {"last_ckpt_sha256": file_sha256(ckpt)}, tmp_path)
+    _verify_checkpoint(replace(record, last_ckpt_sha256=file_sha256(ckpt)), tmp_path)
     ckpt.write_bytes(ckpt.read_bytes()[:200])
     with pytest.raises(ExperimentError, match="delete the folder"):
         _verify_checkpoint(record, tmp_path)

@@ -41,6 +41,7 @@ from stamlane.data.labels import (
     resolve_inside,
 )
 from stamlane.data.options import ClipOptions
+from stamlane.data.probes import HISTORIES
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
 from stamlane.safety.images import read_image
@@ -48,7 +49,6 @@ from stamlane.types import NET_HOMOGRAPHIES
 
 __all__ = [
     "FRAME_LOOKUPS",
-    "HISTORY_SOURCES",
     "IMAGE_SUFFIXES",
     "NET_HOMOGRAPHIES",
     "ClipDataset",
@@ -58,10 +58,6 @@ __all__ = [
 ]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
-HISTORY_SOURCES = ("real", "key", "warped_key", "reversed", "other_clip")
-"""What fills a clip's history slots (`ClipDataset`'s ``history_source``): its own frames, copies of its key frame,
-the key frame warped out to each history frame's view (and back by the alignment), its own history in reverse
-order, or another clip's history frames."""
 
 
 def frame_order(name: str) -> tuple[str | int, ...]:
@@ -105,7 +101,7 @@ class ClipDataset(Dataset[dict[str, Any]]):
             same folder) or ``"sorted"`` (previous images in the folder's sorted listing); None: the layout's own
             (the class attribute ``frame_lookup``). ``clip.stride`` counts in frame numbers or in positions.
         require_labels: when False, a missing label file gives an unlabelled sample (prediction).
-        history_source: what fills the history slots (`HISTORY_SOURCES`), to measure whether a model reads its
+        history_source: what fills the history slots (`stamlane.data.probes.HISTORIES`), to measure whether a model reads its
             history: ``"real"`` (default) the clip's own frames; ``"key"`` copies of the key frame (no temporal
             information; alignment the identity); ``"warped_key"`` the key frame warped out through the inverse
             of each history frame's ``key_from_hist`` and then aligned as a real history frame is (the matched
@@ -147,8 +143,8 @@ class ClipDataset(Dataset[dict[str, Any]]):
             raise ValueError(f"frame_lookup must be one of {FRAME_LOOKUPS}, got {frame_lookup!r}")
         if thickness < 1:
             raise ValueError(f"thickness must be >= 1, got {thickness}")
-        if history_source not in HISTORY_SOURCES:
-            raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
+        if history_source not in HISTORIES:
+            raise ValueError(f"history_source must be one of {HISTORIES}, got {history_source!r}")
         self.clip = clip
         self.history_source = history_source
         self.key_corruption = key_corruption

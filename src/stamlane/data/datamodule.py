@@ -20,13 +20,14 @@ from lightning import LightningDataModule
 from lightning.pytorch.overrides.distributed import UnrepeatedDistributedSampler
 from torch.utils.data import DataLoader, Dataset
 
-from stamlane.data.clips import HISTORY_SOURCES, ClipDataset
+from stamlane.data.clips import ClipDataset
 from stamlane.data.collate import collate_clips
 from stamlane.data.frame_store import FRAME_STORE
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.probes import FOLDER_HISTORIES, HISTORIES
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION
 from stamlane.training.lightning_compat import plain_hyperparameters
@@ -34,7 +35,6 @@ from stamlane.training.lightning_compat import plain_hyperparameters
 __all__ = [
     "DEFAULT_SYNTHETIC_ROOT",
     "FORMATS",
-    "FRAMES_HISTORY_SOURCES",
     "INDEX_KEY",
     "ClipDataModule",
     "FramesDataModule",
@@ -87,11 +87,6 @@ def eval_sampler(dataset: ClipDataset | Indexed, split: str) -> UnrepeatedDistri
     return UnrepeatedDistributedSampler(dataset, num_replicas=world, rank=torch.distributed.get_rank(), shuffle=False)
 
 
-FRAMES_HISTORY_SOURCES = ("real", "key")
-"""What fills the history slots of a folder's or a video's clips (the other `HISTORY_SOURCES` need clips with
-homographies or several clips)."""
-
-
 class SequenceWarning(UserWarning):
     """The frames of a ``--source`` folder or video are not one sequence, and the history is used anyway."""
 
@@ -126,7 +121,7 @@ class ClipDataModule(LightningDataModule):
         thickness: lane width of the targets in network pixels.
         on_error: ``"raise"`` or ``"skip"`` (warn and drop) on bad data.
         history_source: what fills the history slots of the val, test and predict samples
-            (`stamlane.data.clips.HISTORY_SOURCES`): ``"real"`` (default), ``"key"`` (copies of the key frame) or
+            (`stamlane.data.probes.HISTORIES`): ``"real"`` (default), ``"key"`` (copies of the key frame) or
             ``"other_clip"`` (another clip's history): scoring one model three ways measures whether it reads its
             history (docs/training.md).
     """
@@ -151,8 +146,8 @@ class ClipDataModule(LightningDataModule):
         super().__init__()
         if format not in FORMATS:
             raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
-        if history_source not in HISTORY_SOURCES:
-            raise ValueError(f"history_source must be one of {HISTORY_SOURCES}, got {history_source!r}")
+        if history_source not in HISTORIES:
+            raise ValueError(f"history_source must be one of {HISTORIES}, got {history_source!r}")
         self.save_hyperparameters()
         plain_hyperparameters(self)  # the groups as dicts: a weights_only checkpoint holds no dataclass
         self.clip, self.augment, self.synth, self.loader = clip, augment, synth, loader
@@ -337,9 +332,9 @@ class FramesDataModule(LightningDataModule):
             raise DataError(f"prediction source {path} does not exist")
         if clip.align not in ("fly", "none"):
             raise ValueError(f"align must be 'fly' or 'none' for a folder or video, got {clip.align!r}")
-        if history_source not in FRAMES_HISTORY_SOURCES:
+        if history_source not in FOLDER_HISTORIES:
             raise ValueError(
-                f"history_source must be one of {FRAMES_HISTORY_SOURCES} for a folder or video, got {history_source!r}"
+                f"history_source must be one of {FOLDER_HISTORIES} for a folder or video, got {history_source!r}"
             )
         self.source = path
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from stamlane.data.probes import EXACT, KEY, OTHER_CLIP, REVERSED, WARPED_KEY, Probe
 from stamlane.experiments.intervals import Scores, views
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT, Runner, aligns, postprocess_of
@@ -32,6 +33,7 @@ from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.predict.image_score import iou_width
 from stamlane.safety.guard import file_sha256, write_atomic
 from stamlane.training.quiet import quiet_libraries
+from stamlane.training.run_record import RunRecord
 
 __all__ = [
     "ALL_PROBES",
@@ -43,19 +45,18 @@ __all__ = [
     "oracle_subject",
 ]
 
-PROBES = ("key",)
-"""History probes of every multi-frame run on the `Experiment.splits` (`stamlane.data.clips.HISTORY_SOURCES` other
-than ``real``): the key frame copied into every history slot."""
-ALL_PROBES = ("key", "other_clip")
+PROBES = (KEY.name,)
+"""The history probes of every multi-frame run on the `Experiment.splits` (`stamlane.data.probes`, where each probe is
+defined): the key frame copied into every history slot."""
+ALL_PROBES = (KEY.name, OTHER_CLIP.name)
 """`PROBES` with ``other_clip`` (another clip's history) on the `Experiment.splits` too (``all_probes``): whether a
 model leans on its history at all, on splits where the history shows little (the reveal splits always have it)."""
 REVEAL_SPLITS = ("reveal", "reveal-traffic")
 """The splits where the history reveals lanes (`stamlane.synth.config.REVEAL`), scored where the set has them."""
-REVEAL_PROBES = ("key", "warped_key", "reversed", "other_clip", "exact")
-"""The probes of a multi-frame run on `REVEAL_SPLITS`: `PROBES`, the matched null (the key frame warped out and back
-through each history frame's homography), the history in reverse order, and ``exact``: the real history aligned
-by the generator's exact homographies instead of ORB (runs that align on the fly only). A run that does not align
-predicts its matched null once, as ``key`` (`stamlane.experiments.runner.SAME_AS_KEY`)."""
+REVEAL_PROBES = tuple(p.name for p in (KEY, WARPED_KEY, REVERSED, OTHER_CLIP, EXACT))
+"""The probes of a multi-frame run on `REVEAL_SPLITS`: `PROBES`, the matched null, the history in reverse order,
+another clip's history, and the real history aligned by the generator's exact homographies (runs that align on the fly
+only). A run that does not align predicts its matched null once, as ``key`` (`stamlane.data.probes.Probe.unaligned_as`)."""
 SPANS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
 """The spans (frames, stride) whose oracle headroom is measured on every split with visibility masks, within the
 reach of its masks (``dataset.json``'s ``visibility_reach``)."""
@@ -147,28 +148,28 @@ class Experiment:
         """The label file (stem) of frame-after-frame predictions, where the set has one and it is wanted."""
         return TEMPORAL_SPLIT if self.temporal and (self.root / f"{TEMPORAL_SPLIT}.json").is_file() else None
 
-    def probes_of(self, split: str, record: dict[str, Any]) -> tuple[str, ...]:
+    def probes_of(self, split: str, record: RunRecord) -> tuple[str, ...]:
         """The history probes of a run on ``split``: none for a single frame; ``reveal_probes`` on the reveal splits,
         `PROBES` (`ALL_PROBES` with ``all_probes``) elsewhere. A run that does not align predicts neither ``exact``
         (there is no alignment to make exact) nor ``warped_key``: without alignment the key frame warped out comes
         back unwarped, the very input of ``key`` (`stamlane.data.clips.warped_key`), so its scores are ``key``'s
-        (`stamlane.experiments.runner.SAME_AS_KEY`)."""
-        if not self.probes or record["frames"] < 2:
+        (`stamlane.data.probes.Probe.unaligned_as`)."""
+        if not self.probes or record.frames < 2:
             return ()
         if split not in REVEAL_SPLITS:
             return ALL_PROBES if self.all_probes else PROBES
-        if aligns(Path(record["run"])):
+        if aligns(record.run):
             return self.reveal_probes
-        return tuple(p for p in self.reveal_probes if p != "exact")
+        return tuple(p for p in self.reveal_probes if not Probe.of(p).exact)
 
-    def scored(self, record: dict[str, Any]) -> dict[str, tuple[str, ...]]:
+    def scored(self, record: RunRecord) -> dict[str, tuple[str, ...]]:
         """Every split a run is scored on, with its probes: `scored_splits`, then the frame-after-frame split with
         the key frame copied into the history too (does the history itself make the lanes steadier?); another
         clip's history would be one clip's for every frame: not a probe of time."""
         found = {split: self.probes_of(split, record) for split in self.scored_splits()}
         frames = self.temporal_split()
         if frames is not None:
-            found[frames] = ("key",) if self.probes and record["frames"] > 1 else ()
+            found[frames] = ("key",) if self.probes and record.frames > 1 else ()
         return found
 
     # ------------------------------------------------------------------ the whole experiment
@@ -189,23 +190,23 @@ class Experiment:
         start = self._start = time.perf_counter()
         settings = self.settings()
         scores = Scores()
-        records: dict[str, list[dict[str, Any]]] = {r.name: [] for r in self.rows}
+        records: dict[str, list[RunRecord]] = {r.name: [] for r in self.rows}
         pretraining = self.recipe.pretraining()
         for seed in self.seeds:
             init = base = None
             if pretraining is not None:
                 base = self.runner.train(self.recipe.pretrain, seed, pretraining, settings, label="stage 1")
-                init = Path(base["last_ckpt"])
+                init = base.last_ckpt
             for row in self.rows:
                 stage = "stage 2" if init else "training"
                 record = self.runner.train(row, seed, self.recipe.training(row), settings, init, stage)
-                if base is not None:
-                    record.setdefault("pretrain_minutes", base["train_minutes"])
+                if base is not None and record.pretrain_minutes is None:
+                    record.pretrain_minutes = base.train_minutes
                 name = self.store.run_name(row.name, seed)
                 scored = self.scored(record)
                 if self.runner.score(name, record, scored):
                     self.store.mark(name, record)
-                for key in record["scores"]:  # what this experiment scores (a reused run may hold more)
+                for key in record.scores:  # what this experiment scores (a reused run may hold more)
                     split, _, source = key.partition("@")
                     if split not in scored or (source and source not in scored[split]):
                         continue
@@ -218,14 +219,12 @@ class Experiment:
         summary.write(self.out / "summary.json")
         return summary
 
-    def _summary(
-        self, scores: Scores, records: dict[str, list[dict[str, Any]]], pairs: list[tuple[str, str]]
-    ) -> Summary:
+    def _summary(self, scores: Scores, records: dict[str, list[RunRecord]], pairs: list[tuple[str, str]]) -> Summary:
         """The summary of the scored runs: every model's values and probes, the oracles, the differences."""
         all_views = views(self.root, scores.clips)
-        multi = [r.name for r in self.rows if records[r.name] and records[r.name][0]["frames"] > 1]
-        frames = sorted({records[n][0]["frames"] for n in multi})
-        oracles = self._oracles(scores, frames, postprocess_of(Path(records[self.rows[0].name][0]["run"])))
+        multi = [r.name for r in self.rows if records[r.name] and records[r.name][0].frames > 1]
+        frames = sorted({records[n][0].frames for n in multi})
+        oracles = self._oracles(scores, frames, postprocess_of(records[self.rows[0].name][0].run))
         differences = scores.differences("models", pairs, all_views)
         for name in multi:
             for probe in REVEAL_PROBES:  # real minus probe; exact alignment minus ORB's: exact - real
@@ -253,7 +252,7 @@ class Experiment:
                     row.label,
                     row.paper,
                     [f"configs/{c}" for c in row.configs],
-                    runs[0]["frames"],
+                    runs[0].frames,
                     steps,
                     [_run_entry(r) for r in runs],
                     scores.values(row.name, all_views),
@@ -329,12 +328,12 @@ def _visibility_reach(root: Path) -> dict[str, int]:
     return json.loads(info.read_text()).get("visibility_reach", {}) if info.is_file() else {}
 
 
-def _run_entry(record: dict[str, Any]) -> RunEntry:
+def _run_entry(record: RunRecord) -> RunEntry:
     return RunEntry(
-        record["seed"],
-        round(record["train_minutes"] + record.get("pretrain_minutes", 0.0), 2),
-        record["run"],
-        record["last_ckpt"],
-        record["frames"],
-        record["scores"],
+        record.seed,
+        round(record.train_minutes + (record.pretrain_minutes or 0.0), 2),
+        str(record.run),
+        str(record.last_ckpt),
+        record.frames,
+        record.scores,
     )

@@ -2,16 +2,19 @@
 
 A recipe's optional stage 1 trains a single-frame network from scratch whose final weights start every row; its
 stage 2 (or its only stage) trains each row. Each stage has its steps and its ``stamlane fit`` arguments
-(`Stage`); `stamlane.experiments.runner.Runner.train` trains one row from one stage.
+(`Stage`), as data: options keyed by their dotted names (``{"data.augment.key_corruption": 0.5}``,
+`stamlane.training.runs.RunSpec`); `stamlane.experiments.runner.Runner.train` trains one row from one stage.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 from stamlane.configs import configs_dir
 from stamlane.experiments.store import ExperimentError
+from stamlane.training.runs import flags_of
 
 __all__ = ["CONFIG_DIR", "KEY_CORRUPTION", "PRETRAIN", "RECIPES", "Recipe", "Row", "Stage"]
 
@@ -45,13 +48,13 @@ class Stage:
 
     Attributes:
         steps: training steps.
-        args: ``stamlane fit`` arguments, after the row's configs.
+        overrides: options over the row's configs (dotted names: `stamlane.training.runs.RunSpec`).
         val_checks: validations over the run (they draw the curves; every score is of the final weights).
         val_batches: validation batches each validation scores (None: the whole split).
     """
 
     steps: int
-    args: tuple[str, ...] = ()
+    overrides: Mapping[str, Any] = field(default_factory=dict)
     val_checks: int = 4
     val_batches: int | None = None
 
@@ -70,8 +73,9 @@ class Recipe:
         pretrain_steps: steps of stage 1, the single-frame network from scratch whose final weights start every
             row (0: one stage, every row from scratch).
         pretrain: the stage-1 model.
-        row_args: ``stamlane fit`` arguments of every row's training (not of stage 1), after its configs.
-        pretrain_args: ``stamlane fit`` arguments of stage 1, after its configs.
+        row_overrides: options of every row's training (not of stage 1), over its configs; recorded as the
+            ``stamlane fit`` flags they are (``row_args``, `settings`), as records always held them.
+        pretrain_overrides: options of stage 1, over its configs (recorded as ``pretrain_args``).
         val_checks: validations per run (for the curves; stage 2 validates half as often as stage 1).
         val_batches: validation batches each validation scores (None: the whole split). The validations only draw
             the curves (every score is of the final weights, on the test splits); how many batches they read
@@ -83,8 +87,8 @@ class Recipe:
     steps: int
     pretrain_steps: int = 0
     pretrain: Row | None = None
-    row_args: tuple[str, ...] = ()
-    pretrain_args: tuple[str, ...] = ()
+    row_overrides: Mapping[str, Any] = field(default_factory=dict)
+    pretrain_overrides: Mapping[str, Any] = field(default_factory=dict)
     val_checks: int = 4
     val_batches: int | None = None
     description: str = ""
@@ -93,31 +97,34 @@ class Recipe:
         """Stage 1, or None for a one-stage recipe."""
         if self.pretrain is None:
             return None
-        return Stage(self.pretrain_steps, self.pretrain_args, self.val_checks, self.val_batches)
+        return Stage(self.pretrain_steps, self.pretrain_overrides, self.val_checks, self.val_batches)
 
     def training(self, row: Row) -> Stage:
         """The stage that trains ``row``: stage 2 of two (validated half as often), or the only one; the recipe's
-        ``row_args`` where the row takes them."""
+        ``row_overrides`` where the row takes them."""
         checks = self.val_checks // 2 if self.pretrain is not None else self.val_checks
-        return Stage(self.steps, self.row_args if row.recipe_args else (), checks, self.val_batches)
+        return Stage(self.steps, self.row_overrides if row.recipe_args else {}, checks, self.val_batches)
 
     def settings(self) -> dict[str, Any]:
-        """What every run trained by the recipe records (`stamlane.experiments.store.RunStore.finished`)."""
+        """What every run trained by the recipe records (`stamlane.experiments.store.RunStore.finished`): the options
+        as the ``stamlane fit`` flags they are, so that the records of before are the same runs."""
         return {
             "recipe": self.name,
             "pretrain_steps": self.pretrain_steps,
             "steps": self.steps,
-            "row_args": list(self.row_args),
-            "pretrain_args": list(self.pretrain_args),
+            "row_args": flags_of(self.row_overrides),
+            "pretrain_args": flags_of(self.pretrain_overrides),
         }
 
 
 PRETRAIN = Row("pretrain", "1 frame, stage 1 (every model starts here)", ("demo_single.yaml",))
-KEY_CORRUPTION = ("--data.augment.key_corruption=0.5", "--data.augment.key_corruption_kinds=[blank, glare]")
+KEY_CORRUPTION = {"data.augment.key_corruption": 0.5, "data.augment.key_corruption_kinds": ["blank", "glare"]}
 """Stage 2 of the CPU recipe: half the training clips have their key frame's near road blanked or the frame
 overexposed, history intact (`stamlane.data.corruption`): the reason to read the history (docs/training.md)."""
 RECIPES = {
-    "cpu": Recipe("cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_args=KEY_CORRUPTION, val_batches=25),
+    "cpu": Recipe(
+        "cpu", steps=300, pretrain_steps=1200, pretrain=PRETRAIN, row_overrides=KEY_CORRUPTION, val_batches=25
+    ),
     "paper": Recipe("paper", steps=1500),
 }
 """The named recipes (docs/training.md): ``cpu``, the demo's two stages (1,200 single-frame steps from scratch,

@@ -1,11 +1,12 @@
 """One run trained, one run scored: the two steps that every experiment and every benchmark training a model composes.
 
-`Runner.train` trains one run of a row from a recipe stage (`stamlane.experiments.recipes.Stage`) through ``stamlane
-fit`` in this process, or reuses the run when its folder holds a finished record made with the same settings
+`Runner.train` trains one run of a row from a recipe stage (`stamlane.experiments.recipes.Stage`) through
+`stamlane.training.runs.fit` in this process, or reuses the run when its folder holds a finished record made with the same settings
 (`stamlane.experiments.store.RunStore.finished`); a run killed midway goes on from its last checkpoint.
 
-`Runner.score` predicts splits with a run's FINAL weights (``stamlane predict``), each split with its history probes
-(``data.history_source``), and scores them (`stamlane.experiments.split_scores`). What decides whether a split's
+`Runner.score` predicts splits with a run's FINAL weights (`stamlane.training.runs.open_run`: the model built and its
+weights loaded once for every split and probe), each split with its history probes (`stamlane.data.probes.Probe`),
+and scores them (`stamlane.experiments.split_scores`). What decides whether a split's
 predictions are current is kept in the run's record: the SHA-256 of its label file, the digest of its frame files
 (`frame_files_digest`) and the scoring rules (`SCORING`). A split whose labels or frames changed is predicted again;
 one scored under older rules is scored again from its saved predictions.
@@ -19,9 +20,8 @@ from __future__ import annotations
 
 import hashlib
 import os
-import sys
-import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,10 +41,11 @@ from stamlane.experiments.split_scores import (
 from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.safety.guard import file_sha256
 from stamlane.synth.layout import TEMPORAL_LABELS
+from stamlane.training.run_record import RunRecord
+from stamlane.training.runs import REAL, Probe, Run, RunError, RunSpec, fit, open_run, overrides_of, run_cli
 
 __all__ = [
     "QUICK_OVERRIDES",
-    "SAME_AS_KEY",
     "TEMPORAL_SPLIT",
     "Runner",
     "aligns",
@@ -55,16 +56,14 @@ __all__ = [
     "predicted_as",
 ]
 
-QUICK_OVERRIDES = (
-    "--data.clip.image_size=[64, 128]",
-    "--model.encoder.width=0.125",
-    "--model.channels_last=false",
-    "--data.loader.batch_size=2",
-    "--data.loader.num_workers=0",
-)
+QUICK_OVERRIDES: dict[str, Any] = {
+    "data.clip.image_size": [64, 128],
+    "model.encoder.width": 0.125,
+    "model.channels_last": False,
+    "data.loader.batch_size": 2,
+    "data.loader.num_workers": 0,
+}
 """A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
-SAME_AS_KEY = ("warped_key",)
-"""Probes whose input equals ``key``'s for a run that does not align: scored as ``key`` without predicting."""
 TEMPORAL_SPLIT = TEMPORAL_LABELS.removesuffix(".json")
 """The label file (stem) of a synthetic set whose every frame is a key frame: predicted frame after frame, each with
 its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.split_scores.score_temporal`)."""
@@ -82,7 +81,8 @@ class Runner:
         store: where the runs and their predictions are kept.
         root: the data root.
         bf16: bfloat16 autocast in every run.
-        extra: further ``stamlane fit`` arguments of every run, after the row's base config and before its others.
+        extra: further options of every run (a mapping of dotted names, or ``stamlane fit`` flags as typed after
+            ``--``), after the row's base config and before its others.
         quick: the smoke settings (`QUICK_OVERRIDES`), without progress bars.
         progress: progress bars while training.
         max_overlays: overlay pictures per run and split (of the real history only).
@@ -92,28 +92,33 @@ class Runner:
     store: RunStore
     root: Path
     bf16: bool = False
-    extra: tuple[str, ...] = ()
+    extra: Mapping[str, Any] | Sequence[str] = ()
     quick: bool = False
     progress: bool = True
     max_overlays: int = 12
     say: Callable[[str], None] = field(default=_say)
 
     # ------------------------------------------------------------------ training
-    def fit_args(self, row: Row) -> list[str]:
-        """The ``stamlane fit`` arguments of every run of ``row``: its configs (``extra`` after the first, as part of
-        the base: a row's own settings hold), the data, the precision, the progress bar."""
-        configs = [str(CONFIG_DIR / c) for c in row.configs]
-        args = ["--config", configs[0], *self.extra]
-        for config in configs[1:]:
-            args += ["--config", config]
-        return [
-            *args,
-            f"--data.root={self.root}",
-            f"--model.bf16={str(self.bf16).lower()}",
-            f"--trainer.enable_progress_bar={str(self.progress and not self.quick).lower()}",
-            "--trainer.enable_model_summary=false",
-            *(QUICK_OVERRIDES if self.quick else ()),
-        ]
+    def spec(self, row: Row, stage: Stage) -> RunSpec:
+        """The run of ``row`` trained by ``stage``: its configs (``extra`` after the first, as part of the base: a
+        row's own settings hold), the data, the precision, the progress bar, then the stage's options."""
+        every = stage.val_every()
+        return RunSpec(
+            tuple(CONFIG_DIR / c for c in row.configs),
+            {
+                "data.root": self.root,
+                "model.bf16": self.bf16,
+                "trainer.enable_progress_bar": self.progress and not self.quick,
+                "trainer.enable_model_summary": False,
+                **(QUICK_OVERRIDES if self.quick else {}),
+                **stage.overrides,
+                "trainer.max_steps": stage.steps,
+                "trainer.val_check_interval": every,
+                **({"trainer.limit_val_batches": stage.val_batches} if stage.val_batches else {}),
+                "trainer.log_every_n_steps": max(1, min(25, every)),
+            },
+            base=self.extra if isinstance(self.extra, Mapping) else overrides_of(self.extra),
+        )
 
     def train(
         self,
@@ -123,7 +128,7 @@ class Runner:
         settings: dict[str, Any],
         init: Path | None = None,
         label: str = "training",
-    ) -> dict[str, Any]:
+    ) -> RunRecord:
         """The finished record of the run of ``row`` with ``seed``, training it first when there is none.
 
         Args:
@@ -141,143 +146,101 @@ class Runner:
         name = self.store.run_name(row.name, seed)
         record = self.store.finished(name, settings)
         if record is not None:
-            check_run_config(Path(record["run"]))
+            check_run_config(record.run)
             _verify_checkpoint(record, self.store.folder(name))
-            if record.get("recipe_args", True) != row.recipe_args:
+            if record.recipe_args != row.recipe_args:
                 raise ExperimentError(
                     f"{self.store.folder(name)} was trained with other recipe arguments; use another --out"
                 )
             self.say(f"seed {seed}, {label}: {row.label}, done before, reused")
             return record
         self.say(f"seed {seed}, {label}: {row.label}, {stage.steps} steps")
-        start = time.perf_counter()
-        run = self._fit(name, row, stage, seed, init)
-        record = settings | {
-            "seed": seed,
-            "train_minutes": round((time.perf_counter() - start) / 60, 2),
-            "run": str(run),
-            "last_ckpt": str(run / "checkpoints" / "last.ckpt"),
-            "frames": frames_of(run),
-            "hardware": _hardware(),
-            "recipe_args": row.recipe_args,
-        }
+        try:
+            record = fit(self.spec(row, stage), seed, init, run_dir=self.store.run_dir(name))
+        except RunError as err:
+            raise ExperimentError(str(err)) from None
+        record.settings, record.recipe_args = dict(settings), row.recipe_args
         self.store.mark(name, record)
         return record
 
-    def _fit(self, name: str, row: Row, stage: Stage, seed: int, init: Path | None) -> Path:
-        """Train the run ``name``; returns its run folder (``config.yaml``, ``metrics.csv``, ``checkpoints/``)."""
-        from stamlane.safety.checkpoints import CheckpointError
-
-        last = self.store.last_ckpt(name)  # a run killed midway goes on from there
-        every = stage.val_every()
-        try:
-            cli = _cli(
-                [
-                    "fit",
-                    *([f"--ckpt_path={last}"] if last.is_file() else []),
-                    *self.fit_args(row),
-                    *stage.args,
-                    *([f"--model.init_weights={init}"] if init else []),
-                    f"--seed_everything={seed}",
-                    f"--trainer.max_steps={stage.steps}",
-                    f"--trainer.val_check_interval={every}",
-                    *([f"--trainer.limit_val_batches={stage.val_batches}"] if stage.val_batches else []),
-                    f"--trainer.log_every_n_steps={max(1, min(25, every))}",
-                    *self.store.logger_args(name),
-                ]
-            )
-        except CheckpointError as err:  # a tampered checkpoint to resume from or to start from: one line
-            raise ExperimentError(f"{self.store.folder(name)}: {err}") from None
-        return Path(cli.trainer.logger.log_dir)
-
     # ------------------------------------------------------------------ prediction and scoring
     def predict(self, name: str, run: Path, split: str, source: str = "real") -> Path:
-        """Predict ``split`` with the final weights of ``run``, its history as ``source`` asks, into the store's
-        predictions of ``name``; returns the predictions folder."""
-        from jsonargparse import ArgumentError
+        """Predict ``split`` with the final weights of ``run``, its history as the probe ``source`` asks, into the
+        store's predictions of ``name``; returns the predictions folder (one pass: `score` opens a run once for all
+        its splits and probes)."""
+        with self._open(run) as opened:
+            return self._predict(opened, name, split, Probe.of(source))
 
-        from stamlane.safety.boundary import one_line
-        from stamlane.training.registry import safe_config_file
+    def _open(self, run: Path) -> Run:
+        try:
+            return open_run(run)
+        except RunError as err:
+            raise ExperimentError(f"{err}; delete the run folder") from None
 
-        pred_dir = self.store.pred_dir(name, split, source)
-        try:  # the run's config is data: a checked copy is what LightningCLI reads
-            with safe_config_file(run_config(run), run / "config.yaml") as config:
-                _cli(
-                    [
-                        "predict",
-                        "--config",
-                        str(config),
-                        f"--ckpt_path={run / 'checkpoints' / 'last.ckpt'}",
-                        f"--data.root={self.root}",
-                        f"--data.predict_labels=[{split}.json]",
-                        f"--data.history_source={'real' if source == 'exact' else source}",
-                        *(["--data.clip.align=true"] if source == "exact" else []),
-                        "--trainer.logger=false",
-                        "--trainer.callbacks=[]",
-                        "--trainer.enable_progress_bar=false",
-                        "--predictions.verbose=false",
-                        f"--predictions.output_dir={pred_dir}",
-                        f"--predictions.max_overlays={self.max_overlays if source == 'real' else 0}",
-                    ],
-                    parser_kwargs={"exit_on_error": False},
-                )
-        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
-            raise ExperimentError(f"{run}: {one_line(err)}") from None
-        return pred_dir
+    def _predict(self, run: Run, name: str, split: str, probe: Probe) -> Path:
+        out = self.store.pred_dir(name, split, probe.name)
+        overlays = self.max_overlays if probe == REAL else 0
+        try:
+            return run.predict(split, probe, out, root=self.root, max_overlays=overlays)
+        except RunError as err:  # a tampered run folder or checkpoint: one line
+            raise ExperimentError(str(err)) from None
 
-    def score(self, name: str, record: dict[str, Any], splits: Mapping[str, Sequence[str]]) -> bool:
+    def score(self, name: str, record: RunRecord, splits: Mapping[str, Sequence[str]]) -> bool:
         """Predict and score every split of ``splits`` with its probes that ``record`` holds no current scores of.
+        The run is opened once (`stamlane.training.runs.open_run`): its model is built and its weights loaded once
+        for every split and probe it predicts.
 
         Args:
             name: the run's name in the store (its predictions' folder).
-            record: the run's record (at least ``run`` and ``frames``); its ``scores``, ``labels``,
-                ``frame_files`` and ``scoring`` are brought up to date here (the caller writes it).
-            splits: each label file (stem) with the history probes it is scored with besides the real history
-                (`stamlane.data.clips.HISTORY_SOURCES`, or ``exact``: the real history aligned by the generator's
-                exact homographies).
+            record: the run's record; its ``scores``, ``labels``, ``frame_files`` and ``scoring`` are brought up
+                to date here (the caller writes it).
+            splits: each label file (stem) with the history probes (`stamlane.data.probes.PROBES`) it is scored
+                with besides the real history.
 
         Returns:
             whether any score changed.
         """
-        labels = record.setdefault("labels", {})
-        frame_files = record.setdefault("frame_files", {})
-        scores = record.setdefault("scores", {})
-        rescore = record.get("scoring") != SCORING
+        labels, frame_files, scores = record.labels, record.frame_files, record.scores
+        rescore = record.scoring != SCORING
         changed = False
-        for split, probes in splits.items():
-            labels_sha256 = file_sha256(self.root / f"{split}.json")
-            frames_digest = frame_files_digest(self.root, split)
-            if labels.get(split) == labels_sha256:  # a record of before the frames counted: its predictions stand
-                frame_files.setdefault(split, frames_digest)
-            stale = _stale(labels.get(split) == labels_sha256, frame_files.get(split) == frames_digest)
-            if stale and split in scores:
-                self.say(f"{name}: the {split} {stale} changed, predicting them again")
-            for source in ("real", *probes):
-                key = split if source == "real" else f"{split}@{source}"
-                current = not stale and key in scores
-                if current and not rescore:
-                    continue
-                predicted = predicted_as(record, source)
-                if predicted != source:  # scored under its own name, predicted once
-                    scores[key] = scores[f"{split}@{predicted}"]
+        with ExitStack() as stack:
+            opened: list[Run] = []
+            for split, probes in splits.items():
+                labels_sha256 = file_sha256(self.root / f"{split}.json")
+                frames_digest = frame_files_digest(self.root, split)
+                if labels.get(split) == labels_sha256:  # a record of before the frames counted: its predictions stand
+                    frame_files.setdefault(split, frames_digest)
+                stale = _stale(labels.get(split) == labels_sha256, frame_files.get(split) == frames_digest)
+                if stale and split in scores:
+                    self.say(f"{name}: the {split} {stale} changed, predicting them again")
+                for source in ("real", *probes):
+                    key = split if source == "real" else f"{split}@{source}"
+                    current = not stale and key in scores
+                    if current and not rescore:
+                        continue
+                    predicted = predicted_as(record, source)
+                    if predicted != source:  # scored under its own name, predicted once
+                        scores[key] = scores[f"{split}@{predicted}"]
+                        changed = True
+                        continue
+                    pred_dir = self.store.pred_dir(name, split, source)
+                    if not current or not (pred_dir / "predictions.json").is_file():
+                        temporal = " frame after frame" if split == TEMPORAL_SPLIT else ""
+                        self.say(f"{name}: predicting {key}{temporal}")
+                        if not opened:  # once, at the first split or probe to predict
+                            opened.append(stack.enter_context(self._open(record.run)))
+                        self._predict(opened[0], name, split, Probe.of(source))
+                    if split == TEMPORAL_SPLIT:
+                        scores[key] = score_temporal(pred_dir, self.root, split)
+                    else:
+                        scores[key] = score_split(pred_dir, self.root, split, record.frames)
                     changed = True
-                    continue
-                pred_dir = self.store.pred_dir(name, split, source)
-                if not current or not (pred_dir / "predictions.json").is_file():
-                    temporal = " frame after frame" if split == TEMPORAL_SPLIT else ""
-                    self.say(f"{name}: predicting {key}{temporal}")
-                    self.predict(name, Path(record["run"]), split, source)
-                if split == TEMPORAL_SPLIT:
-                    scores[key] = score_temporal(pred_dir, self.root, split)
-                else:
-                    scores[key] = score_split(pred_dir, self.root, split, record["frames"])
-                changed = True
-            labels[split], frame_files[split] = labels_sha256, frames_digest
+                labels[split], frame_files[split] = labels_sha256, frames_digest
         if changed:
-            record["scoring"] = SCORING
+            record.scoring = SCORING
         return changed
 
-    def scored(self, name: str, record: dict[str, Any], key: str) -> tuple[dict[str, np.ndarray], list[str]]:
+    def scored(self, name: str, record: RunRecord, key: str) -> tuple[dict[str, np.ndarray], list[str]]:
         """The per-image quantities (per clip for `TEMPORAL_SPLIT`) of a score of ``record`` (``<split>`` or
         ``<split>@<probe>``), per metric key, and each row's clip."""
         split, _, source = key.partition("@")
@@ -292,10 +255,11 @@ def _stale(same_labels: bool, same_frames: bool) -> str | None:
     return None if same_frames else "frames"
 
 
-def predicted_as(record: dict[str, Any], source: str) -> str:
-    """The history source whose predictions stand for ``source``: ``key`` for `SAME_AS_KEY` on a run that does not
-    align (the same input: predicted once), else ``source``."""
-    return "key" if source in SAME_AS_KEY and not aligns(Path(record["run"])) else source
+def predicted_as(record: RunRecord, source: str) -> str:
+    """The probe whose predictions stand for ``source``: `stamlane.data.probes.Probe.unaligned_as` on a run that does
+    not align (the same input: predicted once), else ``source``."""
+    probe = Probe.of(source)
+    return probe.name if probe.unaligned_as is None else probe.predicted_as(aligns(record.run)).name
 
 
 def frame_files_digest(root: Path, split: str) -> str:
@@ -378,14 +342,14 @@ def postprocess_of(run: Path) -> dict[str, Any]:
     return dict(_run_section(run, "model").get("postprocess") or {})
 
 
-def _verify_checkpoint(record: dict[str, Any], folder: Path) -> None:
+def _verify_checkpoint(record: RunRecord, folder: Path) -> None:
     """A finished run whose record holds no digest of its checkpoint (an older record, or one edited): the
     checkpoint must load whole before it is reused (a truncated file is refused, not reused as finished)."""
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 
-    if record.get("last_ckpt") and not record.get("last_ckpt_sha256"):
+    if not record.last_ckpt_sha256:
         try:
-            state = read_checkpoint(record["last_ckpt"])
+            state = read_checkpoint(record.last_ckpt)
         except CheckpointError as err:
             raise ExperimentError(f"{folder}: {err}; delete the folder to run it again") from None
         if not isinstance(state.get("state_dict"), dict) or not state["state_dict"]:
@@ -417,29 +381,8 @@ def check_fit_arguments(config: Path, extra: Sequence[str]) -> None:
             raise Parsed
 
     try:
-        _cli(["fit", "--config", str(config), *extra], cli=ParseOnly, parser_kwargs={"exit_on_error": False})
+        run_cli(["fit", "--config", str(config), *extra], cli=ParseOnly, parser_kwargs={"exit_on_error": False})
     except Parsed:
         return
     except (ValueError, ArgumentError) as err:
         raise ExperimentError(f"the stamlane fit arguments after --: {one_line(err)}") from None
-
-
-def _cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
-    from stamlane.training.lightning_cli import StamLaneCLI
-
-    argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own argv
-    try:
-        return (cli or StamLaneCLI)(args=args, report=False, **kwargs)
-    finally:
-        sys.argv = argv
-
-
-def _hardware() -> str:
-    """The CPU (or GPU), threads and torch version a run trained on."""
-    import torch
-
-    from stamlane.training.hardware import cpu_name
-
-    if torch.cuda.is_available():
-        return f"cuda: {torch.cuda.get_device_name(0)}, torch {torch.__version__}"
-    return f"cpu: {cpu_name()}, {torch.get_num_threads()} threads, torch {torch.__version__}"

@@ -18,12 +18,11 @@ experiment's folder or whose checkpoint no longer matches its digest (a tampered
 too, each with one line (`ExperimentError`). A record written by an older stamlane is read in today's form first
 (`upgrade_record`).
 
-What a record holds besides the settings: ``seed``, ``train_minutes`` (and ``pretrain_minutes``), ``run``,
-``last_ckpt`` (and ``last_ckpt_sha256``), ``frames`` (the clip length), ``hardware``, ``recipe_args`` (whether the
-recipe's row arguments applied), and, once scored, ``scores`` (per ``<split>[@<probe>]`` the totals), ``labels``
-(per split the SHA-256 of its label file), ``frame_files`` (per split the digest of its frame files,
-`stamlane.experiments.runner.frame_files_digest`; a record written before the frames were digested has none,
-and its predictions stand for the frames found when it is next scored) and ``scoring`` (the rules it was scored by).
+A record is a `stamlane.training.run_record.RunRecord` (its fields and their types: ``seed``, ``train_minutes``,
+``run``, ``last_ckpt``, ``frames``, ``hardware``, ``recipe_args``, once scored ``scores``, ``labels``, ``frame_files``
+and ``scoring``); the settings are its other keys. ``frame_files`` is per split the digest of its frame files
+(`stamlane.experiments.runner.frame_files_digest`): a record written before the frames were digested has none, and
+its predictions stand for the frames found when it is next scored.
 """
 
 from __future__ import annotations
@@ -34,6 +33,7 @@ from typing import Any
 
 from stamlane.safety.budget import MAX_RECORD_BYTES
 from stamlane.safety.guard import GuardError, file_sha256, read_inside, write_atomic
+from stamlane.training.run_record import RecordError, RunRecord
 
 __all__ = ["DONE", "ExperimentError", "RunStore", "upgrade_record"]
 
@@ -45,23 +45,6 @@ PREDICTIONS = "predictions"
 
 class ExperimentError(Exception):
     """A known failure of an experiment (bad rows, a used ``--out``, a broken run folder): one line, exit 2."""
-
-
-RECORD_TYPES: dict[str, tuple[type, ...]] = {
-    "run": (str,),
-    "last_ckpt": (str,),
-    "frames": (int,),
-    "seed": (int,),
-    "train_minutes": (int, float),
-    "pretrain_minutes": (int, float),
-    "scores": (dict,),
-    "labels": (dict,),
-    "frame_files": (dict,),
-    "last_ckpt_sha256": (str,),
-}
-"""The type of each value of a run record that is read back (a tampered record is refused, not half used)."""
-OPTIONAL = ("pretrain_minutes", "scores", "labels", "frame_files", "last_ckpt_sha256")
-"""Values a finished record may lack: written later, only by two-stage recipes, or by older versions."""
 
 
 def upgrade_record(record: dict[str, Any]) -> dict[str, Any]:
@@ -118,15 +101,6 @@ class RunStore:
         """A run's final weights (and the checkpoint a run killed midway goes on from)."""
         return self.run_dir(name) / "checkpoints" / "last.ckpt"
 
-    def logger_args(self, name: str) -> list[str]:
-        """The ``stamlane fit`` arguments that put a run's files at `run_dir`."""
-        return [
-            f"--trainer.default_root_dir={self.folder(name)}",
-            f"--trainer.logger.save_dir={self.out}",
-            f"--trainer.logger.name={name}",
-            f"--trainer.logger.version={RUN}",
-        ]
-
     @property
     def predictions(self) -> Path:
         """The folder of every run's (and oracle's) predictions."""
@@ -150,7 +124,7 @@ class RunStore:
         return sorted(found)
 
     # ------------------------------------------------------------------ the records
-    def finished(self, name: str, settings: dict[str, Any]) -> dict[str, Any] | None:
+    def finished(self, name: str, settings: dict[str, Any]) -> RunRecord | None:
         """The record of the finished run ``name`` (in today's form, `upgrade_record`), or None when it has not
         finished.
 
@@ -187,28 +161,22 @@ class RunStore:
                 raise ExperimentError(
                     f"{path}: {key} {value!r} is not a path inside {self.out}; delete the folder to run it again"
                 )
-        for key, types in RECORD_TYPES.items():  # frames: null was a TypeError far from the file
-            value = record.get(key)
-            if value is None and key in OPTIONAL:
-                continue
-            if isinstance(value, types) and not isinstance(value, bool) and (key != "frames" or value >= 1):
-                continue
-            wanted = " or ".join(t.__name__ for t in types) + (" >= 1" if key == "frames" else "")
+        try:  # every value of its field's type: a tampered record is refused, not half used
+            run = RunRecord.from_json(record)
+        except RecordError as err:
+            raise ExperimentError(f"{path}: {err}; delete the folder to run it again") from None
+        if not run.last_ckpt.is_file():
             raise ExperimentError(
-                f"{path}: {key} must be {wanted}, got {value!r:.60}; delete the folder to run it again"
+                f"{path}: its checkpoint {run.last_ckpt} is missing; delete the folder to run it again"
             )
-        ckpt, digest = record.get("last_ckpt"), record.get("last_ckpt_sha256")
-        if ckpt is not None:
-            if not Path(ckpt).is_file():
-                raise ExperimentError(f"{path}: its checkpoint {ckpt} is missing; delete the folder to run it again")
-            if digest is not None and file_sha256(Path(ckpt)) != digest:
-                raise ExperimentError(
-                    f"{path}: its checkpoint {ckpt} changed since the run finished; delete the folder"
-                )
-        return record
+        if run.last_ckpt_sha256 is not None and file_sha256(run.last_ckpt) != run.last_ckpt_sha256:
+            raise ExperimentError(
+                f"{path}: its checkpoint {run.last_ckpt} changed since the run finished; delete the folder"
+            )
+        return run
 
-    def mark(self, name: str, record: dict[str, Any]) -> None:
-        """Write ``record`` as the run's ``done.json`` (with its checkpoint's digest when it names one)."""
-        if record.get("last_ckpt") and "last_ckpt_sha256" not in record:
-            record["last_ckpt_sha256"] = file_sha256(Path(record["last_ckpt"]))
-        write_atomic(self.folder(name) / DONE, json.dumps(record, indent=2))
+    def mark(self, name: str, record: RunRecord) -> None:
+        """Write ``record`` as the run's ``done.json`` (with its checkpoint's digest)."""
+        if record.last_ckpt_sha256 is None:
+            record.last_ckpt_sha256 = file_sha256(record.last_ckpt)
+        write_atomic(self.folder(name) / DONE, json.dumps(record.to_json(), indent=2))

@@ -168,20 +168,15 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
     num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
     of an older checkpoint too); None for a checkpoint without data options."""
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.training.compat import clip_options
-    from stamlane.training.module import StamLaneModule
-    from stamlane.training.registry import check_data_hparams
+    from stamlane.training.runs import open_model
 
     if args.config:
-        from stamlane.training.lightning_cli import StamLaneCLI as build_cli
+        from stamlane.training.runs import run_cli
 
         if not Path(args.config).is_file():
             raise StreamError(f"config {args.config} does not exist")
-        argv, sys.argv = sys.argv, sys.argv[:1]  # LightningCLI warns when given args beside the command's own
-        try:  # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
-            cli = build_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
-        finally:
-            sys.argv = argv
+        # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
+        cli = run_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
         module = cli.model
         if args.ckpt:
             try:
@@ -196,15 +191,10 @@ def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
         return module, cli.datamodule.clip
     if not args.ckpt:
         raise StreamError("give --ckpt CKPT or --config CFG")
-    try:
-        module = StamLaneModule.from_checkpoint(args.ckpt)  # built from the closed registry, nothing imported
-        data = read_checkpoint(args.ckpt).get("datamodule_hyper_parameters")
-        if data is not None:
-            check_data_hparams(data, args.ckpt)
-        clip = clip_options(data) if isinstance(data, dict) else None
+    try:  # built from the closed registry, nothing imported; the checkpoint read once
+        return open_model(args.ckpt)
     except CheckpointError as err:
         raise StreamError(str(err)) from None
-    return module, clip
 
 
 def _device(name: str) -> Any:
@@ -354,7 +344,8 @@ def _stream(
         if sequence is not None:
             y_step = predictor.postprocess.y_step
             scored = EvalOutputs(sequence, tusimple, paths.get("culane"), predictor.y_samples, y_step)
-        bar = tqdm(frames, total=count, desc=f"stream {source.name}", unit="frame")
+        bar = files.enter_context(tqdm(frames, total=count, desc=f"stream {source.name}", unit="frame"))
+        # (closed on the way out, an error too: its line then starts a line of its own)
         read: deque[tuple[str, np.ndarray]] = deque()  # the frames read ahead, in order
 
         def images() -> Iterator[np.ndarray]:
@@ -384,7 +375,6 @@ def _stream(
                     )
                 writer.write(draw_lanes(image, out.lanes))
             written += 1
-        bar.close()
     if writer is not None:
         writer.release()
     if video_path is not None and not video_path.is_file():

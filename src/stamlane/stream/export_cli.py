@@ -124,19 +124,12 @@ def _export(args: Any) -> int:
 def _write(args: Any, opset: int, outputs: list[Path]) -> int:
     import time
 
-    from stamlane.safety.checkpoints import read_checkpoint
     from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
     from stamlane.stream.metadata import annotate, deployment_metadata
-    from stamlane.training.compat import clip_options
-    from stamlane.training.module import StamLaneModule
-    from stamlane.training.registry import check_data_hparams
+    from stamlane.training.runs import open_model
 
     start = time.perf_counter()
-    module = StamLaneModule.from_checkpoint(args.ckpt_path)
-    data = read_checkpoint(args.ckpt_path).get("datamodule_hyper_parameters")
-    if data is not None:
-        check_data_hparams(data, args.ckpt_path)
-    clip = clip_options(data) if isinstance(data, dict) else None
+    module, clip = open_model(args.ckpt_path)  # the checkpoint read once, the network from the closed registry
     common = deployment_metadata(module, clip, args.ckpt_path, opset)
     num_frames, size = common["num_frames"], tuple(common["image_size"])
     writers = {

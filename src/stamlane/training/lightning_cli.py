@@ -320,6 +320,20 @@ class StamLaneCLI(LightningCLI):
         if source:
             self._check_sequence()
 
+    def predict_again(self, datamodule: ClipDataModule, output_dir: Path, max_overlays: int) -> None:
+        """Predict ``datamodule`` into ``output_dir`` with the model this ``predict`` already built and loaded (its
+        checkpoint is not read again): the passes of `stamlane.training.runs.Run.predict` after its first. The
+        outputs are claimed and checked as the first pass's were (`before_predict`)."""
+        if self.subcommand != "predict":
+            raise ValueError(f"predict_again needs a predict command, this one is {self.subcommand!r}")
+        self.datamodule = datamodule
+        self.config_init["predict"]["ckpt_path"] = None  # the weights are in the model already
+        for writer in self.trainer.callbacks:
+            if isinstance(writer, LanePredictionWriter):
+                writer.use_output_dir(output_dir)
+                writer.given_output_dir, writer.max_overlays = True, max_overlays
+        self._run_subcommand("predict")
+
     def _name_predictions(self, source: str | None) -> None:
         """Give the prediction writer its folder when none was given, ``outputs/predict/<model>/<source>``
         (`stamlane.predict.prediction_writer.default_output_dir`: the checkpoint's run, and the source's name or the

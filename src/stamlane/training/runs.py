@@ -1,0 +1,441 @@
+"""Runs from Python: the one typed way to make a run, open a stored one and predict with it.
+
+- `RunSpec`: what a run is made of, as data: its configs (in order) and the options over them (``{"trainer.max_steps":
+  300, "data.clip.image_size": [64, 128]}``, keyed by the dotted names of ``stamlane fit --help``);
+- `fit` trains a spec with a seed (from scratch, or from the weights ``init``) into a run folder and returns its
+  `RunRecord`; a run killed midway goes on from its ``last.ckpt``;
+- `open_run` opens a checkpoint or a run folder: the one gate (its config checked against the closed registry and read
+  in today's names, `stamlane.training.registry` / `stamlane.training.compat`; the checkpoint read within the budget,
+  `stamlane.safety.checkpoints`), and returns a `Run`;
+- `predict` (`Run.predict`) writes a run's predictions of a split with its history as a `Probe` fills it. An opened run
+  builds its model and loads its checkpoint once, at its first prediction; every later split and probe reuses them.
+
+LightningCLI (`stamlane.training.lightning_cli.StamLaneCLI`) does the work, given its arguments as a list: the options
+of a spec become the flags ``stamlane fit`` would read (`flags_of`), so that a run made here is the run ``stamlane fit``
+makes of the same config and options, bit for bit (tests/training/test_runs.py).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from stamlane.data.probes import PROBES, REAL, Probe
+from stamlane.training.run_record import RecordError, RunRecord
+
+__all__ = [
+    "PROBES",
+    "REAL",
+    "Probe",
+    "RecordError",
+    "Run",
+    "RunError",
+    "RunRecord",
+    "RunSpec",
+    "fit",
+    "flags_of",
+    "open_model",
+    "open_run",
+    "overrides_of",
+    "predict",
+    "run_cli",
+]
+
+
+EXACT_ALIGN = "true"
+"""``data.clip.align`` of `Probe.exact`: the generator's exact homographies (`stamlane.data.alignment.ALIGN_MODES`)."""
+
+
+class RunError(ValueError):
+    """A run that cannot be made or opened (a config refused, a checkpoint unreadable, options that do not parse)."""
+
+
+# ---------------------------------------------------------------------- options as data, flags at the call
+def _text(value: Any, inner: bool = False) -> str:
+    """An option's value as jsonargparse reads it on a command line (YAML flow style)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "null"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_text(v, inner=True) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k}: {_text(v, inner=True)}" for k, v in value.items()) + "}"
+    text = str(value)
+    if inner and (not text or text != text.strip() or any(c in text for c in ",[]{}:#\"'")):
+        return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return text
+
+
+def flags_of(overrides: Mapping[str, Any]) -> list[str]:
+    """The command-line flags of options keyed by their dotted names, in order: ``{"trainer.max_steps": 2}`` ->
+    ``["--trainer.max_steps=2"]``; ``config`` (a path or a list of them) -> ``--config PATH`` each; a key ending in
+    ``+`` appends (``{"trainer.callbacks+": "stamlane.training.history_use_monitor.HistoryUseMonitor"}``). A string
+    value is passed as it is (as typed on a command line); lists, mappings, booleans and None in YAML flow style."""
+    flags: list[str] = []
+    for key, value in overrides.items():
+        if key == "config":
+            for config in value if isinstance(value, (list, tuple)) else [value]:
+                flags += ["--config", str(config)]
+        else:
+            flags.append(f"--{key}={_text(value)}")
+    return flags
+
+
+def overrides_of(args: Sequence[str]) -> dict[str, Any]:
+    """Options typed on a command line (``--key=value``, ``--key value``, ``--config PATH``) as data, values kept as
+    the strings typed (`flags_of` gives them back).
+
+    Raises:
+        RunError: an argument that is not an option, an option without a value, or one given twice.
+    """
+    out: dict[str, Any] = {}
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if not arg.startswith("--") or arg == "--":
+            raise RunError(f"{arg!r} is not an option (--key=value)")
+        if "=" in arg:
+            key, value = arg[2:].split("=", 1)
+            i += 1
+        elif i + 1 < len(args):
+            key, value = arg[2:], args[i + 1]
+            i += 2
+        else:
+            raise RunError(f"option {arg} has no value")
+        if key in ("config", "c"):
+            out["config"] = [*out.get("config", []), value]
+        elif key in out:
+            raise RunError(f"option --{key} given twice")
+        else:
+            out[key] = value
+    return out
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What a run is made of (see the module docstring).
+
+    Attributes:
+        configs: its ``stamlane fit`` configs, in order (a later one overrides an earlier one).
+        overrides: options over the configs, keyed by dotted names (`flags_of`), applied after every config.
+        base: options applied after the FIRST config only, as part of the base that the later configs override (an
+            experiment's settings for every row, under each row's own configs).
+    """
+
+    configs: tuple[Path, ...]
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    base: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.configs:
+            raise RunError("a run needs at least one config")
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> RunSpec:
+        """This spec with ``overrides`` after its own (a key given again moves to the end, with the new value)."""
+        mine = {k: v for k, v in self.overrides.items() if k not in overrides}
+        return replace(self, overrides={**mine, **overrides})
+
+    def args(self) -> list[str]:
+        """The ``stamlane fit`` arguments of the spec (after the subcommand)."""
+        args = ["--config", str(self.configs[0]), *flags_of(self.base)]
+        for config in self.configs[1:]:
+            args += ["--config", str(config)]
+        return [*args, *flags_of(self.overrides)]
+
+
+def run_cli(args: list[str], cli: type | None = None, **kwargs: Any) -> Any:
+    """LightningCLI (`StamLaneCLI`, or its subclass ``cli``) run on ``args`` (the subcommand first), never on
+    ``sys.argv``: the one call of LightningCLI, from Python and from ``stamlane fit|validate|test|predict``.
+    ``kwargs`` go to `StamLaneCLI` (``report`` False unless given: the caller reports)."""
+    from stamlane.training.lightning_cli import StamLaneCLI
+
+    with warnings.catch_warnings():  # args are given on purpose: sys.argv is this process's, not the run's
+        warnings.filterwarnings("ignore", message=r".*LightningCLI's args parameter is intended", category=UserWarning)
+        return (cli or StamLaneCLI)(args=args, **{"report": False, **kwargs})
+
+
+# ---------------------------------------------------------------------- making a run
+def fit(spec: RunSpec, seed: int = 0, init: Path | None = None, *, run_dir: Path) -> RunRecord:
+    """Train ``spec`` with ``seed`` into ``run_dir`` (``config.yaml``, ``metrics.csv``, ``checkpoints/last.ckpt``),
+    from scratch or from the weights ``init``; a ``last.ckpt`` already there (a run killed midway) is resumed.
+
+    Returns:
+        the run's record (its settings empty: the caller's to add).
+
+    Raises:
+        RunError: options that do not parse, a checkpoint to start or resume from that is refused (one line).
+    """
+    from stamlane.safety.boundary import one_line
+    from stamlane.safety.checkpoints import CheckpointError
+
+    run_dir = Path(run_dir)
+    last = run_dir / "checkpoints" / "last.ckpt"
+    where = {  # the logger's folder is the run folder: save_dir/name/version
+        "trainer.default_root_dir": run_dir.parent,
+        "trainer.logger.save_dir": run_dir.parent.parent,
+        "trainer.logger.name": run_dir.parent.name,
+        "trainer.logger.version": run_dir.name,
+    }
+    options = {**({"model.init_weights": init} if init else {}), "seed_everything": seed}
+    spec = spec.with_overrides(options).with_overrides(where)
+    start = time.perf_counter()
+    try:
+        cli = run_cli(["fit", *([f"--ckpt_path={last}"] if last.is_file() else []), *spec.args()])
+    except CheckpointError as err:  # a tampered checkpoint to resume or start from: one line
+        raise RunError(f"{run_dir}: {one_line(err)}") from None
+    folder = Path(cli.trainer.logger.log_dir)
+    return RunRecord(
+        run=folder,
+        last_ckpt=folder / "checkpoints" / "last.ckpt",
+        frames=cli.datamodule.clip.num_frames,
+        seed=seed,
+        train_minutes=round((time.perf_counter() - start) / 60, 2),
+        hardware=_hardware(),
+    )
+
+
+# ---------------------------------------------------------------------- opening a run
+@dataclass
+class Run:
+    """A stored run, opened by `open_run`: its checkpoint and its checked config; its model is built and its
+    checkpoint loaded once, at its first `predict`, and reused by every later one (`close` lets them go).
+
+    Attributes:
+        ckpt: the checkpoint.
+        config: the run's config as plain data, checked against the registry, in today's names.
+        source: where the config was read (the checkpoint, or the run folder's ``config.yaml``).
+        start_dir: the folder ``stamlane fit`` was started in (recorded in its checkpoints), if known.
+    """
+
+    ckpt: Path
+    config: dict[str, Any]
+    source: Path
+    text: str = field(repr=False)
+    start_dir: str | None = None
+    _stack: ExitStack = field(default_factory=ExitStack, repr=False)
+    _config_file: Path | None = field(default=None, repr=False)
+    _cli: Any = field(default=None, repr=False)
+    _align: Any = field(default=None, repr=False)
+
+    def __enter__(self) -> Run:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Let the model and the temporary config file go."""
+        self._cli = None
+        self._config_file = None
+        self._stack.close()
+
+    @property
+    def config_file(self) -> Path:
+        """A temporary file of the checked config (what LightningCLI reads: `stamlane.training.registry.
+        safe_config_file`), kept while the run is open."""
+        from stamlane.training.registry import safe_config_file
+
+        if self._config_file is None:
+            self._config_file = self._stack.enter_context(safe_config_file(self.text, self.source))
+        return self._config_file
+
+    def data(self) -> dict[str, Any]:
+        data = self.config.get("data")
+        return data if isinstance(data, dict) else {}
+
+    @property
+    def frames(self) -> int:
+        """The clip length (T) of the run."""
+        from stamlane.training.compat import clip_options
+
+        return clip_options(self.data()).num_frames
+
+    @property
+    def aligns(self) -> bool:
+        """Whether the run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
+        return (self.data().get("clip") or {}).get("align", "fly") == "fly"
+
+    def data_root(self) -> Path | None:
+        """The data root to give the run when it recorded its root relative to the folder it was started in
+        (``data/synthetic-v7``), so that it works from any folder: looked for under that folder (recorded in the
+        checkpoints of ``stamlane fit``), then under the run folder's ancestors, then here. None when the root is
+        absolute or found nowhere but here; a default synthetic set (``data.root: null``) found nowhere is generated
+        here, as ``fit`` would.
+
+        Raises:
+            DataError: a relative root found nowhere, naming the flag to give.
+        """
+        from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT
+        from stamlane.data.labels import DataError
+
+        recorded = self.data().get("root")
+        root = Path(recorded) if isinstance(recorded, str) else Path(DEFAULT_SYNTHETIC_ROOT)
+        if root.is_absolute():
+            return None
+        bases = [Path(self.start_dir)] if self.start_dir else []
+        bases += list(Path(self.ckpt).resolve().parent.parents)
+        for base in bases:
+            if base.is_absolute() and (base / root).is_dir():
+                return None if (base / root).resolve() == root.resolve() else base / root
+        if root.is_dir() or recorded is None:
+            return None
+        where = f" (the run was started in {self.start_dir})" if self.start_dir else ""
+        raise DataError(
+            f"data root {root} of the run is relative to the folder it was started in{where} and found neither there "
+            f"nor beside the run nor here: give --data.root DIR"
+        )
+
+    def predict(
+        self, split: str, probe: Probe | str, out: Path, *, root: Path | None = None, max_overlays: int = 0
+    ) -> Path:
+        """Predict the label file ``<split>.json`` of the data root with the run's weights, its history as ``probe``
+        fills it, into ``out`` (``predictions.json``, ``per_image.jsonl``, overlays); returns ``out``.
+
+        Args:
+            split: the label file's stem.
+            probe: the history probe (`Probe` or its name).
+            out: the predictions' folder.
+            root: the data root (None: the run's own).
+            max_overlays: overlay pictures to write.
+
+        Raises:
+            RunError: the run's config or checkpoint refused, or options that do not parse (one line).
+        """
+        from jsonargparse import ArgumentError
+
+        from stamlane.safety.boundary import one_line
+
+        probe = Probe.of(probe)
+        options: dict[str, Any] = {
+            **({"data.root": root} if root is not None else {}),
+            "data.predict_labels": [f"{split}.json"],
+            "data.history_source": probe.history,
+            **({"data.clip.align": EXACT_ALIGN} if probe.exact else {}),
+            "trainer.logger": False,
+            "trainer.callbacks": [],
+            "trainer.enable_progress_bar": False,
+            "predictions.verbose": False,
+            "predictions.output_dir": out,
+            "predictions.max_overlays": max_overlays,
+        }
+        try:
+            if self._cli is None:  # the first prediction builds the model and loads the checkpoint
+                args = ["predict", "--config", str(self.config_file), f"--ckpt_path={self.ckpt}", *flags_of(options)]
+                self._cli = run_cli(args, parser_kwargs={"exit_on_error": False})
+                first = self._cli.datamodule
+                self._align = first.clip.align if not probe.exact else self._run_align()
+            else:
+                self._cli.predict_again(self._datamodule(split, probe, root), Path(out), max_overlays)
+        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
+            raise RunError(f"{self.source}: {one_line(err)}") from None
+        return Path(out)
+
+    def _run_align(self) -> Any:
+        from stamlane.training.compat import clip_options
+
+        return clip_options(self.data()).align
+
+    def _datamodule(self, split: str, probe: Probe, root: Path | None) -> Any:
+        """The first prediction's data module with another split and probe (every other option as the run's)."""
+        import inspect
+
+        first = self._cli.datamodule
+        names = [n for n in inspect.signature(type(first).__init__).parameters if n != "self"]
+        kwargs = {n: first.hparams[n] for n in names}
+        kwargs |= {"augment": first.augment, "synth": first.synth, "loader": first.loader}
+        kwargs |= {
+            "clip": replace(first.clip, align=EXACT_ALIGN if probe.exact else self._align),
+            "root": str(root) if root is not None else first.hparams["root"],
+            "predict_labels": [f"{split}.json"],
+            "history_source": probe.history,
+        }
+        return type(first)(**kwargs)
+
+
+def open_run(where: str | Path) -> Run:
+    """Open a stored run: a checkpoint (its config travels inside it, else the run's ``config.yaml`` beside
+    ``checkpoints/``) or a run folder (its ``config.yaml`` and ``checkpoints/last.ckpt``).
+
+    Raises:
+        RunError: no checkpoint, a checkpoint over the budget or unreadable, a config that is no file of the run
+            folder or that the registry refuses (one line).
+    """
+    from stamlane_eval.cli_tools import check_input_file
+    from stamlane_eval.io import read_text
+
+    from stamlane.safety.budget import MAX_RECORD_BYTES
+    from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+    from stamlane.safety.guard import GuardError, read_inside
+    from stamlane.safety.paths import MAX_CONFIG_BYTES, PathError, check_config_paths
+    from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
+    from stamlane.training.registry import check_run_config
+
+    path = Path(where)
+    start: Any = None
+    try:
+        if path.is_dir():  # a run folder: its config.yaml, read only inside it
+            ckpt, source = path / "checkpoints" / "last.ckpt", path / "config.yaml"
+            if not ckpt.is_file():
+                raise RunError(f"{path} holds no checkpoints/last.ckpt (not a finished run folder)")
+            text = read_inside(source, path, MAX_RECORD_BYTES, "run config")
+        else:
+            content = read_checkpoint(path)
+            ckpt, source, text, start = path, path, content.get(CONFIG_KEY), content.get(START_DIR_KEY)
+            if not isinstance(text, str):  # a checkpoint of before configs travelled in them: the run's config.yaml
+                source = path.resolve().parent.parent / "config.yaml"
+                if not source.is_file():
+                    raise RunError(f"checkpoint {path} carries no config and none is beside it: give --config")
+                check_input_file(source, "run config")
+                text = read_text(source, limit=MAX_CONFIG_BYTES)
+        config = check_run_config(text, source)
+        check_config_paths(config)
+    except (CheckpointError, GuardError, PathError) as err:
+        raise RunError(str(err)) from None
+    return Run(ckpt, config, source, text, start if isinstance(start, str) else None)
+
+
+def open_model(ckpt: str | Path) -> tuple[Any, Any]:
+    """A checkpoint's network and how its clips were read, for what runs a model without a LightningCLI (``stamlane
+    stream``, ``export``): the checkpoint read once within the budget (`stamlane.safety.checkpoints`), the network built
+    from the closed registry on the CPU in eval mode (`stamlane.training.registry.build_module`), the data options
+    checked by the registry and read in today's names (`stamlane.training.compat.clip_options`).
+
+    Returns:
+        ``(module, clip)``: the `StamLaneModule` and its `stamlane.data.options.ClipOptions` (None for a checkpoint
+        without data options).
+
+    Raises:
+        CheckpointError: the checkpoint unreadable or refused, in one line.
+    """
+    from stamlane.safety.checkpoints import read_checkpoint
+    from stamlane.training.compat import clip_options
+    from stamlane.training.registry import build_module, check_data_hparams
+
+    content = read_checkpoint(ckpt)
+    module = build_module(content, ckpt)
+    data = content.get("datamodule_hyper_parameters")
+    if data is not None:
+        check_data_hparams(data, ckpt)
+    return module, clip_options(data) if isinstance(data, dict) else None
+
+
+def predict(run: Run, split: str, probe: Probe | str, out: Path, **options: Any) -> Path:
+    """`Run.predict`: ``split`` predicted with ``run``'s weights, its history as ``probe`` fills it, into ``out``."""
+    return run.predict(split, probe, out, **options)
+
+
+def _hardware() -> str:
+    """The CPU (or GPU), threads and torch version a run trained on."""
+    import torch
+
+    from stamlane.training.hardware import cpu_name
+
+    if torch.cuda.is_available():
+        return f"cuda: {torch.cuda.get_device_name(0)}, torch {torch.__version__}"
+    return f"cpu: {cpu_name()}, {torch.get_num_threads()} threads, torch {torch.__version__}"
