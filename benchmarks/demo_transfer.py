@@ -43,15 +43,16 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
     """Score every demo run on test/challenging clips of generator seed ``seed``, as the demo scores its own."""
     from dataclasses import asdict
 
-    from stamlane.experiments.metrics import TUSIMPLE
+    from stamlane.experiments.intervals import Scores, views
+    from stamlane.experiments.metrics import TUSIMPLE_F1
     from stamlane.experiments.runner import Runner, frames_of
-    from stamlane.experiments.scores import Scores, views
     from stamlane.synth import generate_dataset
+    from stamlane.synth.layout import SplitCounts
     from stamlane.training.runs import RunRecord
 
     root = out / f"synthetic-seed{seed}"
     if not (root / "dataset.json").is_file():
-        generate_dataset(root, train=0, val=0, test=clips, challenging=clips, seed=seed, workers=2)
+        generate_dataset(root, SplitCounts(test=clips, challenging=clips), seed=seed, workers=2)
     runs, runner = RunStore(demo), Runner(RunStore(out), root, max_overlays=4)  # the demo's runs, predicted here
     scores = Scores()
     for model, seeds in _runs(demo).items():
@@ -72,11 +73,12 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
         "seed": seed,
         "models": {
             name: {
-                k: {v: asdict(x) for v, x in d.items()} for k, d in scores.values(name, all_views, (TUSIMPLE,)).items()
+                k: {v: asdict(x) for v, x in d.items()}
+                for k, d in scores.values(name, all_views, (TUSIMPLE_F1,)).items()
             }
             for name in names
         },
-        "differences": [asdict(d) for d in scores.differences("models", pairs, all_views, (TUSIMPLE,))],
+        "differences": [asdict(d) for d in scores.differences("models", pairs, all_views, (TUSIMPLE_F1,))],
     }
 
 

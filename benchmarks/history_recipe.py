@@ -168,8 +168,8 @@ def probe(runner: Runner, name: str, record: RunRecord) -> dict:
     clip's history: per view (the split and each factor), the F1 and both differences with their clip intervals."""
     from dataclasses import asdict
 
-    from stamlane.experiments.metrics import TUSIMPLE
-    from stamlane.experiments.scores import Scores, views
+    from stamlane.experiments.intervals import Scores, views
+    from stamlane.experiments.metrics import TUSIMPLE_F1
 
     if runner.score(name, record, {"val": PROBED}):
         runner.store.mark(name, record)
@@ -179,12 +179,12 @@ def probe(runner: Runner, name: str, record: RunRecord) -> dict:
         scores.add(key.replace("val", "final", 1), "val", 0, per_image, clips)
     found = {}
     for view in views(runner.root, scores.clips):
-        value = scores.value("final", view, TUSIMPLE)
+        value = scores.value("final", view, TUSIMPLE_F1)
         found[view.name] = {
             "f1": value.mean,
             "f1_ci95": value.ci95,
             **{
-                f"minus_{source}": asdict(scores.difference("probe", "final", f"final@{source}", view, TUSIMPLE))
+                f"minus_{source}": asdict(scores.difference("probe", "final", f"final@{source}", view, TUSIMPLE_F1))
                 for source in PROBED
             },
         }

@@ -54,10 +54,11 @@ def cache_off() -> Iterator[None]:
 
 def render(root: Path, train: int, test: int, workers: int) -> float:
     from stamlane.synth import generate_dataset
+    from stamlane.synth.layout import SplitCounts
 
     start = time.perf_counter()
     counts = {"train": train, "val": 2, "test": test, "challenging": 0}
-    generate_dataset(root, **counts, seed=0, progress=False, workers=workers)
+    generate_dataset(root, SplitCounts(**counts), seed=0, progress=False, workers=workers)
     return time.perf_counter() - start
 
 

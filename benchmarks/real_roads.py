@@ -2,6 +2,7 @@
 
     python benchmarks/real_roads.py [--ckpt NAME_OR_FILE ...] [--shared ../shared] [--frames N]
                                     [--video-frames N] [--strip 4] [--out outputs/bench/real-roads]
+                                    [--decode NAME:KEY=VALUE,... ...] [--val SYNTHETIC_ROOT [--val-labels val.json]]
 
 Runs every ``--ckpt`` (default: every shipped model, `stamlane.weights.SHIPPED`) through `StreamingPredictor`,
 loaded as ``stamlane stream --ckpt`` loads it (`stamlane.stream.cli.load_predictor`, on the CPU, the model's own
@@ -21,7 +22,14 @@ precision, alignment on), on the real data beside the project (``../shared``, ne
    frames with their labels (yellow bands) under the predictions (bottom row), for a person to look at: what no
    number here says is whether a lane runs through a vehicle.
 
-Writes ``<out>/<name>.json`` and ``<out>/<name>-strip.jpg`` per checkpoint (each atomically) and prints a table;
+4. **Decoding alternatives** (``--decode``): each ``NAME:KEY=VALUE,...`` decodes the same network outputs with the
+   model's `PostprocessConfig` changed as it says (``model``: the model's own), e.g. ``no-extend:extend=false``;
+   every number above is given per decoding. ``--val ROOT`` also scores each decoding on a SYNTHETIC validation
+   split (``ROOT/val.json``, each clip streamed from its first frame, its labelled key frames scored by lane.py):
+   where a decoding is to be chosen; the real frames only report what the choice does.
+
+Writes ``<out>/<name>.json`` and ``<out>/<name>-strip.jpg`` per checkpoint (each atomically; ``<name>@<decoding>``
+with ``--decode``) and prints a table;
 ``<out>/summary.md`` holds the table of every checkpoint of the run. Exit status 2 with one line where
 ``--shared`` lacks the data or a checkpoint cannot be read.
 """
@@ -78,30 +86,121 @@ def read_labels(shared: Path, limit: int | None = None) -> tuple[list[dict], Pat
     return records[:limit] if limit else records, path.parent
 
 
-def score_frames(predictor: Any, records: list[dict], root: Path) -> tuple[dict, list[list[np.ndarray]]]:
-    """lane.py's numbers of the predictor on the labelled frames, each frame its own clip; and the lanes found."""
-    from stamlane_eval.tusimple import evaluate, lanes_to_xs
+def decodings(predictor: Any, specs: list[str] | None) -> dict[str, Any]:
+    """The `PostprocessConfig` of each ``--decode`` spec (``NAME:KEY=VALUE,...``; ``model`` alone: the model's own),
+    by name; the model's own when there is none."""
+    import dataclasses
 
-    preds, found = [], []
-    for record in records:
-        image = cv2.imread(str(root / record["raw_file"]))
-        if image is None:
-            raise RealRoadsError(f"cannot read {root / record['raw_file']}")
-        predictor.reset()
-        predictor.y_samples = list(record["h_samples"])
-        start = time.perf_counter()
-        lanes = predictor(image).lanes
-        ms = (time.perf_counter() - start) * 1e3
-        found.append(lanes)
-        preds.append({"raw_file": record["raw_file"], "lanes": lanes_to_xs(lanes, record["h_samples"]), "run_time": ms})
-    predictor.y_samples = None
+    base = predictor.postprocess
+    fields = {f.name: f for f in dataclasses.fields(base)}
+    out = {}
+    for spec in specs or ["model"]:
+        name, _, body = spec.partition(":")
+        if not name or name in out or "@" in name or "/" in name:
+            raise RealRoadsError(f"--decode {spec!r}: give each decoding its own plain name, NAME:KEY=VALUE,...")
+        changes: dict[str, Any] = {}
+        for item in filter(None, body.split(",")):
+            key, eq, value = item.partition("=")
+            if not eq or key not in fields:
+                raise RealRoadsError(f"--decode {spec!r}: {item!r} is not KEY=VALUE of {sorted(fields)}")
+            old = getattr(base, key)
+            try:
+                if value.lower() in ("none", "null"):
+                    changes[key] = None
+                elif isinstance(old, bool):
+                    changes[key] = {"true": True, "false": False}[value.lower()]
+                else:
+                    changes[key] = type(old)(value) if old is not None else float(value)
+            except (KeyError, ValueError):
+                raise RealRoadsError(f"--decode {spec!r}: {value!r} is no value of {key}") from None
+        try:
+            out[name] = dataclasses.replace(base, **changes)
+        except ValueError as err:
+            raise RealRoadsError(f"--decode {spec!r}: {err}") from None
+    return out
+
+
+def lanes_of(predictor: Any, image: np.ndarray, configs: dict[str, Any], rows: list | None) -> dict[str, list]:
+    """The next frame through the network once, its lanes decoded by each of ``configs`` (at ``rows``, if given)."""
+    from stamlane.predict.postprocess import decode_lanes
+
+    out = predictor(image)
+    prob = out.logits.softmax(dim=1)[0, 1].numpy()
+    embedding = out.embedding[0].numpy()
+    orig_from_net = np.linalg.inv(out.net_from_orig)
+    return {
+        name: decode_lanes(prob, embedding, orig_from_net, config, y_samples=rows, orig_size=image.shape[:2])
+        for name, config in configs.items()
+    }
+
+
+def _scores(preds: list[dict], records: list[dict]) -> dict:
+    from stamlane_eval.tusimple import evaluate
+
     result = evaluate(preds, records, time_limit=False)
     per_image = [
         {"raw_file": r["raw_file"], "acc": i.acc, "fp": i.fp, "fn": i.fn, "pred_lanes": i.n_pred, "gt_lanes": i.n_gt}
         for r, i in zip(records, result.per_image, strict=True)
     ]
     numbers = {k: result.as_dict()[k] for k in ("f1", "accuracy", "fp", "fn", "images", "lane_tp", "lane_fp")}
-    return numbers | {"per_image": per_image}, found
+    return numbers | {"per_image": per_image}
+
+
+def score_frames(
+    predictor: Any, records: list[dict], root: Path, configs: dict[str, Any]
+) -> dict[str, tuple[dict, list[list[np.ndarray]]]]:
+    """Per decoding: lane.py's numbers of the predictor on the labelled frames, each frame its own clip; and the lanes
+    found."""
+    from stamlane_eval.tusimple import lanes_to_xs
+
+    preds: dict[str, list] = {name: [] for name in configs}
+    found: dict[str, list] = {name: [] for name in configs}
+    for record in records:
+        image = cv2.imread(str(root / record["raw_file"]))
+        if image is None:
+            raise RealRoadsError(f"cannot read {root / record['raw_file']}")
+        predictor.reset()
+        start = time.perf_counter()
+        lanes = lanes_of(predictor, image, configs, list(record["h_samples"]))
+        ms = (time.perf_counter() - start) * 1e3
+        for name, these in lanes.items():
+            found[name].append(these)
+            xs = lanes_to_xs(these, record["h_samples"])
+            preds[name].append({"raw_file": record["raw_file"], "lanes": xs, "run_time": ms})
+    return {name: (_scores(preds[name], records), found[name]) for name in configs}
+
+
+def score_synthetic(predictor: Any, root: Path, labels: str, configs: dict[str, Any]) -> dict[str, dict]:
+    """Per decoding: lane.py's numbers on a synthetic split's labelled key frames (``root/labels``), each clip streamed
+    through the predictor from its first frame (the key frames' history is the clip's own)."""
+    from stamlane_eval.tusimple import lanes_to_xs
+
+    path = root / labels
+    if not path.is_file():
+        raise RealRoadsError(f"{path} does not exist (give --val a synthetic set: stamlane synth --out ROOT ...)")
+    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    by_clip: dict[str, dict[int, dict]] = {}
+    for record in records:
+        raw = Path(record["raw_file"])
+        by_clip.setdefault(str(raw.parent), {})[int(raw.stem)] = record
+    preds: dict[str, dict[str, dict]] = {name: {} for name in configs}
+    for clip, keys in by_clip.items():
+        predictor.reset()
+        for index in range(1, max(keys) + 1):
+            image = cv2.imread(str(root / clip / f"{index}.jpg"))
+            if image is None:
+                raise RealRoadsError(f"cannot read {root / clip / f'{index}.jpg'}")
+            record = keys.get(index)
+            lanes = lanes_of(predictor, image, configs, list(record["h_samples"]) if record else None)
+            if record is not None:
+                for name, these in lanes.items():
+                    xs = lanes_to_xs(these, record["h_samples"])
+                    preds[name][record["raw_file"]] = {"raw_file": record["raw_file"], "lanes": xs, "run_time": 0.0}
+    out = {}
+    for name in configs:
+        numbers = _scores([preds[name][r["raw_file"]] for r in records], records)
+        out[name] = {k: v for k, v in numbers.items() if k != "per_image"} | {"labels": str(path)}
+    return out
 
 
 # -------------------------------------------------------------------------------------------- the video
@@ -169,21 +268,30 @@ def stability(frames: list[list[np.ndarray]], rows: np.ndarray, width: int) -> d
     }
 
 
-def run_video(predictor: Any, path: Path, max_frames: int | None) -> tuple[dict, list[np.ndarray], list[list]]:
-    """Stream the video through the predictor; its numbers, the frames and their lanes."""
+def run_video(
+    predictor: Any, path: Path, max_frames: int | None, configs: dict[str, Any]
+) -> tuple[dict[str, tuple[dict, list[list]]], list[np.ndarray]]:
+    """Stream the video through the predictor; per decoding its numbers and the frames' lanes; the frames."""
     from stamlane.stream.cli import StreamError, iter_frames
 
     try:
         frames, _, _ = iter_frames(path, max_frames)
         predictor.reset()
-        images, found, ms = [], [], []
+        images, ms = [], []
+        found: dict[str, list] = {name: [] for name in configs}
         for _, image in frames:
             start = time.perf_counter()
-            found.append(predictor(image).lanes)
+            for name, lanes in lanes_of(predictor, image, configs, None).items():
+                found[name].append(lanes)
             ms.append((time.perf_counter() - start) * 1e3)
             images.append(image)
     except StreamError as err:
         raise RealRoadsError(str(err)) from None
+    return {name: (video_numbers(path, images, lanes, ms), lanes) for name, lanes in found.items()}, images
+
+
+def video_numbers(path: Path, images: list[np.ndarray], found: list[list], ms: list[float]) -> dict:
+    """The numbers of the lanes ``found`` in the video's frames."""
     height, width = images[0].shape[:2]
     rows = np.arange(height - 1, -1, -STABILITY_ROW_STEP, dtype=np.float64)[::-1]  # every lane's whole length
     counts = [len(lanes) for lanes in found]
@@ -199,7 +307,7 @@ def run_video(predictor: Any, path: Path, max_frames: int | None) -> tuple[dict,
         "frames_with_crossing": sum(c > 0 for c in cross),
         "ms_per_frame_median": statistics.median(ms),
     } | stability(found, rows, width)
-    return numbers | {"lanes_per_frame_sequence": counts}, images, found
+    return numbers | {"lanes_per_frame_sequence": counts}
 
 
 # -------------------------------------------------------------------------------------------- the strip
@@ -247,42 +355,75 @@ def _gt_lanes(record: dict) -> list[np.ndarray]:
 
 
 # ----------------------------------------------------------------------------------------------- report
-def check(ckpt: str, shared: Path, frames: int | None, video_frames: int | None, cells: int) -> tuple[dict, np.ndarray]:
-    """Every number of the real-road check for one checkpoint, and its overlay strip."""
+def check(
+    ckpt: str,
+    shared: Path,
+    frames: int | None,
+    video_frames: int | None,
+    cells: int,
+    specs: list[str] | None = None,
+    val: tuple[Path, str] | None = None,
+) -> list[tuple[str, dict, np.ndarray]]:
+    """Every number of the real-road check for one checkpoint, per decoding (``specs``, `decodings`): its name
+    (``<checkpoint>``, or ``<checkpoint>@<decoding>`` with ``specs``), numbers and overlay strip; with ``val`` (a
+    synthetic root and its label file) the synthetic validation numbers too."""
+    import dataclasses
+
     records, root = read_labels(shared, frames)
     video = shared / VIDEO
     if not video.is_file():
         raise RealRoadsError(f"{video} does not exist (the real video lives in ../shared beside the project)")
     predictor = load(ckpt)
-    frame_numbers, frame_lanes = score_frames(predictor, records, root)
-    video_numbers, images, video_lanes = run_video(predictor, video, video_frames)
+    configs = decodings(predictor, specs)
+    synthetic = score_synthetic(predictor, val[0], val[1], configs) if val is not None else {}
+    labelled_numbers = score_frames(predictor, records, root, configs)
+    video_results, images = run_video(predictor, video, video_frames, configs)
     labelled = [cv2.imread(str(root / r["raw_file"])) for r in records[:cells]]
     gt = [_gt_lanes(r) for r in records[:cells]]
-    picture = strip(images, video_lanes, labelled, frame_lanes[:cells], gt, cells, Path(ckpt).stem)
-    result = {
-        "checkpoint": ckpt,
-        "num_frames": predictor.num_frames,
-        "image_size": list(predictor.image_size),
-        "crop_top": predictor.transform.crop_top,
-        "labelled_frames": frame_numbers,
-        "video": video_numbers,
-    }
-    return result, picture
+    out = []
+    for name, config in configs.items():
+        full = f"{Path(ckpt).stem}@{name}" if specs else Path(ckpt).stem
+        frame_numbers, frame_lanes = labelled_numbers[name]
+        video_numbers, video_lanes = video_results[name]
+        picture = strip(images, video_lanes, labelled, frame_lanes[:cells], gt, cells, full)
+        result = {
+            "checkpoint": ckpt,
+            "num_frames": predictor.num_frames,
+            "image_size": list(predictor.image_size),
+            "crop_top": predictor.transform.crop_top,
+            "decoding": name if specs else "model",
+            "postprocess": dataclasses.asdict(config),
+            "labelled_frames": frame_numbers,
+            "video": video_numbers,
+        }
+        if name in synthetic:
+            result["synthetic_val"] = synthetic[name]
+        out.append((full, result, picture))
+    return out
 
 
 def table(results: list[dict]) -> str:
     """A markdown table of the headline numbers of each checkpoint."""
+    val = any("synthetic_val" in r for r in results)
     lines = [
-        "| checkpoint | TuSimple F1 | accuracy | FP | FN | video: lanes per frame (frames) | > 4 lanes | count changes "
+        "| checkpoint | "
+        + ("decoding | synthetic val F1 | " if val else "")
+        + "TuSimple F1 | accuracy | FP | FN | video: lanes per frame (frames) | > 4 lanes | count changes "
         "| jitter px (median) | crossing frames |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
     ]
     for r in results:
         f, v = r["labelled_frames"], r["video"]
         hist = ", ".join(f"{k}: {n}" for k, n in v["lanes_per_frame"].items())
+        extra = ""
+        if val:
+            s = r.get("synthetic_val")
+            extra = (
+                f"{r.get('decoding', 'model')} | {100 * s['f1']:.1f} | " if s else f"{r.get('decoding', 'model')} | | "
+            )
         lines.append(
-            f"| {Path(r['checkpoint']).name} | {100 * f['f1']:.1f} | {100 * f['accuracy']:.1f} | {100 * f['fp']:.1f} "
-            f"| {100 * f['fn']:.1f} | {hist} | {v['frames_over_max']} | {v['count_changes']} "
+            f"| {Path(r['checkpoint']).name} | {extra}{100 * f['f1']:.1f} | {100 * f['accuracy']:.1f} "
+            f"| {100 * f['fp']:.1f} | {100 * f['fn']:.1f} | {hist} | {v['frames_over_max']} | {v['count_changes']} "
             f"| {v['jitter_px']:.1f} ({v['jitter_px_median']:.1f}) | {v['frames_with_crossing']} |"
         )
     return "\n".join(lines) + "\n"
@@ -296,6 +437,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--video-frames", type=int, help="stream only the first N video frames")
     parser.add_argument("--strip", type=int, default=4, help="frames per row of the overlay strip")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/real-roads"))
+    parser.add_argument(
+        "--decode",
+        nargs="+",
+        metavar="NAME:KEY=VALUE,...",
+        help="decode the same network outputs several ways (e.g. model no-extend:extend=false curve:degree=2)",
+    )
+    parser.add_argument("--val", type=Path, help="a synthetic set whose validation split scores each decoding too")
+    parser.add_argument("--val-labels", default="val.json", help="its label file (default val.json)")
     args = parser.parse_args(argv)
     from stamlane.safety.guard import atomic_path, write_atomic
     from stamlane.training.quiet import quiet_libraries
@@ -312,11 +461,19 @@ def main(argv: list[str] | None = None) -> int:
         read_labels(args.shared)  # the data first: a missing folder is said before any model is loaded
         if not (args.shared / VIDEO).is_file():
             raise RealRoadsError(f"{args.shared / VIDEO} does not exist (the real video lives in ../shared)")
+        from stamlane.predict.postprocess import PostprocessConfig
+
+        decodings(argparse.Namespace(postprocess=PostprocessConfig()), args.decode)  # a bad spec before any model
+        val = (args.val, args.val_labels) if args.val is not None else None
+        if val is not None and not (args.val / args.val_labels).is_file():
+            raise RealRoadsError(f"{args.val / args.val_labels} does not exist (--val takes a synthetic set)")
         for ckpt in ckpts:
             print(f"real_roads: {ckpt} ...", file=sys.stderr)
-            result, picture = check(ckpt, args.shared, args.frames, args.video_frames, args.strip)
-            results.append(result)
-            pictures.append((Path(ckpt).stem, picture))
+            for name, result, picture in check(
+                ckpt, args.shared, args.frames, args.video_frames, args.strip, args.decode, val
+            ):
+                results.append(result)
+                pictures.append((name, picture))
     except RealRoadsError as err:
         print(f"real_roads: error: {err}", file=sys.stderr)
         return 2

@@ -159,12 +159,10 @@ def make_set(root: Path, size: tuple[int, int], clips: int, frames: int) -> None
     from stamlane.align.cli import main as align_main
     from stamlane.synth.config import SynthConfig
     from stamlane.synth.dataset import generate_dataset
+    from stamlane.synth.layout import SplitCounts
 
     config = SynthConfig(height=size[0], width=size[1], num_frames=frames)
-    generate_dataset(
-        root, train=0, val=clips, test=0, challenging=0, config=config, progress=False, layout="tusimple",
-        visibility=False,
-    )  # fmt: skip
+    generate_dataset(root, SplitCounts(val=clips), config=config, progress=False, layout="tusimple", visibility=False)
     status = align_main([str(root), "--cache", str(root / "alignment"), "--num-frames", str(frames), "--quiet"])
     if status != 0:
         raise RuntimeError(f"stamlane align failed on {root} (status {status})")

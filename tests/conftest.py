@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from stamlane.synth import SynthConfig, generate_dataset
+from stamlane.synth.layout import SplitCounts
 
 # With the other core busy, torch's default OpenMP spin-waiting ran 15x slower on the 2-core CI machine.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
@@ -40,7 +41,7 @@ def tiny_synthetic(tmp_path_factory: pytest.TempPathFactory) -> Callable[..., Pa
     def make(width: int, height: int, num_frames: int, *, seed: int = 0, **splits: int) -> Path:
         root = tmp_path_factory.mktemp("synthetic")
         config = SynthConfig(width=width, height=height, num_frames=num_frames)
-        generate_dataset(root, **splits, seed=seed, config=config, progress=False)
+        generate_dataset(root, SplitCounts(**splits), seed=seed, config=config, progress=False)
         return root
 
     return make
@@ -54,7 +55,9 @@ TINY_SYNTH = SynthConfig(width=160, height=96, num_frames=8)
 def synthetic_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A tiny synthetic set (160x96, 8 frames): 3 train, 1 val, 1 test, 1 challenging clip."""
     root = tmp_path_factory.mktemp("synthetic")
-    generate_dataset(root, train=3, val=1, test=1, challenging=1, seed=3, config=TINY_SYNTH, progress=False)
+    generate_dataset(
+        root, SplitCounts(train=3, val=1, test=1, challenging=1), seed=3, config=TINY_SYNTH, progress=False
+    )
     return root
 
 
@@ -64,5 +67,5 @@ def reveal_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ``reveal-traffic`` clips (2 of each kind), 12 frames each, with their visibility masks."""
     root = tmp_path_factory.mktemp("reveal")
     splits = {"train": 0, "val": 0, "test": 0, "challenging": 0, "reveal": 6, "reveal_traffic": 4}
-    generate_dataset(root, **splits, seed=5, config=TINY_SYNTH, progress=False)
+    generate_dataset(root, SplitCounts(**splits), seed=5, config=TINY_SYNTH, progress=False)
     return root

@@ -225,10 +225,11 @@ def test_report(
 @pytest.fixture(scope="module")
 def tiny_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from stamlane.synth import SynthConfig, generate_dataset
+    from stamlane.synth.layout import SplitCounts
 
     root = tmp_path_factory.mktemp("set")
     config = SynthConfig(width=128, height=72, num_frames=4)
-    generate_dataset(root, train=1, val=0, test=0, challenging=0, seed=1, config=config, progress=False)
+    generate_dataset(root, SplitCounts(train=1), seed=1, config=config, progress=False)
     line = json.loads((root / "train.json").read_text().splitlines()[0])
     (root / "long.json").write_text(json.dumps(line | {"raw_file": "clips/" + "a" * 300 + "/4.jpg"}) + "\n")
     (root / "junk.json").write_bytes(b"\x00\xff{" * 50)

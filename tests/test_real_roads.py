@@ -72,6 +72,36 @@ def test_the_check_scores_a_shipped_model_on_real_frames_and_video(bench, shared
     assert "| single-synthetic |" in (out / "summary.md").read_text()
 
 
+def test_decodings_share_one_network_pass_and_score_a_synthetic_validation_split(
+    bench, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    from stamlane.synth.cli import main as synth_main
+
+    val = tmp_path / "synthetic"
+    small = ["--clips", "3", "--challenging-clips", "0", "--reveal-clips", "0", "--reveal-traffic-clips", "0"]
+    assert synth_main(["--out", str(val), *small, "--size", "256x144", "--frames", "9", "--quiet"]) == 0
+    argv = ["--ckpt", "single-synthetic", "--shared", str(shared_dir), "--frames", "2", "--video-frames", "4"]
+    plain, out = tmp_path / "plain", tmp_path / "decodings"
+    assert bench.main([*argv, "--strip", "1", "--out", str(plain)]) == 0
+    decode = ["--decode", "model", "short:extend=false,degree=2", "--val", str(val)]
+    assert bench.main([*argv, "--strip", "1", "--out", str(out), *decode]) == 0
+    own = json.loads((plain / "single-synthetic.json").read_text())
+    same = json.loads((out / "single-synthetic@model.json").read_text())
+    short = json.loads((out / "single-synthetic@short.json").read_text())
+    # the model's own decoding of the shared pass is what the predictor decodes itself
+    assert same["labelled_frames"] == own["labelled_frames"]
+    assert same["video"]["lanes_per_frame_sequence"] == own["video"]["lanes_per_frame_sequence"]
+    assert short["postprocess"]["extend"] is False and short["postprocess"]["degree"] == 2
+    assert same["postprocess"]["extend"] is True
+    assert same["synthetic_val"]["images"] == short["synthetic_val"]["images"] > 0
+    assert "| single-synthetic | short |" in (out / "summary.md").read_text()
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert bench.main([*argv, "--out", str(bad), "--decode", "x:degree=zero"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "degree" in err[0] and not bad.exists()
+
+
 def test_missing_data_is_one_line_and_writes_nothing(bench, tmp_path: Path, capsys: pytest.CaptureFixture):
     out = tmp_path / "real"
     assert bench.main(["--ckpt", "single-synthetic", "--shared", str(tmp_path), "--out", str(out)]) == 2

@@ -15,13 +15,14 @@ import torch
 
 from stamlane.data import collate_clips
 from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
+from stamlane.data.frame_store import DEFAULT_MEMORY_MB
 from stamlane.data.labels import history_name
 from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
 from stamlane.synth.cli import main as synth_main
-from stamlane.synth.cli import split_counts
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dataset import generate_dataset
+from stamlane.synth.layout import SplitCounts
 
 TINY_SYNTH = SynthOptions(
     train=2,
@@ -92,7 +93,7 @@ def test_datamodule_on_a_given_root(synthetic_root: Path):
 @pytest.mark.skipif(importlib.util.find_spec("stamlane.align.homography") is None, reason="stamlane.align absent")
 def test_on_the_fly_alignment_is_close_to_the_true_one(tmp_path: Path):
     cfg = SynthConfig(width=640, height=360, num_frames=2, occluder_prob=0.0)
-    generate_dataset(tmp_path, train=0, val=0, test=1, challenging=0, seed=11, config=cfg, progress=False)
+    generate_dataset(tmp_path, SplitCounts(test=1), seed=11, config=cfg, progress=False)
     fly, true = (
         ClipDataModule(str(tmp_path), clip=ClipOptions(2, 1, (48, 80), align=align), loader=LoaderOptions(1))
         for align in ("fly", "true")
@@ -148,7 +149,8 @@ def test_a_datamodule_made_in_python_stores_plain_hyperparameters(tmp_path: Path
     from stamlane.training.compat import clip_options
 
     dm = ClipDataModule(clip=ClipOptions(num_frames=2), loader=LoaderOptions(batch_size=3))
-    assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == {"batch_size": 3, "num_workers": 0}
+    loader = {"batch_size": 3, "num_workers": 0, "memory_mb": DEFAULT_MEMORY_MB}
+    assert dm.hparams["clip"]["num_frames"] == 2 and dm.hparams["loader"] == loader
     assert dm.hparams_initial["clip"] == dm.hparams["clip"]  # what the loggers write
     torch.save({"datamodule_hyper_parameters": dict(dm.hparams)}, tmp_path / "h.ckpt")  # as a checkpoint holds them
     stored = torch.load(tmp_path / "h.ckpt", weights_only=True)["datamodule_hyper_parameters"]  # no dataclass
@@ -181,7 +183,8 @@ def test_history_names():
 
 
 def test_synth_tool_writes_a_set(tmp_path: Path, capsys: pytest.CaptureFixture):
-    assert split_counts(10) == (8, 1, 1) and split_counts(2) == (2, 0, 0)
+    ten, two = SplitCounts.of_total(10), SplitCounts.of_total(2)
+    assert (ten.train, ten.val, ten.test) == (8, 1, 1) and (two.train, two.val, two.test) == (2, 0, 0)
     out = tmp_path / "s"
     assert (
         synth_main(

@@ -25,7 +25,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (augment.brightness, augment.contrast, augment.saturation, augment.hue) == (0.2, 0.2, 0.2, 0.0)
     assert augment.key_corruption == 0.0 and augment.key_corruption_kinds == DEFAULT_KINDS
     synth = SynthOptions()
-    assert synth.splits() == {
+    assert synth.splits().as_dict() == {
         "train": 120,
         "val": 20,
         "test": 100,

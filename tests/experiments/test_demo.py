@@ -17,9 +17,10 @@ from stamlane_eval.tusimple import paper_f1
 from stamlane.cli import main
 from stamlane.experiments.demo import pairs
 from stamlane.experiments.recipes import KEY_CORRUPTION, Row
-from stamlane.experiments.scoring import SCORING, iou_width, read_per_image, score_split
+from stamlane.experiments.split_scores import SCORING, read_per_image, score_split
 from stamlane.experiments.store import file_sha256
 from stamlane.experiments.summary import DIFFERENCE_KINDS, Summary
+from stamlane.predict.image_score import iou_width
 from stamlane.synth.generator import FACTORS, REVEAL, REVEAL_TRAFFIC
 from stamlane.training.runs import flags_of
 

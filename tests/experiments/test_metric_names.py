@@ -8,14 +8,14 @@ from pathlib import Path
 import pytest
 from stamlane_eval.names import metric_name, parse_metric_name
 
-from stamlane.experiments.metrics import CLASS_RECALL, CULANE, METRICS, TEMPORAL, TUSIMPLE
-from stamlane.experiments.table_index import load_tables, metric_key
+from stamlane.experiments.metrics import CLASS_RECALL, CULANE_F1, REPORTED, TEMPORAL_STABILITY, TUSIMPLE_F1
+from stamlane.experiments.table_index import load_tables, paper_column_name
 
 
 def test_every_evaluator_metric_an_experiment_reports_has_its_callback_name() -> None:
-    assert TUSIMPLE.key == "tusimple_f1" and [m.key for m in CULANE] == ["culane_f1@0.5", "culane_f1@0.3"]
-    assert [m.key for m in TEMPORAL][:3] == ["temporal_rs@0.5", "temporal_rj@0.5", "temporal_rm@0.5"]
-    for m in METRICS:
+    assert TUSIMPLE_F1.key == "tusimple_f1" and [m.key for m in CULANE_F1] == ["culane_f1@0.5", "culane_f1@0.3"]
+    assert [m.key for m in TEMPORAL_STABILITY][:3] == ["temporal_rs@0.5", "temporal_rj@0.5", "temporal_rm@0.5"]
+    for m in REPORTED:
         if m in CLASS_RECALL:  # stamlane's own numbers (recall per visibility class): no evaluator logs them
             with pytest.raises(ValueError):
                 parse_metric_name(m.key)
@@ -24,13 +24,13 @@ def test_every_evaluator_metric_an_experiment_reports_has_its_callback_name() ->
 
 
 def test_paper_columns_are_named_by_the_one_builder() -> None:
-    assert metric_key("iou", "f1@0.5") == metric_name("culane", "f1", 0.5) == "culane_f1@0.5"
-    assert metric_key("iou", "precision@0.3") == "culane_precision@0.3"
-    assert metric_key("tusimple", "fp") == metric_name("tusimple", "fp") == "tusimple_fp"
+    assert paper_column_name("iou", "f1@0.5") == metric_name("culane", "f1", 0.5) == "culane_f1@0.5"
+    assert paper_column_name("iou", "precision@0.3") == "culane_precision@0.3"
+    assert paper_column_name("tusimple", "fp") == metric_name("tusimple", "fp") == "tusimple_fp"
     with pytest.raises(ValueError, match="metric kind"):
-        metric_key("culane", "f1@0.5")  # the index's word for the area metric is "iou"
+        paper_column_name("culane", "f1@0.5")  # the index's word for the area metric is "iou"
     with pytest.raises(ValueError, match="per IoU threshold"):
-        metric_key("iou", "f1")
+        paper_column_name("iou", "f1")
     index = load_tables()
     for table in index.tables.values():
         assert parse_metric_name(table.f1_key).quantity == "f1"

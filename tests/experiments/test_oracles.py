@@ -10,7 +10,7 @@ from stamlane_eval.io import read_tusimple
 
 from stamlane.experiments.engine import oracle_subject
 from stamlane.experiments.oracles import ORACLES, hist_from_key, oracle_predictions
-from stamlane.experiments.scoring import read_visibility
+from stamlane.experiments.split_scores import read_visibility
 from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.synth.generator import REVEAL, SynthConfig, generate_clip
 

@@ -15,7 +15,7 @@ from stamlane_eval.io import read_tusimple, tusimple_points
 from stamlane.experiments.demo import _comparison, differing_frames
 from stamlane.experiments.plots import SERIES_COLOURS, series_style
 from stamlane.experiments.recipes import Row
-from stamlane.experiments.scoring import score_split
+from stamlane.experiments.split_scores import score_split
 from stamlane.experiments.store import RunStore
 from stamlane.predict.overlay import LANE_COLOURS, OKABE_ITO, draw_lanes, text_scale
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from stamlane.predict.image_score import image_score, iou_width
 from stamlane.predict.overlay import (
     GT_CORE,
     GT_EDGE,
@@ -16,7 +17,6 @@ from stamlane.predict.overlay import (
     label_strip,
     line_width,
 )
-from stamlane.predict.scores import image_score, iou_width
 
 H, W = 360, 640
 GT = [np.array([[100.0, 350.0], [300.0, 180.0]]), np.array([[540.0, 350.0], [340.0, 180.0]])]

@@ -138,3 +138,49 @@ def test_a_curve_continues_along_its_end_tangents() -> None:
     np.testing.assert_allclose(curve.x_at(np.array([15.0])), [0.01 * 225 + 5])
     # below y_lo: x(10) + x'(10) (y - 10) with x'(10) = 0.2; above y_hi: x(20) + 0.4 (y - 20)
     np.testing.assert_allclose(curve.x_at(np.array([0.0, 30.0])), [6.0 - 2.0, 9.0 + 4.0])
+
+
+def test_dbscan_gives_sklearns_labels() -> None:
+    from sklearn.cluster import DBSCAN
+
+    from stamlane.predict.postprocess import dbscan
+
+    rng = np.random.default_rng(1)
+    for _ in range(150):  # tight and loose clusters, bridges, duplicates, every core count from 2 to 40
+        n, spread, min_samples = int(rng.integers(20, 700)), float(rng.uniform(0.03, 0.5)), int(rng.integers(2, 40))
+        centres = rng.normal(size=(int(rng.integers(1, 7)), 4)) * 1.2
+        points = centres[rng.integers(0, len(centres), n)] + rng.normal(scale=spread, size=(n, 4))
+        points[: n // 10] = points[n // 10 : 2 * (n // 10)]  # duplicates: neighbours at distance 0
+        points = points.astype(np.float32)
+        expected = DBSCAN(eps=0.35, min_samples=min_samples, algorithm="ball_tree").fit_predict(points)
+        assert np.array_equal(dbscan(points, 0.35, min_samples), expected)
+
+
+@pytest.mark.parametrize("name", ["stam4-synthetic", "single-synthetic"])
+def test_the_shipped_models_lanes_are_the_same_as_with_sklearns_dbscan(
+    name: str, synthetic_root, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The lanes the shipped models' own outputs decode to, with `dbscan` and with sklearn's estimator."""
+    import torch
+
+    from stamlane.data.collate import collate_clips
+    from stamlane.data.layouts import make_clips
+    from stamlane.data.options import ClipOptions
+    from stamlane.predict import postprocess
+    from stamlane.training.module import StamLaneModule
+    from stamlane.weights import shipped_path
+
+    module = StamLaneModule.from_checkpoint(shipped_path(name)).eval()
+    clip = ClipOptions(num_frames=module.num_frames, image_size=(80, 256), crop_top=0.4, align="fly")
+    files = ["test.json", "challenging.json"]
+    samples = [s for f in files for s in make_clips("tusimple", synthetic_root, [f], clip=clip)]
+    with torch.no_grad():
+        logits, embedding = module._run(collate_clips(samples))
+    metas = [s["meta"] for s in samples]
+    lanes = module.decode(logits, embedding, metas)
+    monkeypatch.setattr(postprocess, "_dbscan_inner", None)  # sklearn's DBSCAN estimator
+    assert sum(len(image) for image in lanes) > 0
+    expected = module.decode(logits, embedding, metas)
+    assert len(lanes) == len(expected) == len(samples)
+    for got, want in zip(lanes, expected):
+        assert len(got) == len(want) and all(np.array_equal(a, b) for a, b in zip(got, want))

@@ -12,6 +12,7 @@ import torch
 
 from stamlane.cli import main as stamlane
 from stamlane.synth import SynthConfig, generate_dataset
+from stamlane.synth.layout import SplitCounts
 
 torch.set_num_threads(1)
 pytest.importorskip("onnx", reason="onnx is not installed")
@@ -38,7 +39,7 @@ def workdir(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFac
     folder = tmp_path_factory.mktemp("example")
     width, height = request.param
     config = SynthConfig(width=width, height=height, num_frames=20)
-    generate_dataset(folder / "data/synth", train=0, val=0, test=1, challenging=0, config=config, progress=False)
+    generate_dataset(folder / "data/synth", SplitCounts(test=1), config=config, progress=False)
     ckpt = save_checkpoint(folder / "last.ckpt")
     assert stamlane(["export", "--ckpt_path", str(ckpt), "--output", str(folder / "stam4.onnx")]) == 0
     return folder

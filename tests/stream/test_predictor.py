@@ -189,3 +189,30 @@ def test_frames_given_to_step_are_used_unaligned_by_call(net: LaneNet, frames: t
     assert len(out.alignments) == 1 and not out.alignments[0].ok
     assert "no image kept" in out.alignments[0].reason
     np.testing.assert_array_equal(out.alignments[0].key_from_hist, np.eye(3))
+
+
+def test_run_gives_the_outputs_of_frame_after_frame_calls() -> None:
+    """`StreamingPredictor.run` (reading, features and lane decoding beside the network) gives what calling the
+    predictor frame after frame gives, bit for bit, with the shipped 4-frame model on a rendered drive."""
+    from stamlane.training.module import StamLaneModule
+    from stamlane.weights import shipped_path
+
+    module = StamLaneModule.from_checkpoint(shipped_path("stam4-synthetic"))
+    camera = RoadCamera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
+    texture = road_texture(seed=3)
+    images = [render_road(texture, camera, forward=1.0 * i, yaw=0.004 * i) for i in range(7)]
+    serial = StreamingPredictor.from_module(module, horizon_row=160)
+    expected = [serial(image) for image in images]
+    piped = StreamingPredictor.from_module(module, horizon_row=160)
+    got = list(piped.run(iter(images)))
+    assert [o.index for o in got] == list(range(len(images)))
+    for a, b in zip(got, expected, strict=True):
+        assert torch.equal(a.logits, b.logits) and torch.equal(a.embedding, b.embedding)
+        assert len(a.lanes) == len(b.lanes) and all(np.array_equal(x, y) for x, y in zip(a.lanes, b.lanes))
+        assert [al.key_from_hist.tolist() for al in a.alignments] == [al.key_from_hist.tolist() for al in b.alignments]
+        assert set(a.timings) == {"preprocess", "align", "network", "decode"}
+    assert all(al.ok for al in got[4].alignments) and not got[5].alignments[0].ok  # the chain, and its breaking
+    assert sum(len(o.lanes) for o in got) > 0
+    assert list(piped.run([])) == []
+    with pytest.raises(ValueError, match="size changed"):
+        list(piped.run([images[0], images[0][:-16]]))

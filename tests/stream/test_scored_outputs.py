@@ -15,6 +15,7 @@ from stamlane_eval.cli import main as evaluate
 from stamlane.cli import main as stamlane
 from stamlane.safety.owner import OWNER_NAME
 from stamlane.synth import SynthConfig, generate_dataset
+from stamlane.synth.layout import SplitCounts
 
 torch.set_num_threads(1)
 FRAMES = 8
@@ -29,7 +30,7 @@ def streamed(tmp_path_factory: pytest.TempPathFactory, save_checkpoint) -> dict[
     text (the ground truth of ``stamlane-eval tusimple`` / ``culane``)."""
     tmp = tmp_path_factory.mktemp("scored")
     config = SynthConfig(width=160, height=96, num_frames=FRAMES)
-    generate_dataset(tmp / "synth", train=0, val=0, test=1, challenging=0, config=config, progress=False)
+    generate_dataset(tmp / "synth", SplitCounts(test=1), config=config, progress=False)
     clip = tmp / "synth" / "clips" / "test-0000"
     video = tmp / "test-0000.mp4"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 20.0, (160, 96))

@@ -13,6 +13,7 @@ from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import FACTORS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.effects import Windscreen
+from stamlane.synth.layout import SplitCounts
 from stamlane.synth.statistics import clip_statistics
 
 GEOM = SynthConfig(width=320, height=180, num_frames=6, occluder_prob=0.0)
@@ -82,7 +83,7 @@ def test_dataset_layout_and_determinism(tmp_path: Path, synthetic_root: Path):
     from tests.conftest import TINY_SYNTH as TINY
 
     again = tmp_path / "again"
-    generate_dataset(again, train=3, val=1, test=1, challenging=1, seed=3, config=TINY, progress=False)
+    generate_dataset(again, SplitCounts(train=3, val=1, test=1, challenging=1), seed=3, config=TINY, progress=False)
     made = (p for p in synthetic_root.rglob("*") if p.is_file() and ".stamlane-cache" not in p.parts)
     files = sorted(p.relative_to(synthetic_root) for p in made)  # without the alignment cache earlier tests wrote
     assert files == sorted(p.relative_to(again) for p in again.rglob("*") if p.is_file())
@@ -104,7 +105,7 @@ def test_dataset_layout_and_determinism(tmp_path: Path, synthetic_root: Path):
     assert info["splits"]["train"] == 3 and "statistics" in info
     # a different seed gives different frames
     other = tmp_path / "other"
-    generate_dataset(other, train=1, val=0, test=0, challenging=0, seed=4, config=TINY, progress=False)
+    generate_dataset(other, SplitCounts(train=1), seed=4, config=TINY, progress=False)
     assert (other / "clips/train-0000/8.jpg").read_bytes() != (again / "clips/train-0000/8.jpg").read_bytes()
 
 
@@ -129,9 +130,7 @@ def test_every_factor_is_a_labelled_split_of_the_challenging_clips(tmp_path: Pat
     from tests.conftest import TINY_SYNTH as TINY
 
     root = tmp_path / "set"
-    info = generate_dataset(
-        root, train=0, val=0, test=0, challenging=len(FACTORS) + 1, seed=1, config=TINY, progress=False
-    )
+    info = generate_dataset(root, SplitCounts(challenging=len(FACTORS) + 1), seed=1, config=TINY, progress=False)
     names = list(FACTORS)
     assert info["clip_factors"] == {f"challenging-{i:04d}": names[i % len(names)] for i in range(len(names) + 1)}
     every = [json.loads(line)["raw_file"] for line in (root / "challenging.json").read_text().splitlines()]
@@ -176,4 +175,4 @@ def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="num_frames"):
         SynthConfig(num_frames=0)
     with pytest.raises(ValueError, match="clip count"):
-        generate_dataset("/tmp/never", train=-1, progress=False)
+        generate_dataset("/tmp/never", SplitCounts(train=-1), progress=False)

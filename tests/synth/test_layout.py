@@ -88,7 +88,7 @@ def test_an_interrupted_label_file_leaves_the_old_one_whole(tmp_path: Path, monk
 def test_an_interrupted_generation_leaves_no_record_of_a_complete_set(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
     root = tmp_path / "set"
     small = config.SynthConfig(width=64, height=48, num_frames=4)
-    dataset.generate_dataset(root, train=1, val=0, test=0, challenging=0, config=small, progress=False)
+    dataset.generate_dataset(root, layout.SplitCounts(train=1), config=small, progress=False)
     assert (root / "dataset.json").is_file()
 
     def killed(*args: object, **kwargs: object) -> None:
@@ -96,7 +96,7 @@ def test_an_interrupted_generation_leaves_no_record_of_a_complete_set(tmp_path: 
 
     monkeypatch.setattr(dataset, "write_temporal_labels", killed)  # the last step before dataset.json
     with pytest.raises(KeyboardInterrupt):
-        dataset.generate_dataset(root, train=2, val=0, test=0, challenging=0, config=small, progress=False)
+        dataset.generate_dataset(root, layout.SplitCounts(train=2), config=small, progress=False)
     assert not (root / "dataset.json").exists()  # the old set's record went first: the folder reads as incomplete
     assert not [p for p in root.rglob("*") if ".tmp" in p.name]
     assert len((root / "train.json").read_text().splitlines()) == 2  # every file whole

@@ -13,7 +13,7 @@ import pytest
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC, SynthConfig
 from stamlane.synth.dataset import generate_dataset
-from stamlane.synth.layout import FORMAT_VERSION, REVEAL_FRAMES, SPLITS
+from stamlane.synth.layout import FORMAT_VERSION, REVEAL_FRAMES, SPLITS, SplitCounts
 from stamlane.synth.visibility import visibility_class
 
 SMALL = SynthConfig(width=160, height=96)
@@ -81,9 +81,16 @@ def test_reveal_splits_name_their_kinds_and_see_over_every_history_frame(reveal_
 
 def test_reveal_clips_leave_every_other_split_as_it_was(tmp_path: Path):
     splits = {"train": 1, "val": 1, "test": 1, "challenging": 1}
-    plain = generate_dataset(tmp_path / "a", **splits, seed=2, config=SMALL, progress=False, visibility=False)
+    plain = generate_dataset(
+        tmp_path / "a", SplitCounts(**splits), seed=2, config=SMALL, progress=False, visibility=False
+    )
     more = generate_dataset(
-        tmp_path / "b", **splits, reveal=3, train_motion=1, seed=2, config=SMALL, progress=False, visibility=False
+        tmp_path / "b",
+        SplitCounts(**splits | dict(reveal=3, train_motion=1)),
+        seed=2,
+        config=SMALL,
+        progress=False,
+        visibility=False,
     )
     assert SPLITS[-2:] == ("reveal", "reveal-traffic")  # the new splits' seeds come after the old ones'
     for name in ("test.json", "challenging.json", "val.json", "clips/test-0000/20.jpg", "clips/train-0000/20.jpg"):

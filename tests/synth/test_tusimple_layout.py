@@ -18,6 +18,7 @@ from stamlane.synth.cli import main as synth_main
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import FACTORS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
+from stamlane.synth.layout import SplitCounts
 from stamlane.synth.tusimple_layout import TUSIMPLE_LABEL_FILES, clip_folder, label_file, tusimple_rows
 
 SIZE, FRAMES = (96, 160), 9  # 9 frames: the generator layout labels frames 8 and 9 of train clips
@@ -36,7 +37,7 @@ def sets(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out = {}
     for layout in ("stamlane", "tusimple"):
         out[layout] = root = tmp_path_factory.mktemp(layout)
-        generate_dataset(root, **SPLITS, seed=4, config=config, progress=False, layout=layout)
+        generate_dataset(root, SplitCounts(**SPLITS), seed=4, config=config, progress=False, layout=layout)
     return out
 
 
@@ -174,7 +175,7 @@ def test_the_cli_writes_it_and_refuses_key_steps(tmp_path: Path, capsys: pytest.
         assert err.count("\n") == 1 and message in err
         assert not (tmp_path / "u").exists()
     with pytest.raises(ValueError, match="key steps must be 0"):
-        generate_dataset(tmp_path / "v", train=1, val=0, test=0, challenging=0, layout="tusimple", train_key_step=1)
+        generate_dataset(tmp_path / "v", SplitCounts(train=1), layout="tusimple", train_key_step=1)
 
 
 def test_a_small_set_has_a_clip_of_every_factor_by_default(tmp_path: Path, capsys: pytest.CaptureFixture):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stamlane.synth import SynthConfig, generate_clip, generate_dataset
-from stamlane.synth.layout import VISIBILITY_DIR
+from stamlane.synth.layout import VISIBILITY_DIR, SplitCounts
 from stamlane.synth.statistics import key_frame_visibility
 from stamlane.synth.visibility import ABSENT, VISIBLE_CONTRAST, paint_visibility, visibility_class
 
@@ -61,7 +61,11 @@ def test_paint_contrast_leaves_the_frames_as_they_were_and_sees_the_paint():
 def test_generated_sets_carry_visibility_beside_the_eval_labels(tmp_path: Path):
     cfg = SynthConfig(width=160, height=96, num_frames=10)
     generate_dataset(
-        tmp_path, train=1, val=1, test=1, challenging=2, train_factors=1, seed=1, config=cfg, progress=False
+        tmp_path,
+        SplitCounts(train=1, val=1, test=1, challenging=2, train_factors=1),
+        seed=1,
+        config=cfg,
+        progress=False,
     )
     assert not (tmp_path / VISIBILITY_DIR / "train.json").exists()  # training needs none
     for split in ("val", "test", "challenging"):

@@ -103,7 +103,7 @@ def test_an_opened_run_predicts_every_split_and_probe_with_one_model(
 ) -> None:
     """The shipped 4-frame model (trained: lanes that differ between probes), six passes with one model, against a
     LightningCLI per pass: the same lanes and the same per-image scores, byte for byte."""
-    from stamlane.experiments.scoring import score_split
+    from stamlane.experiments.split_scores import score_split
     from stamlane.training.lightning_cli import StamLaneCLI
     from stamlane.weights import shipped_path
 

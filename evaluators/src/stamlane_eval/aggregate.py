@@ -41,12 +41,18 @@ evaluate_iou.py averages those printed values over the videos (`dataset_miou`)."
 
 
 class _TuSimpleImage(Protocol):
-    acc: float
-    fp: float
-    fn: float
-    matched: int
-    n_pred: int
-    n_gt: int
+    @property
+    def acc(self) -> float: ...
+    @property
+    def fp(self) -> float: ...
+    @property
+    def fn(self) -> float: ...
+    @property
+    def matched(self) -> int: ...
+    @property
+    def n_pred(self) -> int: ...
+    @property
+    def n_gt(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -132,7 +138,7 @@ def count_update(
     return [(a, b, c) for a, b, c in out]
 
 
-def prf(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
+def prf(tp: float, fp: float, fn: float) -> tuple[float, float, float]:
     """Precision TP/(TP+FP), recall TP/(TP+FN), F1 2PR/(P+R); each 0 where its denominator is 0 (lanedet's
     ``eval_predictions``; the C++ tool prints -1 there, and ``stamlane-eval`` refuses such input)."""
     p = tp / (tp + fp) if tp + fp > 0 else 0.0

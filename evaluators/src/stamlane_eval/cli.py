@@ -238,12 +238,14 @@ def _outputs(args: argparse.Namespace) -> list[Path | None]:
     return [getattr(args, "per_image", None), getattr(args, "per_sequence", None)]
 
 
-def _timed(records: Sequence[dict]) -> bool:
+def _timed(records: Sequence[dict[str, object]]) -> bool:
     """Whether any record carries ``run_time``: every prediction does (lane.py requires it), a label never."""
     return any("run_time" in r for r in records)
 
 
-def _swapped_tusimple(args: argparse.Namespace, preds: Sequence[dict], gts: Sequence[dict]) -> str | None:
+def _swapped_tusimple(
+    args: argparse.Namespace, preds: Sequence[dict[str, object]], gts: Sequence[dict[str, object]]
+) -> str | None:
     """Why PRED and GT look given in the wrong order, or None: no record of PRED has a ``run_time`` (every
     prediction needs one) while GT's records have one."""
     if _timed(preds) or not _timed(gts):
@@ -341,8 +343,8 @@ def _run_culane(args: argparse.Namespace) -> int:
         _refuse_zero_denominators(res, args)
     if args.per_image:
         recs = []
-        for e, r in zip(entries, res.per_image, strict=True):
-            rec: dict[str, object] = {"entry": e, "n_pred": r.n_pred, "n_gt": r.n_gt}
+        for entry, r in zip(entries, res.per_image, strict=True):
+            rec: dict[str, object] = {"entry": entry, "n_pred": r.n_pred, "n_gt": r.n_gt}
             rec.update({str(t): list(r.counts[t]) for t in thresholds})
             rec["matched_iou"] = [float(v) for v in r.matched_iou]
             recs.append(rec)

@@ -129,7 +129,7 @@ class InputError(ValueError):
     """An input path that cannot be read as a file: missing, a directory, a FIFO, a device or a socket."""
 
 
-def check_input_file(path: str | os.PathLike, what: str = "input") -> None:
+def check_input_file(path: str | os.PathLike[str], what: str = "input") -> None:
     """Refuse an input that is not a regular file (symlinks followed), without reading it: a FIFO would block
     the reader until something writes to it, a device such as ``/dev/zero`` never ends.
 

@@ -204,7 +204,8 @@ def _points_lanedet(lane: np.ndarray, n: int = LANEDET_SAMPLES) -> np.ndarray:
     except (ValueError, TypeError) as e:
         raise ValueError(f"lanedet variant: scipy splprep fails on this lane (duplicate points?): {e}") from None
     u = np.linspace(0.0, 1.0, num=(len(u) - 1) * n + 1)
-    return np.array(splev(u, tck)).T.astype(np.int32).astype(np.int64)
+    points: np.ndarray = np.array(splev(u, tck)).T.astype(np.int32).astype(np.int64)
+    return points
 
 
 # ----------------------------------------------------------------------------------------- rasterisation
@@ -424,7 +425,9 @@ def _evaluate_images(
     out = []
     for k, (pred, gt) in enumerate(checked):
         try:
-            pts = points[k] if variant == "official" else [_points_lanedet(lane) for lane in drawn[k]]
+            pts: list[np.ndarray | None] = (
+                points[k] if variant == "official" else [_points_lanedet(lane) for lane in drawn[k]]
+            )
             out.append(_score_image(pred, gt, pts, thresholds, width, size, variant))
         except ValueError as e:
             raise ValueError(f"{names[k]}: {e}" if names is not None else str(e)) from None

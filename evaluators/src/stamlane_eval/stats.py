@@ -147,7 +147,7 @@ def rm_of_counts(means: np.ndarray) -> float:
     return stability_rates(means[0], means[1], means[2])[2]
 
 
-def _weights(n: int, groups: Sequence | None, resamples: int, seed: int) -> tuple[np.ndarray, int]:
+def _weights(n: int, groups: Sequence[object] | None, resamples: int, seed: int) -> tuple[np.ndarray, int]:
     """(resamples, n) counts: how often each image enters each resample (whole groups drawn with replacement)."""
     if groups is None:
         index = np.arange(n)
@@ -179,7 +179,7 @@ def _check(values: np.ndarray, name: str) -> np.ndarray:
 def _estimate(
     stat_of: Callable[[np.ndarray], np.ndarray],
     n: int,
-    groups: Sequence | None,
+    groups: Sequence[object] | None,
     level: float,
     resamples: int,
     seed: int,
@@ -208,7 +208,7 @@ def bootstrap(
     values: np.ndarray,
     statistic: Statistic,
     *,
-    groups: Sequence | None = None,
+    groups: Sequence[object] | None = None,
     level: float = 0.95,
     resamples: int = RESAMPLES,
     seed: int = 0,
@@ -232,7 +232,7 @@ def paired_bootstrap(
     b: np.ndarray,
     statistic: Statistic,
     *,
-    groups: Sequence | None = None,
+    groups: Sequence[object] | None = None,
     level: float = 0.95,
     resamples: int = RESAMPLES,
     seed: int = 0,

@@ -202,7 +202,7 @@ def _spline(pts: list[tuple[float, float]]) -> np.ndarray | None:
     # t=n is passed as the knot vector, which splprep ignores for task = 0; k = min(3, m - 1).
     tck, u = splprep([x, y], s=0, t=SPLINE_SAMPLES, k=min(3, len(pts) - 1))
     # (len(u) - 1) * n + 1 samples evenly spread over the parameter [0, 1], not per point interval
-    samples = np.array(splev(np.linspace(0.0, 1.0, num=(len(u) - 1) * SPLINE_SAMPLES + 1), tck)).T
+    samples: np.ndarray = np.array(splev(np.linspace(0.0, 1.0, num=(len(u) - 1) * SPLINE_SAMPLES + 1), tck)).T
     if not (np.abs(samples) < INT32_LIMIT).all():
         # beyond int32 the script's truncation depends on whether the frame's lanes have equal lengths (an object
         # array of floats then raises OverflowError, a float array wraps): no single number to reproduce
@@ -382,12 +382,12 @@ def evaluate_frame(
         anno_drawn = [None if p is None else _draw(p, canvas, budget) for p in anno_pts]
         return TemporalFrame(canvas, anno_pts, anno_drawn, anno_iou)
     pred_drawn = [_draw(p, canvas, budget) for p in _splines(pred_unique, "predicted")]
-    anno_pts = _splines(anno_unique, "annotated")
-    anno_drawn = [_draw(p, canvas, budget) for p in anno_pts]
-    ious = _iou_matrix(anno_drawn, pred_drawn)  # rows: annotations, columns: predictions, as the script
+    kept_pts = _splines(anno_unique, "annotated")
+    kept_drawn = [_draw(p, canvas, budget) for p in kept_pts]
+    ious = _iou_matrix(kept_drawn, pred_drawn)  # rows: annotations, columns: predictions, as the script
     rows, cols = _assign(ious)
     anno_iou[rows] = ious[rows, cols]
-    return TemporalFrame(canvas, list(anno_pts), list(anno_drawn), anno_iou)
+    return TemporalFrame(canvas, list(kept_pts), list(kept_drawn), anno_iou)
 
 
 def stability_counts(iou1: float, iou2: float, threshold: float) -> tuple[int, int, int]:
@@ -422,13 +422,15 @@ def evaluate_pair(
             raise ValueError(f"at {when}: {_one_point_error('annotated', k)}")
     if not cur.anno_drawn or not prev.anno_drawn:
         return out
+    # no lane is None past the check above (anno_drawn is None exactly where anno_points is): the filters narrow
+    cur_drawn = [d for d in cur.anno_drawn if d is not None]
     # The annotations of t-1 are drawn on frame t's shape (self.shape = img_shape[idx] of the current frame).
     if prev.size == cur.size:
-        prev_drawn = prev.anno_drawn
+        prev_drawn = [d for d in prev.anno_drawn if d is not None]
     else:
         budget = CanvasBudget(cur.size)
-        prev_drawn = [_draw(p, cur.size, budget) for p in prev.anno_points]
-    ious = _iou_matrix(cur.anno_drawn, prev_drawn)  # rows: annotations at t (ref), columns: at t-1 (tgt)
+        prev_drawn = [_draw(p, cur.size, budget) for p in prev.anno_points if p is not None]
+    ious = _iou_matrix(cur_drawn, prev_drawn)  # rows: annotations at t (ref), columns: at t-1 (tgt)
     rows, cols = _assign(ious)
     kept = ious[rows, cols] > ANNO_MATCH_IOU
     for t in thresholds:
@@ -462,7 +464,7 @@ def evaluate_sequence(
         Counts per threshold and per pair.
     """
     thresholds = tuple(float(t) for t in iou_thresholds)
-    per_pair = []
+    per_pair: list[dict[float, tuple[int, int, int]]] = []
     prev = None
     for i, fr in enumerate(frames):
         try:

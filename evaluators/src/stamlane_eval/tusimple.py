@@ -21,6 +21,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -269,6 +270,7 @@ def _score(
         TuSimpleInputError: lane.py's 'Format of lanes error.': a predicted lane not as long as the image's
             ``h_samples``.
     """
+    assert gt.rows is not None and gt.h_samples is not None  # a ground truth's TuSimpleFile has both
     n = len(take)
     n_rows = gt.rows[take]
     n_pred, n_gt = pred.counts, gt.counts[take]
@@ -347,7 +349,9 @@ def evaluate_image(
     return evaluate_batch([preds], [target], [h_samples], [run_time])[0]
 
 
-def evaluate(preds: Sequence[Mapping], gts: Sequence[Mapping], time_limit: bool = True) -> TuSimpleResult:
+def evaluate(
+    preds: Sequence[Mapping[str, Any]], gts: Sequence[Mapping[str, Any]], time_limit: bool = True
+) -> TuSimpleResult:
     """Score a submission exactly as ``LaneEval.bench_one_submit`` (records as read from the json-lines files).
 
     Args:

@@ -30,10 +30,12 @@ from contextlib import contextmanager
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from stamlane.align.homography import AlignConfig, Alignment, FramePrep, estimate_prepared, resolve_horizon_row
+from stamlane.align.warp import Strategy
 from stamlane.safety.guard import GuardError, is_inside, read_inside, write_atomic
 
 __all__ = [
@@ -59,10 +61,11 @@ __all__ = [
 FRAME_SUFFIXES = (".jpg", ".jpeg", ".png")
 ROOT_CACHE_NAME = "__root__.json"
 
-CacheDict = dict[str, dict[str, dict]]
+CacheDict = dict[str, dict[str, dict[str, Any]]]
+"""A clip's cache (or an aligned folder's manifest): key frame name -> history frame name -> its JSON record."""
 
 
-def list_frames(clip_dir: str | os.PathLike) -> list[Path]:
+def list_frames(clip_dir: str | os.PathLike[str]) -> list[Path]:
     """The numbered frames ``<n>.jpg|.jpeg|.png`` of a folder, in frame-number order (oldest first)."""
     frames = [
         p for p in Path(clip_dir).iterdir() if p.suffix.lower() in FRAME_SUFFIXES and p.stem.isdigit() and p.is_file()
@@ -70,7 +73,7 @@ def list_frames(clip_dir: str | os.PathLike) -> list[Path]:
     return sorted(frames, key=lambda p: (int(p.stem), p.name))
 
 
-def find_clip_dirs(root: str | os.PathLike, min_frames: int = 2) -> list[Path]:
+def find_clip_dirs(root: str | os.PathLike[str], min_frames: int = 2) -> list[Path]:
     """Every folder under ``root`` (``root`` included) holding at least ``min_frames`` numbered frames, sorted."""
     root = Path(root)
     found = []
@@ -81,7 +84,9 @@ def find_clip_dirs(root: str | os.PathLike, min_frames: int = 2) -> list[Path]:
     return sorted(found)
 
 
-def cache_file(cache_dir: str | os.PathLike, root: str | os.PathLike, clip_dir: str | os.PathLike) -> Path:
+def cache_file(
+    cache_dir: str | os.PathLike[str], root: str | os.PathLike[str], clip_dir: str | os.PathLike[str]
+) -> Path:
     """``<cache_dir>/<clip_dir relative to root>.json``.
 
     Args:
@@ -104,7 +109,7 @@ def cache_file(cache_dir: str | os.PathLike, root: str | os.PathLike, clip_dir: 
     return Path(cache_dir) / rel.parent / f"{rel.name}.json"
 
 
-def alignment_to_json(alignment: Alignment) -> dict:
+def alignment_to_json(alignment: Alignment) -> dict[str, Any]:
     """One cache entry."""
     return {
         "key_from_hist": np.asarray(alignment.key_from_hist, float).tolist(),
@@ -115,7 +120,7 @@ def alignment_to_json(alignment: Alignment) -> dict:
     }
 
 
-def alignment_from_json(entry: dict) -> Alignment:
+def alignment_from_json(entry: dict[str, Any]) -> Alignment:
     """Inverse of ``alignment_to_json``."""
     return Alignment(
         np.asarray(entry["key_from_hist"], np.float64).reshape(3, 3),
@@ -126,7 +131,7 @@ def alignment_from_json(entry: dict) -> Alignment:
     )
 
 
-def read_cache(path: str | os.PathLike) -> CacheDict:
+def read_cache(path: str | os.PathLike[str]) -> CacheDict:
     """A clip's cache file, or ``{}`` when it does not exist or cannot be parsed."""
     try:
         data = json.loads(Path(path).read_text())
@@ -135,7 +140,7 @@ def read_cache(path: str | os.PathLike) -> CacheDict:
     return data if isinstance(data, dict) else {}
 
 
-def write_cache(path: str | os.PathLike, data: CacheDict) -> None:
+def write_cache(path: str | os.PathLike[str], data: CacheDict) -> None:
     """Write a clip's cache file atomically (a crash never leaves a half-written file to be skipped later)."""
     write_atomic(path, json.dumps(data))
 
@@ -152,7 +157,7 @@ def _locked(path: Path) -> Iterator[None]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def merge_cache(path: str | os.PathLike, entries: CacheDict) -> CacheDict:
+def merge_cache(path: str | os.PathLike[str], entries: CacheDict) -> CacheDict:
     """Add ``entries`` (``{key frame: {history frame: alignment json}}``) to a clip's cache file and return the
     merged content. The read-merge-write runs under a file lock, so two ``stamlane align`` runs on one cache
     keep each other's entries (a plain read-then-write lost those the other run wrote in between)."""
@@ -171,7 +176,10 @@ def _read_cached(path: str, mtime_ns: int) -> CacheDict:
 
 
 def load_alignment(
-    cache_dir: str | os.PathLike, root: str | os.PathLike, key_path: str | os.PathLike, hist_path: str | os.PathLike
+    cache_dir: str | os.PathLike[str],
+    root: str | os.PathLike[str],
+    key_path: str | os.PathLike[str],
+    hist_path: str | os.PathLike[str],
 ) -> Alignment | None:
     """The cached alignment of a history frame to a key frame, or ``None`` when it is not cached.
 
@@ -213,7 +221,7 @@ def frame_digest(image: np.ndarray) -> str:
     """SHA-256 of a frame's shape, dtype and pixels (what the estimator reads), hex."""
     image = np.ascontiguousarray(image)
     digest = hashlib.sha256(f"{image.shape}{image.dtype.str}".encode())
-    digest.update(memoryview(image).cast("B"))
+    digest.update(image.data.cast("B"))
     return digest.hexdigest()
 
 
@@ -241,7 +249,7 @@ class PairCache:
         folder: the cache folder relative to ``root``.
     """
 
-    def __init__(self, root: str | os.PathLike, folder: str | os.PathLike = PAIR_CACHE_DIR) -> None:
+    def __init__(self, root: str | os.PathLike[str], folder: str | os.PathLike[str] = PAIR_CACHE_DIR) -> None:
         self.root = Path(root)
         self.folder = self.root / folder
         self.writable = True
@@ -287,7 +295,7 @@ def estimate_clip_cached(
     *,
     horizon_row: int | None = None,
     config: AlignConfig | None = None,
-    strategy: str = "chain",
+    strategy: Strategy = "chain",
     digests: list[str] | None = None,
 ) -> list[Alignment]:
     """`stamlane.align.warp.estimate_clip` with every frame pair it estimates looked up first in ``memo`` (this

@@ -95,11 +95,13 @@ class Camera:
         rot, centre = self.camera_from_world(pose)
         # p_world = (X, 0, Z) = G @ (X, Z, 1); cam = R @ (G @ g - c)
         ground = np.array([[1.0, 0, -centre[0]], [0, 0, -centre[1]], [0, 1.0, -centre[2]]])
-        return self.K @ rot @ ground
+        image_from_ground: np.ndarray = self.K @ rot @ ground
+        return image_from_ground
 
     def horizon_row(self, pose: Pose) -> float:
         """Image row of the horizon (points at infinity on the ground); the camera has no roll."""
-        return self.cy - self.focal * np.tan(pose.pitch)
+        row: float = self.cy - self.focal * np.tan(pose.pitch)
+        return row
 
     def project(self, pose: Pose, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Project world points.

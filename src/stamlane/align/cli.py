@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -29,6 +30,7 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from tqdm import tqdm
 
 from stamlane.align.cache import (
+    CacheDict,
     alignment_to_json,
     cache_file,
     find_clip_dirs,
@@ -45,7 +47,7 @@ from stamlane.align.homography import (
     estimate_prepared,
     resolve_horizon_row,
 )
-from stamlane.align.warp import alignments_to_key
+from stamlane.align.warp import Strategy, alignments_to_key
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
 from stamlane.safety.images import read_image
@@ -64,7 +66,7 @@ class AlignJob:
     key_frames: str = "last"
     horizon: int | None = None
     """First row of the ground region in pixels; None: ``round(0.45 * H)`` of each clip's frames."""
-    strategy: str = "chain"
+    strategy: Strategy = "chain"
     visualize_dir: Path | None = None
     frames_dir: Path | None = None
 
@@ -96,7 +98,7 @@ def requested_pairs(num_frames_in_clip: int, job: AlignJob) -> dict[int, list[in
     return out
 
 
-def _covered(existing: dict, frames: list[Path], pairs: dict[int, list[int]]) -> bool:
+def _covered(existing: CacheDict, frames: list[Path], pairs: dict[int, list[int]]) -> bool:
     return all(
         frames[k].name in existing and all(frames[i].name in existing[frames[k].name] for i in hist)
         for k, hist in pairs.items()
@@ -137,7 +139,9 @@ class _Clip:
 
     def prep(self, i: int, row: int) -> FramePrep:
         if (i, row) not in self.preps:
-            self.preps[(i, row)] = FramePrep(self.image(i), row, self.cfg)
+            image = self.image(i)
+            assert image is not None  # _estimate read both frames before it asks
+            self.preps[(i, row)] = FramePrep(image, row, self.cfg)
         return self.preps[(i, row)]
 
 
@@ -155,15 +159,19 @@ def process_clip(clip_dir: Path, job: AlignJob) -> ClipResult:
     cfg = AlignConfig()
     clip = _Clip(frames, job, cfg)
     n_pairs = n_ok = 0
-    new: dict = {}
+    new: CacheDict = {}
     if not covered:
         for k, hist in pairs.items():
             seq = [*hist, k]  # oldest first, key last
             key = clip.image(k)
             shape = key.shape[:2] if key is not None else (720, 1280)  # only for checks; every pair fails then
+
+            def estimate(a: int, b: int, seq: list[int] = seq) -> Alignment:
+                return clip.estimate(seq[a], seq[b])
+
             alignments = alignments_to_key(
                 len(seq),
-                lambda a, b, seq=seq: clip.estimate(seq[a], seq[b]),
+                estimate,
                 shape,
                 resolve_horizon_row(job.horizon, shape[0]),
                 cfg,
@@ -198,6 +206,7 @@ def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: Al
     picture = draw_alignment(hist, key, clip.estimate(i, k), row, clip.cfg)
     rel = clip_dir.resolve().relative_to(job.root.resolve())
     name = "__".join(rel.parts) or "root"
+    assert job.visualize_dir is not None  # asked for (--visualize)
     job.visualize_dir.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"), picture)
 
@@ -296,6 +305,7 @@ def main(argv: list[str]) -> int:
     bar = tqdm(total=len(tasks), desc="align", unit="clip", disable=args.quiet)
     done = skipped = pairs = ok = written = unaligned = 0
     unreadable: tuple[str, ...] = ()
+    results: Iterator[ClipResult]
     if args.workers == 1:
         results = map(_run_one, tasks)
         pool = None

@@ -67,4 +67,5 @@ def key_from_hist_motion(
     """``(3, 3)`` ``key_from_hist`` of the ground when the camera moved ``forward`` metres and turned by
     ``yaw`` / ``pitch`` radians between the history and the key frame (normalised to ``H[2, 2] = 1``)."""
     h = image_from_ground(camera, hist_yaw + yaw, pitch, forward) @ np.linalg.inv(image_from_ground(camera, hist_yaw))
-    return h / h[2, 2]
+    normalised: np.ndarray = h / h[2, 2]
+    return normalised

@@ -11,11 +11,12 @@ from __future__ import annotations
 import shutil
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
-from stamlane.align.cache import alignment_from_json, read_cache, write_cache
+from stamlane.align.cache import CacheDict, alignment_from_json, read_cache, write_cache
 from stamlane.align.warp import warp_to_key
 from stamlane.safety.guard import atomic_path
 
@@ -80,7 +81,7 @@ def write_aligned_frames(
     out_dir: Path,
     frames: list[Path],
     pairs: dict[int, list[int]],
-    cache: dict,
+    cache: CacheDict,
     read_image: Callable[[int], np.ndarray | None],
 ) -> tuple[int, int]:
     """Write one clip folder's history frames warped onto their key frames, with a manifest.
@@ -126,7 +127,12 @@ def write_aligned_frames(
             entry[name] = {"source": key.name, "back": 0, "ok": True, "reason": "", "key_from_hist": np.eye(3).tolist()}
             continue
         alignment = alignment_from_json(cache[key.name][frames[i].name])
-        record = {"source": frames[i].name, "back": k - i, "ok": alignment.ok, "reason": alignment.reason}
+        record: dict[str, Any] = {
+            "source": frames[i].name,
+            "back": k - i,
+            "ok": alignment.ok,
+            "reason": alignment.reason,
+        }
         record["key_from_hist"] = np.asarray(alignment.key_from_hist, float).tolist()
         if not target.is_file():
             image = read_image(i)

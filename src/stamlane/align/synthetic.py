@@ -85,7 +85,8 @@ def render_road(
     )
     haze = np.where(w > 0, np.clip((z - 40.0) / 80.0, 0, 1), 1.0).astype(np.float32)
     sky = np.float32(185) - 0.05 * ys
-    gray = (road.astype(np.float32) * (1 - haze) + sky * haze).clip(0, 255).astype(np.uint8)
+    gray: np.ndarray = (road.astype(np.float32) * (1 - haze) + sky * haze).clip(0, 255).astype(np.uint8)
     if not color:
         return gray
-    return cv2.merge([gray, gray, (gray.astype(np.float32) * 0.97).astype(np.uint8)])
+    bgr: np.ndarray = cv2.merge([gray, gray, (gray.astype(np.float32) * 0.97).astype(np.uint8)])
+    return bgr

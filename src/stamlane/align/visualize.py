@@ -62,7 +62,7 @@ def _label(panel: np.ndarray, text: str, scale: float) -> np.ndarray:
     return panel
 
 
-def _features_panel(image: np.ndarray, points: np.ndarray, horizon_row: int, color: tuple) -> np.ndarray:
+def _features_panel(image: np.ndarray, points: np.ndarray, horizon_row: int, color: tuple[int, int, int]) -> np.ndarray:
     panel = _bgr(image)
     cv2.line(panel, (0, horizon_row), (panel.shape[1], horizon_row), CYAN, 2)
     for x, y in points:

@@ -30,16 +30,21 @@ from __future__ import annotations
 import json
 import warnings
 from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from stamlane.data.labels import DataError
 
+if TYPE_CHECKING:
+    from stamlane.align.homography import Alignment
+    from stamlane.align.warp import Strategy
+
 __all__ = ["ALIGN_MODES", "ALIGN_STRATEGIES", "WARP_MODES", "ClipAligner"]
 
 ALIGN_MODES = ("none", "fly", "cache", "true")
 
-ALIGN_STRATEGIES = ("chain", "direct")
+ALIGN_STRATEGIES: tuple[Strategy, ...] = ("chain", "direct")
 """How ``"fly"`` matches a clip: consecutive frames, the homographies multiplied, or each history frame directly
 against the key frame."""
 
@@ -84,28 +89,36 @@ class ClipAligner:
         self.cache_dir = Path(cache_dir) if cache_dir is not None else None
         self.horizon_row = horizon_row
         self._memo: dict[tuple[str, ...], tuple[np.ndarray, list[bool]]] = {}
-        self._pairs: dict[str, object] = {}  # pair key -> stamlane.align.Alignment
+        self._pairs: dict[str, Alignment] = {}  # pair key -> its alignment
         self.pair_cache = None
         if pair_cache and mode in ("fly", "cache"):
             from stamlane.align.cache import PairCache  # imported only when used
 
             self.pair_cache = PairCache(self.root)
-        self._true: dict[str, dict] = {}
+        self._true: dict[str, dict[str, Any]] = {}
         self._warned_cache_miss = False
         self.failures = 0
 
-    def __call__(self, frame_paths: list[str], frames: list[np.ndarray]) -> tuple[np.ndarray, list[bool]]:
+    @property
+    def reads_pixels(self) -> bool:
+        """Whether the alignment is estimated from the frames' pixels (``"fly"``, ``"cache"``); the other modes need
+        only the paths (``frames`` may then be None)."""
+        return self.mode in ("fly", "cache")
+
+    def __call__(self, frame_paths: list[str], frames: list[np.ndarray] | None) -> tuple[np.ndarray, list[bool]]:
         """Alignment of every frame to the last one.
 
         Args:
             frame_paths: the frames' paths relative to the root, oldest first, key last.
-            frames: the BGR uint8 images (H, W, 3) in original size, same order.
+            frames: the BGR uint8 images (H, W, 3) in original size, same order (None where not `reads_pixels`).
 
         Returns:
             ``key_from_hist`` float64 (T, 3, 3) in original pixels (identity for the key frame) and
             ``ok`` per frame (True for the key frame and for ``"none"``).
         """
-        t = len(frames)
+        t = len(frame_paths)
+        if frames is None and self.reads_pixels and t > 1:
+            raise ValueError(f"align {self.mode!r} estimates from the frames' pixels: frames must be given")
         eye = np.repeat(np.eye(3)[None], t, axis=0)
         if self.mode == "none" or t == 1:
             return eye, [True] * t
@@ -139,7 +152,7 @@ class ClipAligner:
 
         return [frame_digest(f) for f in frames]
 
-    def _estimate(self, frames: list[np.ndarray]) -> list:  # -> list[stamlane.align.Alignment], T - 1
+    def _estimate(self, frames: list[np.ndarray]) -> list[Alignment]:  # T - 1
         from stamlane.align.cache import estimate_clip_cached  # imported only when used
 
         if len(self._pairs) > self.MEMO_PAIRS:
@@ -148,9 +161,10 @@ class ClipAligner:
             frames, self.pair_cache, self._pairs, horizon_row=self.horizon_row, strategy=self.strategy
         )[:-1]  # no warping
 
-    def _cached(self, key_path: str, hist_path: str):  # -> Alignment | None
+    def _cached(self, key_path: str, hist_path: str) -> Alignment | None:
         from stamlane.align.cache import load_alignment  # imported only when used
 
+        assert self.cache_dir is not None  # mode "cache", which needs it
         al = load_alignment(self.cache_dir, self.root, key_path, hist_path)
         if al is None and not self._warned_cache_miss:
             self._warned_cache_miss = True

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -33,6 +34,7 @@ from torch.utils.data import Dataset
 
 from stamlane.data.alignment import ClipAligner
 from stamlane.data.corruption import KeyFrameCorruption
+from stamlane.data.frame_store import FrameStore, StoredSlots
 from stamlane.data.labels import (
     DataError,
     history_name,
@@ -84,7 +86,7 @@ FRAME_LOOKUPS = ("number", "sorted")
 ``20.jpg``), or by position in the folder's sorted listing (timestamps: ApolloScape, a folder of frames)."""
 
 
-class ClipDataset(Dataset):
+class ClipDataset(Dataset[dict[str, Any]]):
     """Shared machinery of the clip datasets; subclasses implement ``_index``.
 
     Args:
@@ -154,6 +156,8 @@ class ClipDataset(Dataset):
         self.frame_lookup = frame_lookup
         self.require_labels = require_labels
         self.aligner = ClipAligner(clip.align, self.root, clip.cache_dir, clip.horizon_row, clip.align_strategy)
+        self.frame_store: FrameStore | None = None
+        """Where evaluation samples' frames are kept decoded and resized (`stamlane.data.frame_store`); None: none."""
         self._listing: dict[Path, list[str]] = {}
         self.skipped: list[str] = []
         self.entries: list[ClipEntry] = []
@@ -194,7 +198,7 @@ class ClipDataset(Dataset):
         """Frame paths of the clip ending at ``key_rel`` (relative to root), oldest first."""
         key_path = resolve_inside(self.root, key_rel, source)
         rel = key_path.relative_to(self.root.resolve()).as_posix()
-        paths = []
+        paths: list[str | None] = []
         stride = self.clip.stride
         for k in range(self.num_frames - 1, 0, -1):
             back = k * stride
@@ -208,12 +212,13 @@ class ClipDataset(Dataset):
         paths.append(rel)
         if self.clip.repeat_missing_history:
             for i in range(len(paths) - 2, -1, -1):
-                if paths[i] is None or not (self.root / paths[i]).is_file():
+                path = paths[i]
+                if path is None or not (self.root / path).is_file():
                     paths[i] = paths[i + 1]
-        missing = [p for p in paths if p is None]
-        if missing:
+        found = [p for p in paths if p is not None]
+        if len(found) < len(paths):
             raise DataError(f"{source}: {rel} has no history frame {stride * (self.num_frames - 1)} frames back")
-        return paths
+        return found
 
     def _sorted_listing(self, folder: Path) -> list[str]:
         if folder not in self._listing:
@@ -252,7 +257,7 @@ class ClipDataset(Dataset):
 
     def read_frames(self, entry: ClipEntry) -> list[np.ndarray]:
         """The clip's BGR uint8 frames in original size; raises ``DataError`` on a missing/unreadable one."""
-        frames = []
+        frames: list[np.ndarray] = []
         for p in entry.frame_paths:
             path = self.root / p
             img = read_image(path)
@@ -265,6 +270,50 @@ class ClipDataset(Dataset):
                 )
             frames.append(img)
         return frames
+
+    @property
+    def stores_frames(self) -> bool:
+        """Whether samples go through ``frame_store`` (`stamlane.data.frame_store`): one is set and the samples are
+        the same every time (no augmentation, no key-frame corruption, history not synthesised)."""
+        return (
+            self.frame_store is not None
+            and not self.transform.augments
+            and self.key_corruption is None
+            and self.history_source != "warped_key"
+        )
+
+    def materialise(self, threads: int = 1) -> int:
+        """Put every sample's frames into ``frame_store`` now (the clips of one folder in one thread; nothing of
+        torch's random state is used), so that loader workers forked later, and later passes, read them from
+        memory; a sample with bad data is left to the pass that reads it. Returns the samples stored (0 when the
+        dataset does not `stores_frames`)."""
+        if not self.stores_frames:
+            return 0
+        folders: dict[str, list[int]] = {}
+        for i, entry in enumerate(self.entries):
+            folders.setdefault(str(PurePosixPath(entry.raw_file).parent), []).append(i)
+        if self.history_source == "other_clip":  # a partner's pairs may be another thread's clip: one thread
+            folders, threads = {"": list(range(len(self.entries)))}, 1
+
+        def fill(indices: list[int]) -> int:
+            done = 0
+            for i in indices:
+                try:
+                    other = self.entries[self.partner(i)] if self.history_source == "other_clip" else None
+                    slots = StoredSlots(self, self.entries[i], other)
+                    params = self.transform.draw(slots.size)
+                    feature = self.clip.warp == "feature"
+                    eye = np.repeat(np.eye(3)[None], len(slots.key_from_hist), axis=0)
+                    slots.network_frames(eye if feature else slots.key_from_hist, params)
+                    done += 1
+                except DataError:
+                    continue
+            return done
+
+        if threads <= 1 or len(folders) == 1:
+            return sum(fill(indices) for indices in folders.values())
+        with ThreadPoolExecutor(threads) as pool:
+            return sum(pool.map(fill, folders.values()))
 
     def partner(self, index: int) -> int:
         """The sample whose history ``history_source="other_clip"`` gives sample ``index``: the first sample of
@@ -301,15 +350,20 @@ class ClipDataset(Dataset):
     ) -> dict[str, Any]:
         """Build the sample of one entry (see the module docstring); ``rng`` drives the augmentation;
         ``history_of``: the entry whose history frames replace the entry's own (``history_source="other_clip"``)."""
-        frames, key_from_hist = self._history(entry, history_of)
-        h0, w0 = frames[0].shape[:2]
+        stored = self.stores_frames
+        if stored:
+            slots = StoredSlots(self, entry, history_of)
+            key_from_hist, (h0, w0) = slots.key_from_hist, slots.size
+        else:
+            frames, key_from_hist = self._history(entry, history_of)
+            h0, w0 = frames[0].shape[:2]
         _check_inside(entry, w0, h0)
         if rng is None:
             rng = np.random.default_rng(int(torch.randint(0, 2**31 - 1, ()).item()))
         params = self.transform.draw((h0, w0), rng)
         feature = self.clip.warp == "feature"
-        applied = np.repeat(np.eye(3)[None], len(frames), axis=0) if feature else key_from_hist
-        clip = self.transform.apply_frames(frames, applied, params)
+        applied = np.repeat(np.eye(3)[None], len(key_from_hist), axis=0) if feature else key_from_hist
+        clip = slots.network_frames(applied, params) if stored else self.transform.apply_frames(frames, applied, params)
         if self.key_corruption is not None:
             clip = self.key_corruption(clip, rng)
         lanes_net = ClipTransform.map_lanes(entry.lanes, params.net_from_orig)

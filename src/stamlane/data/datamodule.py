@@ -13,6 +13,7 @@ import tempfile
 import warnings
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import torch
 from lightning import LightningDataModule
@@ -21,6 +22,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from stamlane.data.clips import ClipDataset
 from stamlane.data.collate import collate_clips
+from stamlane.data.frame_store import FRAME_STORE
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
@@ -45,7 +47,7 @@ INDEX_KEY = "index"
 """Meta entry of an evaluation or prediction sample: its index in the split (`Indexed`)."""
 
 
-class Indexed(Dataset):
+class Indexed(Dataset[dict[str, Any]]):
     """A split whose samples carry their index in it, ``meta[INDEX_KEY]``: the key by which the scores and the
     predictions of several processes are put back in the order of the split, each image once
     (`stamlane_eval.integrations.distributed.gather_records`).
@@ -54,19 +56,19 @@ class Indexed(Dataset):
         dataset: a map-style dataset of sample dicts with a ``meta`` dict (`stamlane.data.clips.ClipDataset`).
     """
 
-    def __init__(self, dataset: Dataset) -> None:
+    def __init__(self, dataset: ClipDataset) -> None:
         self.dataset = dataset
 
     def __len__(self) -> int:
         return len(self.dataset)
 
-    def __getitem__(self, index: int) -> dict:
+    def __getitem__(self, index: int) -> dict[str, Any]:
         sample = self.dataset[index]
         sample["meta"] = {**sample["meta"], INDEX_KEY: int(index)}
         return sample
 
 
-def eval_sampler(dataset: Dataset, split: str) -> UnrepeatedDistributedSampler | None:
+def eval_sampler(dataset: ClipDataset | Indexed, split: str) -> UnrepeatedDistributedSampler | None:
     """The sampler of an evaluation or prediction split under several processes: each process a strided share of
     the split (process r: images r, r + W, r + 2W, ...), no image repeated (PyTorch's ``DistributedSampler``, which
     Lightning puts in otherwise, pads the shards with repeats, scored twice); shares differ by one image at most.
@@ -175,7 +177,7 @@ class ClipDataModule(LightningDataModule):
             if (
                 info.get("format_version") != FORMAT_VERSION
                 or info.get("config") != wanted
-                or info.get("splits") != self.synth.splits()
+                or info.get("splits") != self.synth.splits().as_dict()
                 or info.get("seed") != self.synth.seed
             ):
                 warnings.warn(
@@ -197,7 +199,7 @@ class ClipDataModule(LightningDataModule):
         synth = self.synth
         generate_dataset(
             root,
-            **synth.splits(),
+            synth.splits(),
             seed=synth.seed,
             config=synth.config(),
             train_key_step=synth.train_key_step,
@@ -217,7 +219,7 @@ class ClipDataModule(LightningDataModule):
     def make_dataset(self, split: str) -> ClipDataset:
         """Build the dataset of one split (``train`` augments; the others only resize)."""
         train = split == "train"
-        return make_clips(
+        dataset = make_clips(
             self.format,
             self.root,
             self.split_labels(split),
@@ -230,6 +232,10 @@ class ClipDataModule(LightningDataModule):
             history_source="real" if train else self.history_source,
             key_corruption=self.key_corruption if train else None,
         )
+        if self.loader.memory_mb > 0:  # evaluation frames read once per process (training samples are never kept)
+            FRAME_STORE.reserve(self.loader.memory_mb * 2**20)
+            dataset.frame_store = FRAME_STORE
+        return dataset
 
     def setup(self, stage: str | None = None) -> None:
         wanted = {
@@ -250,11 +256,13 @@ class ClipDataModule(LightningDataModule):
                         stacklevel=2,
                     )
 
-    def _loader(self, split: str) -> DataLoader:
+    def _loader(self, split: str) -> DataLoader[dict[str, Any]]:
         if split not in self.datasets:
             self.datasets[split] = self.make_dataset(split)
         dataset = self.datasets[split] if split == "train" else Indexed(self.datasets[split])
         sampler = None if split == "train" else eval_sampler(dataset, split)  # each image once under DDP
+        if split in ("test", "predict") and sampler is None:
+            self._materialise(self.datasets[split])
         return DataLoader(
             dataset,
             batch_size=self.loader.batch_size,
@@ -265,16 +273,26 @@ class ClipDataModule(LightningDataModule):
             persistent_workers=self.loader.num_workers > 0,
         )
 
-    def train_dataloader(self) -> DataLoader:
+    def _materialise(self, dataset: ClipDataset) -> None:
+        """A test or prediction split read whole: its frames into the process's store now, by ``min(4, cores)``
+        threads, when they fit ``loader.memory_mb`` (`stamlane.data.frame_store`); the loader's workers, forked
+        after, and every later pass on the same frames read them from memory. (Validation during training reads a
+        part of its split: its worker keeps what it reads.)"""
+        height, width = self.clip.image_size
+        need = len(dataset) * self.clip.num_frames * height * width * 3
+        if dataset.stores_frames and need <= self.loader.memory_mb * 2**20:
+            dataset.materialise(threads=max(1, min(4, os.cpu_count() or 1)))
+
+    def train_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("train")
 
-    def val_dataloader(self) -> DataLoader:
+    def val_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("val")
 
-    def test_dataloader(self) -> DataLoader:
+    def test_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("test")
 
-    def predict_dataloader(self) -> DataLoader:
+    def predict_dataloader(self) -> DataLoader[dict[str, Any]]:
         return self._loader("predict")
 
 
@@ -322,7 +340,7 @@ class FramesDataModule(LightningDataModule):
         self.is_video = path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
         if path.is_file() and not self.is_video:
             raise DataError(f"{path} is neither a folder of frames nor a video ({', '.join(VIDEO_SUFFIXES)})")
-        self._decoded: tempfile.TemporaryDirectory | None = None
+        self._decoded: tempfile.TemporaryDirectory[str] | None = None
         if self.is_video and not frames_dir:
             self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
             frames_dir = self._decoded.name
@@ -362,8 +380,9 @@ class FramesDataModule(LightningDataModule):
                     stacklevel=2,
                 )
 
-    def predict_dataloader(self) -> DataLoader:
+    def predict_dataloader(self) -> DataLoader[dict[str, Any]]:
         self.setup("predict")
+        assert self.dataset is not None  # setup made it
         dataset = Indexed(self.dataset)
         return DataLoader(
             dataset,

@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
+from typing import Any
 
 import numpy as np
 from stamlane_eval import io as eval_io
@@ -33,7 +34,7 @@ class DataError(LaneFileError):
     ``stamlane_eval.io.LaneFileError``: the same files fail the same way in the evaluators)."""
 
 
-class TuSimpleRecord(dict):
+class TuSimpleRecord(dict[str, Any]):
     """One TuSimple label line: ``raw_file`` (str), ``lanes`` (list of x lists), ``h_samples`` (list of y)."""
 
 
@@ -77,7 +78,7 @@ def read_tusimple_labels(path: Path) -> Iterator[tuple[int, TuSimpleRecord | Dat
         raise DataError(str(err)) from None
 
 
-def tusimple_lanes(rec: dict) -> list[np.ndarray]:
+def tusimple_lanes(rec: dict[str, Any]) -> list[np.ndarray]:
     """Lanes of a TuSimple record as ``(N, 2)`` float arrays of ``(x, y)``; ``x < 0`` marks absent points.
 
     A lane with no point at all (every x is -2) is an absent lane and is dropped here, silently.

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -196,7 +197,8 @@ class VIL100Clips(_ListClips):
         return read_vil100_json(path)
 
 
-DATASETS: dict[str, type[ClipDataset]] = {
+# each class is built as cls(root, its label or list files, **options): the base class's signature is not theirs
+DATASETS: dict[str, Callable[..., ClipDataset]] = {
     cls.format: cls for cls in (TuSimpleClips, CULaneClips, ApolloClips, VIL100Clips)
 }
 """The dataset of each format (each class names its own ``format``): the one list of formats."""

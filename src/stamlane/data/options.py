@@ -22,18 +22,20 @@ Configs written before the groups existed (flat ``data.num_frames`` ...) are rea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from stamlane.data.alignment import ALIGN_MODES, ALIGN_STRATEGIES, WARP_MODES
 from stamlane.data.corruption import DEFAULT_KINDS, KeyFrameCorruption
+from stamlane.data.frame_store import DEFAULT_MEMORY_MB
 from stamlane.data.transforms import ClipTransform
 from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
-from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
+from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SplitCounts
 
 __all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
 
-def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple:
+def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple[Any, Any]:
     """``value`` as a tuple of two ``kind`` (YAML gives lists)."""
     if len(value) != 2:
         raise ValueError(f"{name} must have two values, got {value}")
@@ -177,25 +179,25 @@ class SynthOptions:
         size: frame size ``(H, W)``, pixels.
     """
 
-    train: int = DEMO_SPLITS["train"]
-    val: int = DEMO_SPLITS["val"]
-    test: int = DEMO_SPLITS["test"]
-    challenging: int = DEMO_SPLITS["challenging"]
-    train_factors: int = DEMO_SPLITS["train_factors"]
-    val_factors: int = DEMO_SPLITS["val_factors"]
-    reveal: int = DEMO_SPLITS["reveal"]
-    reveal_traffic: int = DEMO_SPLITS["reveal_traffic"]
-    train_motion: int = DEMO_SPLITS["train_motion"]
+    train: int = DEMO_SPLITS.train
+    val: int = DEMO_SPLITS.val
+    test: int = DEMO_SPLITS.test
+    challenging: int = DEMO_SPLITS.challenging
+    train_factors: int = DEMO_SPLITS.train_factors
+    val_factors: int = DEMO_SPLITS.val_factors
+    reveal: int = DEMO_SPLITS.reveal
+    reveal_traffic: int = DEMO_SPLITS.reveal_traffic
+    train_motion: int = DEMO_SPLITS.train_motion
     train_key_step: int = TRAIN_KEY_STEP
     eval_key_step: int = EVAL_KEY_STEP
     seed: int = 0
-    size: tuple[int, int] = (360, 640)
+    size: tuple[int, int] = (SynthConfig.height, SynthConfig.width)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _pair(self.size, int, "size"))
-        for name, count in self.splits().items():
-            if count < 0:
-                raise ValueError(f"synth.{name} must be >= 0, got {count}")
+        for name in SplitCounts.__dataclass_fields__:
+            if getattr(self, name) < 0:
+                raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
         for name in ("train_key_step", "eval_key_step"):
             if getattr(self, name) < 0:
                 raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
@@ -204,12 +206,9 @@ class SynthOptions:
         check_size(self.size, "data.synth.size")
         self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
-    def splits(self) -> dict[str, int]:
-        """Clips per split as ``dataset.json`` records them (the arguments of
-        `stamlane.synth.dataset.generate_dataset`)."""
-        names = ("train", "val", "test", "challenging", "reveal", "reveal_traffic")
-        names += ("train_factors", "val_factors", "train_motion")
-        return {name: getattr(self, name) for name in names}
+    def splits(self) -> SplitCounts:
+        """Clips per split (`stamlane.synth.dataset.generate_dataset`'s; ``dataset.json`` records them as a dict)."""
+        return SplitCounts(**{name: getattr(self, name) for name in SplitCounts.__dataclass_fields__})
 
     def config(self) -> SynthConfig:
         """The generator's settings of the set (its frame size; the rest the generator's defaults)."""
@@ -223,10 +222,14 @@ class LoaderOptions:
     Attributes:
         batch_size: clips per batch (>= 1).
         num_workers: DataLoader worker processes (>= 0; 0 loads in the main process).
+        memory_mb: MiB of this process kept for evaluation frames decoded, aligned and resized once and read again
+            by every later pass, probe and model on them (`stamlane.data.frame_store`; the same tensors bit for
+            bit); 0: every pass reads and resizes its frames afresh.
     """
 
     batch_size: int = 4
     num_workers: int = 0
+    memory_mb: int = DEFAULT_MEMORY_MB
 
     def __post_init__(self) -> None:
         if self.batch_size < 1:
@@ -234,6 +237,8 @@ class LoaderOptions:
         if self.num_workers < 0:
             raise ValueError(f"num_workers must be >= 0, got {self.num_workers}")
         check_workers(self.num_workers, "data.loader.num_workers")
+        if self.memory_mb < 0:
+            raise ValueError(f"memory_mb must be >= 0, got {self.memory_mb}")
 
 
 GROUPS: dict[str, type] = {

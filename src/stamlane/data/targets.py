@@ -63,7 +63,7 @@ def draw_lane_targets(
             warnings.warn(f"{source or 'lane labels'}: lane {i} has {len(lane)} point(s); skipped", stacklevel=2)
             continue
         usable.append(lane)
-    instance = np.zeros((h, w), np.uint8)
+    instance: np.ndarray = np.zeros((h, w), np.uint8)  # uint8; cv2.dilate keeps it
     for k, idx in enumerate(left_to_right(usable), start=1):
         order = np.argsort(usable[idx][:, 1])
         pts = np.round(usable[idx][order] * (1 << _SHIFT)).astype(np.int32)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["ClipParams", "ClipTransform", "net_homographies"]
+__all__ = ["ClipParams", "ClipTransform", "net_homographies", "to_network"]
 
 
 @dataclass(frozen=True)
@@ -131,18 +131,31 @@ class ClipTransform:
         """
         net_h, net_w = self.image_size
         out = np.empty((len(frames), 3, net_h, net_w), np.float32)
-        scale = float(np.sqrt(abs(np.linalg.det(params.net_from_orig[:2, :2]))))
         for t, frame in enumerate(frames):
-            m = params.net_from_orig @ key_from_hist[t]
-            if scale < 0.6:  # shrink by area first: a bilinear warp alone would alias the road texture
-                frame, pre = _area_shrink(frame, min(1.0, 2.0 * scale))
-                m = m @ np.linalg.inv(pre)
-            warped = cv2.warpPerspective(
-                frame, m, (net_w, net_h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0)
-            )
-            rgb = cv2.cvtColor(self._jitter(warped, params), cv2.COLOR_BGR2RGB)
-            out[t] = rgb.transpose(2, 0, 1).astype(np.float32) / 255.0
+            out[t] = to_network(self.warp_frame(frame, key_from_hist[t], params))
         return out
+
+    def warp_frame(self, frame: np.ndarray, key_from_hist: np.ndarray, params: ClipParams) -> np.ndarray:
+        """One frame of `apply_frames` before its conversion to floats (`to_network`).
+
+        Args:
+            frame: a BGR uint8 image (H0, W0, 3), original size.
+            key_from_hist: (3, 3) its alignment to the key frame in ORIGINAL pixels.
+            params: the clip's draw.
+
+        Returns:
+            RGB uint8 (H, W, 3) at the network size: aligned, cropped, flipped, resized and jittered.
+        """
+        net_h, net_w = self.image_size
+        scale = float(np.sqrt(abs(np.linalg.det(params.net_from_orig[:2, :2]))))
+        m = params.net_from_orig @ key_from_hist
+        if scale < 0.6:  # shrink by area first: a bilinear warp alone would alias the road texture
+            frame, pre = _area_shrink(frame, min(1.0, 2.0 * scale))
+            m = m @ np.linalg.inv(pre)
+        warped = cv2.warpPerspective(
+            frame, m, (net_w, net_h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0)
+        )
+        return cv2.cvtColor(self._jitter(warped, params), cv2.COLOR_BGR2RGB)
 
     @staticmethod
     def _jitter(img: np.ndarray, p: ClipParams) -> np.ndarray:
@@ -170,6 +183,12 @@ class ClipTransform:
             hom = np.c_[lane, np.ones(len(lane))] @ np.asarray(matrix, dtype=np.float64).T
             out.append(hom[:, :2] / hom[:, 2:3])
         return out
+
+
+def to_network(rgb: np.ndarray) -> np.ndarray:
+    """A warped frame (`ClipTransform.warp_frame`: RGB uint8 (H, W, 3)) as the network reads it: float32 (3, H, W)
+    in [0, 1]."""
+    return rgb.transpose(2, 0, 1).astype(np.float32) / 255.0
 
 
 def net_homographies(key_from_hist: np.ndarray, net_from_orig: np.ndarray) -> np.ndarray:

@@ -6,11 +6,12 @@
 - `stamlane.experiments.runner`: `Runner.train` (one run of a row from a recipe stage) and `Runner.score` (a run
   predicted and scored on splits with its history probes);
 - `stamlane.experiments.engine`: the `Experiment`: rows x seeds trained, scored, probed and summarised;
-- `stamlane.experiments.scoring`: a predictions file scored in every metric, per image (and the recall per
+- `stamlane.experiments.split_scores`: a split's predictions file scored in every metric, per image (and the recall per
   paint-visibility class);
 - `stamlane.experiments.metrics`: the metrics, one name each (the callback's);
 - `stamlane.experiments.oracles`: the oracles of the labels (what history can reveal: the headroom);
-- `stamlane.experiments.scores`: values and differences with intervals over clips and seeds;
+- `stamlane.experiments.intervals`: values and differences of runs with intervals over clips and seeds (one image is
+  scored by `stamlane.predict.image_score`, a split by `split_scores`, a set of runs here);
 - `stamlane.experiments.summary`: the typed ``summary.json``;
 - `stamlane.experiments.tables` (markdown tables and csv of one summary), `stamlane.experiments.paper_report`
   (the paper's tables, replication), `stamlane.experiments.plots` (the pictures): what ``stamlane report`` writes;

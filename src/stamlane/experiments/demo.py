@@ -158,7 +158,7 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
     import cv2
     from stamlane_eval.io import read_tusimple, tusimple_points
 
-    from stamlane.experiments.scoring import PER_IMAGE
+    from stamlane.experiments.split_scores import PER_IMAGE
     from stamlane.predict.overlay import draw_lanes, draw_legend, label_strip, text_scale
     from stamlane.safety.budget import MAX_RECORD_BYTES
     from stamlane.safety.guard import read_inside

@@ -7,7 +7,7 @@ trained (`Runner.train`); each run's FINAL weights predict and score the splits 
 twice more or so with its history probed (the key frame copied into every history slot, and another clip's
 history), which measures whether it reads its history at all. Where the set has paint-visibility masks, the oracles
 of the labels (`stamlane.experiments.oracles`) give each view's headroom: what perfect use of the history could add.
-The values and differences with their intervals (`stamlane.experiments.scores`) make the summary.
+The values and differences with their intervals (`stamlane.experiments.intervals`) make the summary.
 
 The runs live in a `stamlane.experiments.store.RunStore`: a later call with the same ``out`` and settings reuses
 them (more seeds, or a run killed midway), predicts again only a split whose labels or frames changed, scores again
@@ -24,12 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from stamlane.data.probes import EXACT, KEY, OTHER_CLIP, REVERSED, WARPED_KEY, Probe
+from stamlane.experiments.intervals import Scores, views
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT, Runner, aligns, postprocess_of
-from stamlane.experiments.scores import Scores, views
-from stamlane.experiments.scoring import image_size, iou_width, read_per_image, read_visibility, score_split
+from stamlane.experiments.split_scores import image_size, read_per_image, read_visibility, score_split
 from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
+from stamlane.predict.image_score import iou_width
 from stamlane.safety.guard import file_sha256, write_atomic
 from stamlane.training.quiet import quiet_libraries
 from stamlane.training.run_record import RunRecord

@@ -4,8 +4,12 @@ A metric's name is the one `stamlane_eval.integrations.lightning.LaneEvalCallbac
 ``test/``), built by `stamlane_eval.names.metric_name`: ``tusimple_f1`` (the paper's TuSimple F1), ``culane_f1@0.5``
 and ``culane_f1@0.3`` (the CULane-style IoU F1 of the paper's ApolloScape tables), ``temporal_rs@0.5`` ... (RVLD's
 temporal stability). The same names key the summaries, the tables and the docs. Recall per paint-visibility class
-(``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.scoring`), stamlane's own,
+(``recall_visible``, ``recall_revealed``, ``recall_hidden``; `stamlane.experiments.split_scores`), stamlane's own,
 is reported where the data has visibility masks.
+
+Two kinds of constant, two kinds of name: `stamlane_eval.names` spells the evaluators (``names.TUSIMPLE ==
+"tusimple"``, strings that build logged names); this module holds the reported numbers, `Metric` objects named by
+the number (`TUSIMPLE_F1`, `CULANE_F1`, `TEMPORAL_STABILITY`, `CLASS_RECALL`, all of them `REPORTED`).
 
 Every metric is a statistic of the column means of per-image quantities (a row of ``per_image.jsonl``), so one
 bootstrap serves all of them: clips resampled for an interval, the same clips for a paired difference.
@@ -15,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from stamlane_eval import names
@@ -24,7 +29,7 @@ from stamlane_eval.temporal import TEMPORAL_IOU_THRESHOLDS
 
 from stamlane.synth.visibility import VISIBILITY_CLASSES
 
-__all__ = ["CLASS_RECALL", "CULANE", "METRICS", "TEMPORAL", "TUSIMPLE", "Metric", "metric"]
+__all__ = ["CLASS_RECALL", "CULANE_F1", "REPORTED", "TEMPORAL_STABILITY", "TUSIMPLE_F1", "Metric", "metric"]
 
 
 @dataclass(frozen=True)
@@ -40,22 +45,22 @@ class Metric:
 
     key: str
     label: str
-    columns: Callable[[dict], list[float] | None]
+    columns: Callable[[dict[str, Any]], list[float] | None]
     statistic: Callable[[np.ndarray], float]
 
 
-def _culane_counts(threshold: float) -> Callable[[dict], list[float] | None]:
-    def columns(row: dict) -> list[float] | None:
+def _culane_counts(threshold: float) -> Callable[[dict[str, Any]], list[float] | None]:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("culane") or row.get("iou")  # "iou": summaries written before the one name
         return None if counts is None else counts[f"{threshold:g}"]
 
     return columns
 
 
-def _class_counts(cls: str) -> Callable[[dict], list[float] | None]:
+def _class_counts(cls: str) -> Callable[[dict[str, Any]], list[float] | None]:
     i = VISIBILITY_CLASSES.index(cls)
 
-    def columns(row: dict) -> list[float] | None:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("classes")
         return None if counts is None else counts[2 * i : 2 * i + 2]
 
@@ -67,28 +72,28 @@ def _recall(means: np.ndarray) -> float:
     return float(means[0] / means[1]) if means[1] > 0 else 0.0
 
 
-def _temporal_counts(threshold: float) -> Callable[[dict], list[float] | None]:
-    def columns(row: dict) -> list[float] | None:
+def _temporal_counts(threshold: float) -> Callable[[dict[str, Any]], list[float] | None]:
+    def columns(row: dict[str, Any]) -> list[float] | None:
         counts = row.get("temporal")
         return None if counts is None else counts[f"{threshold:g}"]
 
     return columns
 
 
-TUSIMPLE = Metric(
+TUSIMPLE_F1 = Metric(
     names.metric_name(names.TUSIMPLE, "f1"),
     "TuSimple F1",
     lambda row: [row["fp"], row["fn"]] if "fp" in row else None,
     f1_of_rates,
 )
-CULANE = tuple(
+CULANE_F1 = tuple(
     Metric(names.metric_name(names.CULANE, "f1", t), f"IoU F1 @{t:g}", _culane_counts(t), f1_of_counts)
     for t in sorted(IOU_THRESHOLDS, reverse=True)
 )
 CLASS_RECALL = tuple(
     Metric(f"recall_{c}", f"recall, {c} points", _class_counts(c), _recall) for c in VISIBILITY_CLASSES
 )
-TEMPORAL = tuple(
+TEMPORAL_STABILITY = tuple(
     Metric(
         names.metric_name(names.TEMPORAL, name, t),
         f"{name.capitalize()} @{t:g}",
@@ -101,14 +106,14 @@ TEMPORAL = tuple(
 """RVLD's temporal stability (`stamlane_eval.temporal`): of the annotated lanes matched between consecutive frames,
 the share predicted above the IoU threshold in both (Rs, stable), in one (Rj, jump), in neither (Rm, missing);
 per-clip ``(Ns, Nj, Nm)`` counts (a row of ``per_clip.jsonl``)."""
-METRICS = (TUSIMPLE, *CULANE, *CLASS_RECALL, *TEMPORAL)
+REPORTED = (TUSIMPLE_F1, *CULANE_F1, *CLASS_RECALL, *TEMPORAL_STABILITY)
 """Everything an experiment scores: the paper's TuSimple F1, the IoU F1 at 0.5 and 0.3, recall per visibility class,
 and the temporal stability of frame-after-frame predictions."""
 
 
 def metric(key: str) -> Metric:
-    """The metric named ``key`` (`METRICS`)."""
-    for m in METRICS:
+    """The metric named ``key`` (`REPORTED`)."""
+    for m in REPORTED:
         if m.key == key:
             return m
-    raise KeyError(f"no metric {key!r}; known: {' '.join(m.key for m in METRICS)}")
+    raise KeyError(f"no metric {key!r}; known: {' '.join(m.key for m in REPORTED)}")

@@ -12,7 +12,7 @@ priors (lane width, straightness, where lanes run) can beat a curve fitted to th
 absolute values are reported beside every difference.
 
 A point's class (``visible``, ``revealed``, ``hidden``: `stamlane.synth.visibility`) comes from the split's masks
-(`stamlane.experiments.scoring.read_visibility`, which also scores a model's recall per class). The oracles'
+(`stamlane.experiments.split_scores.read_visibility`, which also scores a model's recall per class). The oracles'
 predictions are scored as a model's are, so their intervals over clips come from the same bootstrap.
 """
 
@@ -21,11 +21,13 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from stamlane.predict.postprocess import PostprocessConfig, fit_curve, sample_lanes
 from stamlane.synth.visibility import visibility_class
+from stamlane.types import Lanes
 
 __all__ = ["ORACLES", "hist_from_key", "oracle_predictions"]
 
@@ -42,10 +44,13 @@ def hist_from_key(root: Path, raw_file: str, back: int) -> np.ndarray:
     key = geometry["frames"].index(name)
     image_from_ground = np.asarray(geometry["image_from_ground"], dtype=np.float64)
     h = image_from_ground[key - back] @ np.linalg.inv(image_from_ground[key])
-    return h / h[2, 2]
+    normalised: np.ndarray = h / h[2, 2]
+    return normalised
 
 
-def _fitted(points: list[np.ndarray], config: PostprocessConfig, h_samples: Sequence[int], size: tuple[int, int]):
+def _fitted(
+    points: list[np.ndarray], config: PostprocessConfig, h_samples: Sequence[int], size: tuple[int, int]
+) -> Lanes:
     curves = [c for c in (fit_curve(p, config) for p in points if len(p) >= 2) if c is not None]
     return sample_lanes(curves, config, h_samples, size)
 
@@ -56,14 +61,14 @@ def _first_history_frame(mask: int, num_frames: int, stride: int) -> int | None:
 
 
 def oracle_predictions(
-    gts: Sequence[Mapping],
+    gts: Sequence[Mapping[str, Any]],
     visibility: Mapping[str, list[list[int]]],
     num_frames: int,
     config: PostprocessConfig,
     size: tuple[int, int],
     stride: int = 1,
     root: Path | None = None,
-) -> dict[str, list[dict]]:
+) -> dict[str, list[dict[str, Any]]]:
     """TuSimple prediction records of the oracles of the module docstring.
 
     Args:
@@ -85,7 +90,7 @@ def oracle_predictions(
     from stamlane_eval.tusimple import lanes_to_xs
 
     names = ORACLES if root is not None else ORACLES[:2]
-    found: dict[str, list[dict]] = {name: [] for name in names}
+    found: dict[str, list[dict[str, Any]]] = {name: [] for name in names}
     for gt in gts:
         masks = visibility.get(gt["raw_file"])
         if masks is None:
@@ -101,6 +106,8 @@ def oracle_predictions(
                     if cls == "visible" or (cls == "revealed" and name != "key"):
                         if cls == "revealed" and name == "unaligned":
                             back = _first_history_frame(m, num_frames, stride)
+                            # revealed: a history frame shows it; unaligned: an oracle of a set with its root
+                            assert back is not None and root is not None
                             if back not in moved:
                                 moved[back] = hist_from_key(root, gt["raw_file"], back)
                             p = moved[back] @ np.array([x, y, 1.0])

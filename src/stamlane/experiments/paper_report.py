@@ -8,8 +8,8 @@ from collections.abc import Sequence
 import numpy as np
 from stamlane_eval.names import parse_metric_name
 
-from stamlane.experiments.metrics import CULANE, TUSIMPLE
-from stamlane.experiments.summary import Summary
+from stamlane.experiments.metrics import CULANE_F1, TUSIMPLE_F1
+from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.table_index import PaperTable, TableIndex
 from stamlane.experiments.tables import SPLITS, diff_text, markdown_table, value_text
 
@@ -40,7 +40,7 @@ def paper_tables(
     lines: list[str] = []
     for name in which:
         table = index.table(name)
-        metrics = (TUSIMPLE.key,) if table.kind == "tusimple" else tuple(m.key for m in CULANE)
+        metrics = (TUSIMPLE_F1.key,) if table.kind == "tusimple" else tuple(m.key for m in CULANE_F1)
         for metric in metrics:
             lines += _paper_table(table, summaries, metric, splits)
     return "\n".join(lines)
@@ -48,13 +48,13 @@ def paper_tables(
 
 def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str, splits: Sequence[str]) -> list[str]:
     rows_in = [_by_row(s) for s in summaries]
-    where = {}  # row -> the first run set that measured it in this metric
+    where: dict[str, int] = {}  # row -> the first run set that measured it in this metric
     for i, found in enumerate(rows_in):
         for row, name in found.items():
             if any(summaries[i].value(name, metric, s) for s in splits):
                 where.setdefault(row, i)
     several = len(summaries) > 1
-    what = "F1" if metric == TUSIMPLE.key else f"IoU F1 @{parse_metric_name(metric).threshold:g}"
+    what = "F1" if metric == TUSIMPLE_F1.key else f"IoU F1 @{parse_metric_name(metric).threshold:g}"
 
     def versus(i: int, row: str, other: str | None) -> str:
         a, b = rows_in[i].get(row), rows_in[i].get(other) if other else None
@@ -96,7 +96,7 @@ def _paper_table(table: PaperTable, summaries: Sequence[Summary], metric: str, s
             cells.append(history(i, r.id))
             rows.append(cells)
     title = (
-        f"**Table {table.name}: {table.title}**{'' if metric == TUSIMPLE.key else ', ' + what} "
+        f"**Table {table.name}: {table.title}**{'' if metric == TUSIMPLE_F1.key else ', ' + what} "
         f"({len(run)} of {len(table.rows)} rows run, {'/'.join(map(str, seeds))} seeds)"
     )
     return [title, "", *markdown_table(header, rows)]
@@ -117,8 +117,10 @@ def replication(summaries: Sequence[Summary], index: TableIndex) -> str:
             name, single = rows_in[i][row], rows_in[i].get(SINGLE_ROW)
             versus = "–"
             if single and single != name:
-                versus = " / ".join(diff_text(summaries[i].difference(name, single, s, TUSIMPLE.key)) for s in SPLITS)
-            cells = [value_text(summaries[i].value(name, TUSIMPLE.key, s)) for s in SPLITS]
+                versus = " / ".join(
+                    diff_text(summaries[i].difference(name, single, s, TUSIMPLE_F1.key)) for s in SPLITS
+                )
+            cells = [value_text(summaries[i].value(name, TUSIMPLE_F1.key, s)) for s in SPLITS]
             rows.append([f"{label.get(row, row)} (`{row}`)", str(i + 1), *cells, versus])
     lines = markdown_table(["row", "run set", "test F1", "challenging F1", "− 1 frame (test / chall.)"], rows)
     return "\n".join([*lines, *_agreement(summaries, rows_in)]) + "\n"
@@ -129,13 +131,15 @@ def _agreement(summaries: Sequence[Summary], rows_in: list[dict[str, str]]) -> l
         return []
     pairs, claims = [], []
     for row in (set(rows_in[0]) & set(rows_in[1])) - {SINGLE_ROW}:
-        found = []
+        found: list[Difference] = []
         for i in (0, 1):
             single = rows_in[i].get(SINGLE_ROW)
-            found.append(
-                summaries[i].difference(rows_in[i][row], single, "challenging", TUSIMPLE.key) if single else None
+            difference = (
+                summaries[i].difference(rows_in[i][row], single, "challenging", TUSIMPLE_F1.key) if single else None
             )
-        if None in found:
+            if difference is not None:
+                found.append(difference)
+        if len(found) < 2:  # a set without this difference
             continue
         pairs.append([d.diff for d in found])
         claimed = [d.supported for d in found]

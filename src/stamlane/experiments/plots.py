@@ -8,11 +8,12 @@ import csv
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 from stamlane_eval.names import metric_name
 
-from stamlane.experiments.metrics import TUSIMPLE
+from stamlane.experiments.metrics import TUSIMPLE_F1
 from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.tables import REVEAL_SPLITS, headroom
 
@@ -23,6 +24,7 @@ __all__ = [
     "SERIES_LINES",
     "SERIES_MARKERS",
     "RevealPoint",
+    "SeriesStyle",
     "plot_history_use",
     "plot_reveal",
     "plot_val_curves",
@@ -50,7 +52,15 @@ NEUTRAL = "#888888"
 """The colour of what is not a model's series (an oracle's headroom, a reference line)."""
 
 
-def series_style(k: int) -> dict[str, str]:
+class SeriesStyle(TypedDict):
+    """Keyword arguments of matplotlib's ``plot`` that draw one series (`series_style`)."""
+
+    color: str
+    marker: str
+    linestyle: str
+
+
+def series_style(k: int) -> SeriesStyle:
     """The matplotlib ``color``, ``marker`` and ``linestyle`` of the ``k``-th series of a plot: a colour-blind-safe
     colour (`SERIES_COLOURS`), a marker of its own beside its neighbours' (series that overlap stay apart), and
     past the colours another line style: no two of the first 28 series look alike."""
@@ -84,7 +94,7 @@ def reveal_points(summary: Summary) -> list[RevealPoint]:
     for m in (m for m in summary.models if m.probes):
         for view in views:
             room = headroom(summary, view, m.frames)
-            use = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)
+            use = summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE_F1.key)
             if room is not None and use is not None:
                 found.append(RevealPoint(m.name, view, m.frames, room, use))
     return found
@@ -162,7 +172,9 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
     series = []
     frames = max(m.frames for m in multi)
     series.append(("headroom (oracle)", [headroom(summary, v, frames) for v in views]))
-    series += [(m.label, [summary.difference(m.name, f"{m.name}@key", v, TUSIMPLE.key) for v in views]) for m in multi]
+    series += [
+        (m.label, [summary.difference(m.name, f"{m.name}@key", v, TUSIMPLE_F1.key) for v in views]) for m in multi
+    ]
     fig, ax = plt.subplots(figsize=(10, 4))
     width = 0.8 / len(series)
     for k, (name, diffs) in enumerate(series):

@@ -6,7 +6,7 @@
 
 `Runner.score` predicts splits with a run's FINAL weights (`stamlane.training.runs.open_run`: the model built and its
 weights loaded once for every split and probe), each split with its history probes (`stamlane.data.probes.Probe`),
-and scores them (`stamlane.experiments.scoring`). What decides whether a split's
+and scores them (`stamlane.experiments.split_scores`). What decides whether a split's
 predictions are current is kept in the run's record: the SHA-256 of its label file, the digest of its frame files
 (`frame_files_digest`) and the scoring rules (`SCORING`). A split whose labels or frames changed is predicted again;
 one scored under older rules is scored again from its saved predictions.
@@ -30,7 +30,14 @@ import numpy as np
 import yaml
 
 from stamlane.experiments.recipes import CONFIG_DIR, Row, Stage
-from stamlane.experiments.scoring import SCORING, clip_of, read_per_clip, read_per_image, score_split, score_temporal
+from stamlane.experiments.split_scores import (
+    SCORING,
+    clip_of,
+    read_per_clip,
+    read_per_image,
+    score_split,
+    score_temporal,
+)
 from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.safety.guard import file_sha256
 from stamlane.synth.layout import TEMPORAL_LABELS
@@ -59,7 +66,7 @@ QUICK_OVERRIDES: dict[str, Any] = {
 """A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
 TEMPORAL_SPLIT = TEMPORAL_LABELS.removesuffix(".json")
 """The label file (stem) of a synthetic set whose every frame is a key frame: predicted frame after frame, each with
-its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.scoring.score_temporal`)."""
+its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.split_scores.score_temporal`)."""
 
 
 def _say(line: str) -> None:
@@ -327,7 +334,7 @@ def frames_of(run: Path) -> int:
 
 def aligns(run: Path) -> bool:
     """Whether a run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-    return (_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly"
+    return bool((_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly")
 
 
 def postprocess_of(run: Path) -> dict[str, Any]:

@@ -333,7 +333,7 @@ def _check_types(summary: Summary) -> None:
             fail(f"{where} seed_diffs", d.seed_diffs)
 
 
-def _values(data: dict[str, dict[str, dict]]) -> Values:
+def _values(data: dict[str, dict[str, dict[str, Any]]]) -> Values:
     return {metric: {view: Value(**v) for view, v in per_view.items()} for metric, per_view in data.items()}
 
 

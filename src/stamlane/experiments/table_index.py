@@ -23,7 +23,7 @@ __all__ = [
     "baseline_pairs",
     "default_index_path",
     "load_tables",
-    "metric_key",
+    "paper_column_name",
 ]
 
 METRIC_KINDS = ("tusimple", "iou")
@@ -34,7 +34,7 @@ _METRIC = {"tusimple": names.TUSIMPLE, "iou": names.CULANE}
 """The evaluator metric of each kind (the index's ``iou`` is the CULane area metric)."""
 
 
-def metric_key(kind: str, short: str) -> str:
+def paper_column_name(kind: str, short: str) -> str:
     """The name `LaneEvalCallback` logs (after ``test/``) for a paper column (`stamlane_eval.names`):
     ``("iou", "f1@0.5")`` -> ``"culane_f1@0.5"``, ``("tusimple", "fp")`` -> ``"tusimple_fp"``.
 
@@ -78,7 +78,7 @@ class PaperTable:
     @property
     def f1_key(self) -> str:
         """The headline metric: TuSimple's paper F1, or the IoU F1 at 0.5."""
-        return metric_key(self.kind, "f1") if self.kind == "tusimple" else metric_key(self.kind, "f1@0.5")
+        return paper_column_name(self.kind, "f1") if self.kind == "tusimple" else paper_column_name(self.kind, "f1@0.5")
 
     def select(self, ids: list[str] | None) -> tuple[PaperRow, ...]:
         """The rows named by ``ids`` (all when None), in the table's order.
@@ -113,7 +113,8 @@ class TableIndex:
 
 def default_index_path() -> Path:
     """stamlane's ``configs/paper/tables.yaml`` (`stamlane.configs.configs_dir`), installed or in a checkout."""
-    return configs_dir() / "paper" / "tables.yaml"
+    index: Path = configs_dir() / "paper" / "tables.yaml"
+    return index
 
 
 def load_tables(path: str | Path | None = None) -> TableIndex:
@@ -174,7 +175,7 @@ def load_tables(path: str | Path | None = None) -> TableIndex:
             if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in given.values()):
                 raise ValueError(f"{path}: table {name}: row {r['id']!r}: paper values must be numbers")
             try:
-                paper = {metric_key(kind, str(k)): float(v) for k, v in given.items()}
+                paper = {paper_column_name(kind, str(k)): float(v) for k, v in given.items()}
             except ValueError as err:
                 raise ValueError(f"{path}: table {name}: row {r['id']!r}: paper column: {err}") from None
             rows.append(PaperRow(str(r["id"]), str(r.get("label", r["id"])), existing(f"rows/{r['id']}.yaml"), paper))
@@ -193,6 +194,6 @@ def baseline_pairs(models: dict[str, str], index: TableIndex | None = None) -> l
     summed) whose row and baseline are both among ``models`` (paper row id -> model name)."""
     found = []
     for table in (index or load_tables()).tables.values():
-        base = models.get(table.baseline)
+        base = models.get(table.baseline) if table.baseline is not None else None
         found += [(models[r.id], base) for r in table.rows if base and models.get(r.id, base) != base]
     return list(dict.fromkeys(found))

@@ -16,8 +16,8 @@ from pathlib import Path
 
 from stamlane_eval.names import parse_metric_name
 
-from stamlane.experiments.metrics import CLASS_RECALL, CULANE, TEMPORAL, TUSIMPLE
-from stamlane.experiments.summary import Difference, Summary, Value
+from stamlane.experiments.metrics import CLASS_RECALL, CULANE_F1, TEMPORAL_STABILITY, TUSIMPLE_F1
+from stamlane.experiments.summary import Difference, ModelEntry, Summary, Value
 
 __all__ = [
     "NO_HEADROOM",
@@ -76,14 +76,14 @@ def diff_text(d: Difference | None) -> str:
     return f"**{text}**" if d.supported else text
 
 
-def reads_history(summary: Summary, model: str, view: str, metric: str = TUSIMPLE.key) -> bool:
+def reads_history(summary: Summary, model: str, view: str, metric: str = TUSIMPLE_F1.key) -> bool:
     """A model is said to read its history on a view only where its history use (real history minus the key
     frame copied) is positive and both its intervals (clips, seeds) exclude 0."""
     d = summary.difference(model, f"{model}@key", view, metric)
     return d is not None and d.diff > 0 and d.supported
 
 
-def markdown_table(header: Sequence[str], rows: list[Sequence[str]]) -> list[str]:
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     """A markdown table: the header row, its rule, one row per cell list, then an empty line."""
     return [
         "| " + " | ".join(header) + " |",
@@ -93,7 +93,7 @@ def markdown_table(header: Sequence[str], rows: list[Sequence[str]]) -> list[str
     ]
 
 
-def _kept(summary: Summary, only: Sequence[str] | None) -> list:
+def _kept(summary: Summary, only: Sequence[str] | None) -> list[ModelEntry]:
     if not only:
         return summary.models
     names = {m.name for m in summary.models}
@@ -120,14 +120,21 @@ def tables(summary: Summary, only: Sequence[str] | None = None) -> str:
         f"[95 % interval, clips resampled]; differences +d [clips] s[seeds], bold where both exclude 0.",
         "",
     ]
-    iou = CULANE[0].key
+    iou = CULANE_F1[0].key
     lines += markdown_table(
-        ["model", "frames", "test F1", "challenging F1", f"test {CULANE[0].label}", f"challenging {CULANE[0].label}"],
+        [
+            "model",
+            "frames",
+            "test F1",
+            "challenging F1",
+            f"test {CULANE_F1[0].label}",
+            f"challenging {CULANE_F1[0].label}",
+        ],
         [
             [
                 m.label,
                 str(m.frames),
-                *(value_text(summary.value(m.name, TUSIMPLE.key, s)) for s in SPLITS),
+                *(value_text(summary.value(m.name, TUSIMPLE_F1.key, s)) for s in SPLITS),
                 *(value_text(summary.value(m.name, iou, s)) for s in SPLITS),
             ]
             for m in models
@@ -138,7 +145,7 @@ def tables(summary: Summary, only: Sequence[str] | None = None) -> str:
     if pairs:
         rows = []
         for a, b in pairs:
-            for metric in (TUSIMPLE.key, iou):
+            for metric in (TUSIMPLE_F1.key, iou):
                 cells = [diff_text(summary.difference(a, b, s, metric)) for s in SPLITS]
                 rows.append([f"{label[a]} − {label[b]}", metric, *cells])
         lines += [
@@ -167,7 +174,7 @@ def _multiple_note(cells: int) -> str:
     )
 
 
-def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _reveal(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     """The reveal splits: the oracles' absolute values and differences, each model's value and its history probes."""
     views = [v for v in summary.views() if v.split(":")[0] in REVEAL_SPLITS]
     if not views:
@@ -184,7 +191,7 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
         "aligned − unaligned (points):",
         "",
     ]
-    for metric in (TUSIMPLE.key, CULANE[0].key):
+    for metric in (TUSIMPLE_F1.key, CULANE_F1[0].key):
         rows = []
         for view in views:
             rows.append(
@@ -200,7 +207,7 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
             "",
             *markdown_table(["view", "key", "aligned", "unaligned", "headroom", "alignment"], rows),
         ]
-    for metric in (TUSIMPLE.key, CULANE[0].key):
+    for metric in (TUSIMPLE_F1.key, CULANE_F1[0].key):
         rows = []
         for m in models:
             for view in views:
@@ -225,7 +232,7 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
         ]
     rows = []
     for a, b in pairs:
-        for metric in (TUSIMPLE.key, CULANE[0].key):
+        for metric in (TUSIMPLE_F1.key, CULANE_F1[0].key):
             rows.append([f"{a} − {b}", metric, *(diff_text(summary.difference(a, b, v, metric)) for v in views)])
     if rows:
         lines += ["Paired differences between models on the reveal splits (points):", ""]
@@ -237,18 +244,18 @@ def _reveal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> lis
 
 def _spans(summary: Summary) -> list[str]:
     """Headroom (aligned history oracle − key-frame oracle, TuSimple F1) per span on every split with masks."""
-    splits = [v for v in summary.views() if ":" not in v and summary.value("oracle:key", TUSIMPLE.key, v)]
+    splits = [v for v in summary.views() if ":" not in v and summary.value("oracle:key", TUSIMPLE_F1.key, v)]
     if not splits:
         return []
     rows = []
     for split in splits:
-        key = summary.value("oracle:key", TUSIMPLE.key, split)
+        key = summary.value("oracle:key", TUSIMPLE_F1.key, split)
         row = [f"`{split}`", value_text(key)]
         for t, stride in SPAN_COLUMNS:
             subject = _oracle("history", t, stride)
             v, d = (
-                summary.value(subject, TUSIMPLE.key, split),
-                summary.difference(subject, "oracle:key", split, TUSIMPLE.key),
+                summary.value(subject, TUSIMPLE_F1.key, split),
+                summary.difference(subject, "oracle:key", split, TUSIMPLE_F1.key),
             )
             row.append(f"{value_text(v)} ({diff_text(d)})" if v else "– (beyond the masks)")
         rows.append(row)
@@ -261,12 +268,12 @@ def _spans(summary: Summary) -> list[str]:
     ]
 
 
-def _history_use(summary: Summary, models: list) -> list[str]:
+def _history_use(summary: Summary, models: list[ModelEntry]) -> list[str]:
     if not models:
         return []
     rows = []
     for m in models:
-        for metric in (TUSIMPLE.key, CULANE[0].key):
+        for metric in (TUSIMPLE_F1.key, CULANE_F1[0].key):
             for split in SPLITS:
                 key = summary.difference(m.name, f"{m.name}@key", split, metric)
                 other = summary.difference(m.name, f"{m.name}@other_clip", split, metric)
@@ -288,10 +295,10 @@ def _history_use(summary: Summary, models: list) -> list[str]:
 def headroom(summary: Summary, view: str, frames: int) -> Difference | None:
     """What ``frames`` frames of aligned history can show on ``view`` beyond the key frame: the history oracle minus
     the key-frame oracle (TuSimple F1); None where the summary has no oracles."""
-    return summary.difference(f"oracle:history-{frames}f", "oracle:key", view, TUSIMPLE.key)
+    return summary.difference(f"oracle:history-{frames}f", "oracle:key", view, TUSIMPLE_F1.key)
 
 
-def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _factors(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     factors = [v for v in summary.views() if v.startswith("challenging:")]
     if not factors:
         return []
@@ -303,15 +310,15 @@ def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> li
     header += [f"{a} − {b}" for a, b in pairs]
     rows = []
     for view in factors:
-        first = summary.value(models[0].name, TUSIMPLE.key, view)
+        first = summary.value(models[0].name, TUSIMPLE_F1.key, view)
         row = [f"`{view.split(':', 1)[1]}`", str(first.images if first else "–")]
         if frames:
             h = headroom(summary, view, frames)
             note = " (no headroom: history cannot show here)" if h is not None and h.diff < NO_HEADROOM else ""
             row.append(diff_text(h) + note)
-        row += [value_text(summary.value(m.name, TUSIMPLE.key, view)) for m in models]
-        row += [diff_text(summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE.key)) for m in multi]
-        row += [diff_text(summary.difference(a, b, view, TUSIMPLE.key)) for a, b in pairs]
+        row += [value_text(summary.value(m.name, TUSIMPLE_F1.key, view)) for m in models]
+        row += [diff_text(summary.difference(m.name, f"{m.name}@key", view, TUSIMPLE_F1.key)) for m in multi]
+        row += [diff_text(summary.difference(a, b, view, TUSIMPLE_F1.key)) for a, b in pairs]
         rows.append(row)
     text = (
         "Challenging split per factor, TuSimple F1 (%); headroom = F1 of lanes fitted to the labelled points visible "
@@ -322,7 +329,7 @@ def _factors(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> li
     return [text, "", *markdown_table(header, rows), _multiple_note(tested), ""]
 
 
-def _recall(summary: Summary, models: list) -> list[str]:
+def _recall(summary: Summary, models: list[ModelEntry]) -> list[str]:
     rows = []
     for m in models:
         for split in [v for v in summary.views() if ":" not in v or v.split(":")[0] in REVEAL_SPLITS]:
@@ -339,39 +346,41 @@ def _recall(summary: Summary, models: list) -> list[str]:
     ]
 
 
-def _temporal(summary: Summary, models: list, pairs: list[tuple[str, str]]) -> list[str]:
+def _temporal(summary: Summary, models: list[ModelEntry], pairs: list[tuple[str, str]]) -> list[str]:
     frames = next(
-        (v for v in summary.views() if ":" not in v and summary.value(models[0].name, TEMPORAL[0].key, v)), None
+        (v for v in summary.views() if ":" not in v and summary.value(models[0].name, TEMPORAL_STABILITY[0].key, v)),
+        None,
     )
     if frames is None:
         return []
-    first = summary.value(models[0].name, TEMPORAL[0].key, frames)
-    rows = [[m.label, *(value_text(summary.value(m.name, t.key, frames)) for t in TEMPORAL)] for m in models]
+    first = summary.value(models[0].name, TEMPORAL_STABILITY[0].key, frames)
+    assert first is not None  # frames is a view where this value was found
+    rows = [[m.label, *(value_text(summary.value(m.name, t.key, frames)) for t in TEMPORAL_STABILITY)] for m in models]
     lines = [
         f"Temporal stability (RVLD's Rs / Rj / Rm, %): the clips of `{frames}` ({first.images} clips) predicted frame "
         "after frame, each frame with its own history; of the annotated lanes matched between consecutive frames, "
         "the share predicted above the IoU threshold in both frames (stable), in one (jump), in neither (missing):",
         "",
-        *markdown_table(["model", *(t.label for t in TEMPORAL)], rows),
+        *markdown_table(["model", *(t.label for t in TEMPORAL_STABILITY)], rows),
     ]
-    probed = [m.name for m in models if summary.difference(m.name, f"{m.name}@key", frames, TEMPORAL[0].key)]
+    probed = [m.name for m in models if summary.difference(m.name, f"{m.name}@key", frames, TEMPORAL_STABILITY[0].key)]
     if probed:  # history use: the same weights with the key frame copied into every history slot
         lines += ["`M − M@key`: the same weights with the key frame copied into every history slot (history use).", ""]
         pairs = [*pairs, *((name, f"{name}@key") for name in probed)]
     if pairs:
-        keys = [t.key for t in TEMPORAL if parse_metric_name(t.key).quantity in ("rs", "rj")]
+        keys = [t.key for t in TEMPORAL_STABILITY if parse_metric_name(t.key).quantity in ("rs", "rj")]
         diff_rows = [[f"{a} − {b}", *(diff_text(summary.difference(a, b, frames, k)) for k in keys)] for a, b in pairs]
         lines += markdown_table(["models", *keys], diff_rows)
     factors = [v for v in summary.views() if v.startswith(f"{frames}:")]
     if factors:
-        key = TEMPORAL[0].key
+        key = TEMPORAL_STABILITY[0].key
         rows = [
             [f"`{v.split(':', 1)[1]}`", *(value_text(summary.value(m.name, key, v)) for m in models)]
             + [diff_text(summary.difference(a, b, v, key)) for a, b in pairs]
             for v in factors
         ]
         lines += [
-            f"{TEMPORAL[0].label} per factor:",
+            f"{TEMPORAL_STABILITY[0].label} per factor:",
             "",
             *markdown_table(["factor", *(m.label for m in models), *(f"{a} − {b}" for a, b in pairs)], rows),
         ]

@@ -93,7 +93,7 @@ def prepare_data(root: Path | None, out: Path, *, quick: bool = False, generate:
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.synth import FACTORS, SynthConfig, generate_dataset
     from stamlane.synth.config import REVEAL, REVEAL_TRAFFIC
-    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, SplitCounts
 
     check_data(root, quick=quick, must_exist=not generate)
     if quick:
@@ -101,13 +101,15 @@ def prepare_data(root: Path | None, out: Path, *, quick: bool = False, generate:
         if not (root / "dataset.json").is_file():
             generate_dataset(
                 root,
-                train=4,
-                val=2,
-                test=2,
-                challenging=2 * len(FACTORS),
-                reveal=2 * len(REVEAL),
-                reveal_traffic=2 * len(REVEAL_TRAFFIC),
-                train_motion=2,
+                SplitCounts(
+                    train=4,
+                    val=2,
+                    test=2,
+                    challenging=2 * len(FACTORS),
+                    reveal=2 * len(REVEAL),
+                    reveal_traffic=2 * len(REVEAL_TRAFFIC),
+                    train_motion=2,
+                ),
                 config=SynthConfig(width=256, height=144, num_frames=4),
                 progress=False,
             )

@@ -69,6 +69,7 @@ class _ConvLSTMCell(nn.Module):
         self.gates = nn.Conv2d(
             in_channels + hidden_channels, 4 * hidden_channels, kernel_size, padding=kernel_size // 2
         )
+        assert self.gates.bias is not None  # a Conv2d's bias (bias=True)
         with torch.no_grad():  # forget-gate bias 1: remember by default (Jozefowicz et al. 2015)
             self.gates.bias.zero_()
             self.gates.bias[hidden_channels : 2 * hidden_channels].fill_(1.0)
@@ -116,6 +117,7 @@ class ConvLSTMFusion(nn.Module):
         check_clip_features(feats, self.channels)
         sequence = list(feats.unbind(1))
         for cell in self.cells:
+            assert isinstance(cell, _ConvLSTMCell)
             zeros = sequence[0].new_zeros(sequence[0].shape[0], cell.hidden_channels, *sequence[0].shape[-2:])
             state = (zeros, zeros)
             outputs = []
@@ -123,7 +125,8 @@ class ConvLSTMFusion(nn.Module):
                 state = cell(x, state)
                 outputs.append(state[0])
             sequence = outputs
-        return self.project(sequence[-1])
+        projected: Tensor = self.project(sequence[-1])
+        return projected
 
 
 @nameable

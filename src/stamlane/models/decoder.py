@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from stamlane.models._checks import is_tracing
 from stamlane.types import nameable
 
 __all__ = ["LaneDecoder"]
@@ -70,7 +70,7 @@ class LaneDecoder(nn.Module):
             ``(logits, embedding)``: lane / background logits (B, 2, H, W), channel 1 = lane, and pixel
             embeddings (B, E, H, W), at the resolution of ``skips[0]`` (the input resolution for VGGEncoder).
         """
-        if not torch.jit.is_tracing():
+        if not is_tracing():
             self._check(fused, skips)
         x = fused
         for i in reversed(range(len(self.in_channels) - 1)):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from stamlane.models._checks import is_tracing
 from stamlane.models.imagenet import ImageNetWeightsError, read_torchvision_vgg16
 from stamlane.types import nameable
 
@@ -55,6 +56,9 @@ class VGGEncoder(nn.Module):
         out_channels: channels of each stage output, shallow first, e.g. ``[64, 128, 256, 512, 512]``.
         strides: stride of each stage output w.r.t. the input, ``[1, 2, 4, 8, 16]``.
     """
+
+    mean: Tensor  # (1, in_channels, 1, 1) buffers: the input normalisation
+    std: Tensor
 
     def __init__(self, width: float = 1.0, in_channels: int = 3, weights: str | None = None) -> None:
         super().__init__()
@@ -123,7 +127,7 @@ class VGGEncoder(nn.Module):
         Returns:
             per-stage features, shallow first; stage ``i`` is (N, out_channels[i], H / strides[i], W / strides[i]).
         """
-        if not torch.jit.is_tracing():  # shapes are constants in a trace; checking them there only warns
+        if not is_tracing():  # shapes are constants in a trace; checking them there only warns
             self._check(x)
         x = (x - self.mean) / self.std
         feats = []

@@ -61,7 +61,7 @@ def fuse_feature_aligned(
             warped = warp_features(flat[moving], mats[moving], stride, net_from_orig=net_from_orig)
             flat = flat.clone()
             flat[moving] = warped
-        hist_feats = flat.unflatten(0, (batch, num_hist))
+        hist_feats = torch.unflatten(flat, 0, (batch, num_hist))
     last = torch.cat([hist_feats, key_last[:, None]], dim=1)
     return net.fuse_and_decode(last, key_feats[:-1])
 
@@ -98,6 +98,6 @@ def forward_feature_aligned(net: LaneNet, clip: Tensor, key_from_hist: Tensor | 
     if not strides:
         raise ValueError(f"net.encoder must have a strides attribute, got {type(net.encoder).__name__}")
     feats = net.encode(clip.flatten(0, 1))
-    per_clip = [f.unflatten(0, (batch, num_frames)) for f in feats]
+    per_clip = [torch.unflatten(f, 0, (batch, num_frames)) for f in feats]
     key_feats = [f[:, -1] for f in per_clip]
     return fuse_feature_aligned(net, key_feats, per_clip[-1][:, :-1], key_from_hist[:, :-1], int(strides[-1]))

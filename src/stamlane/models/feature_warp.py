@@ -84,14 +84,16 @@ def feature_homography(
     scale = h[:, 2:3, 2:3]
     if (scale.abs() < 1e-12).any():
         raise ValueError(f"key_from_hist has a zero [2, 2] entry on the feature grid: {h.tolist()}")
-    return h / scale
+    normalised: Tensor = h / scale
+    return normalised
 
 
 def _inverse(matrix: Tensor, name: str) -> Tensor:
     det = torch.linalg.det(matrix)
     if (det.abs() < 1e-12).any():
         raise ValueError(f"{name} is singular: {matrix.tolist()}")
-    return torch.linalg.inv(matrix)
+    inverse: Tensor = torch.linalg.inv(matrix)
+    return inverse
 
 
 @functools.lru_cache(maxsize=16)
@@ -158,7 +160,7 @@ def warp_features(
     batch = feats.shape[0]
     if h.shape[0] not in (1, batch):
         raise ValueError(f"expected 1 or {batch} homographies for {batch} feature maps, got {h.shape[0]}")
-    grid = sampling_grid(h, tuple(feats.shape[-2:])).expand(batch, -1, -1, -1)
+    grid = sampling_grid(h, (feats.shape[-2], feats.shape[-1])).expand(batch, -1, -1, -1)
     # sampled in float32 at least: a bfloat16 grid would misplace cells by up to 1/128 of the map's width
     work = feats.float() if feats.dtype in (torch.float16, torch.bfloat16) or not feats.is_floating_point() else feats
     grid = grid.to(device=feats.device, dtype=work.dtype)

@@ -111,12 +111,13 @@ def read_torchvision_vgg16(
         return value.float()
 
     for s, stage in enumerate(stages):
-        layers = list(stage)
+        layers = list(stage.children())  # a Sequential: its layers in order
         for j, layer in enumerate(layers):
             if not isinstance(layer, nn.Conv2d):
                 continue
             norm = layers[j + 1]
             assert isinstance(norm, nn.BatchNorm2d)
+            assert norm.running_mean is not None and norm.running_var is not None  # track_running_stats=True
             i = next(indices)
             weight = take(f"features.{i}.weight", layer.weight.shape)
             bias = take(f"features.{i}.bias", torch.Size([layer.out_channels]))

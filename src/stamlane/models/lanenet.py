@@ -43,10 +43,11 @@ class LaneNet(nn.Module):
         fuse_skip: bool = False,
     ) -> None:
         super().__init__()
-        if not hasattr(encoder, "out_channels"):
+        out_channels = getattr(encoder, "out_channels", None)  # any nn.Module with the attribute
+        if out_channels is None:
             raise TypeError(f"encoder must have an out_channels attribute, got {type(encoder).__name__}")
         self.encoder = encoder
-        channels = list(encoder.out_channels)
+        channels = list(out_channels)
         self.fusion = fusion if isinstance(fusion, nn.Module) else fusion(channels[-1])
         self.decoder = decoder if isinstance(decoder, nn.Module) else decoder(channels)
         self.skip_fusion: nn.Module | None = None
@@ -83,7 +84,8 @@ class LaneNet(nn.Module):
         memory_format = self._memory_format()
         if memory_format is torch.channels_last:
             frames = frames.contiguous(memory_format=memory_format)
-        return self.encoder(frames)
+        feats: list[Tensor] = self.encoder(frames)
+        return feats
 
     def fuse_and_decode(
         self, last_stage_feats: Tensor, key_skips: Sequence[Tensor], skip_stage_feats: Tensor | None = None
@@ -108,10 +110,13 @@ class LaneNet(nn.Module):
                     "this network fuses the second-deepest stage too (fuse_skip): it needs that stage of every "
                     "frame, pre-aligned images (feature-space alignment and streaming fuse the deepest stage only)"
                 )
-            skips = list(key_skips[: len(self.decoder.in_channels) - 1])
+            # any nn.Module with in_channels: read untyped (nn.Module types an attribute as Tensor | Module)
+            decoder_channels = getattr(self.decoder, "in_channels")  # noqa: B009
+            skips = list(key_skips[: len(decoder_channels) - 1])
             skips[-1] = self.skip_fusion(skip_stage_feats)
             key_skips = skips
-        return self.decoder(fused, key_skips)
+        out: tuple[Tensor, Tensor] = self.decoder(fused, key_skips)
+        return out
 
     def forward(self, clip: Tensor) -> tuple[Tensor, Tensor]:
         """Detect lanes in the key frame of each clip.
@@ -127,7 +132,7 @@ class LaneNet(nn.Module):
             raise ValueError(f"expected a clip of shape (B, T, 3, H, W), got {tuple(clip.shape)}")
         batch, num_frames = clip.shape[:2]
         feats = self.encode(clip.flatten(0, 1))
-        last = feats[-1].unflatten(0, (batch, num_frames))
-        key_skips = [f.unflatten(0, (batch, num_frames))[:, -1] for f in feats[:-1]]
-        skip_stage = feats[-2].unflatten(0, (batch, num_frames)) if self.skip_fusion is not None else None
+        last = torch.unflatten(feats[-1], 0, (batch, num_frames))
+        key_skips = [torch.unflatten(f, 0, (batch, num_frames))[:, -1] for f in feats[:-1]]
+        skip_stage = torch.unflatten(feats[-2], 0, (batch, num_frames)) if self.skip_fusion is not None else None
         return self.fuse_and_decode(last, key_skips, skip_stage)

@@ -111,14 +111,18 @@ class STAM(nn.Module):
     def _gate(self, source: Tensor, target: Tensor) -> Tensor:
         """One serial CBAM step: the first block's map from ``source`` gates ``target``, the second block's
         map from that result gates it again. (B, C, h, w) x2 -> (B, C, h, w)."""
+        y: Tensor
         if self.order == "cs":
             y = self.channel_attention(source) * target
-            return self.spatial_attention(y) * y
+            gated: Tensor = self.spatial_attention(y) * y
+            return gated
         y = self.spatial_attention(source) * target
-        return self.channel_attention(y) * y
+        gated = self.channel_attention(y) * y
+        return gated
 
     def _parallel(self, source: Tensor, target: Tensor) -> Tensor:
-        return self.channel_attention(source) * target + self.spatial_attention(source) * target
+        fused: Tensor = self.channel_attention(source) * target + self.spatial_attention(source) * target
+        return fused
 
     def forward(self, feats: Tensor) -> Tensor:
         """Fuse aligned frames into key-frame features.

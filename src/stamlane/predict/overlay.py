@@ -61,7 +61,7 @@ GT_EDGE = (0, 0, 0)
 
 def line_width(image: np.ndarray) -> int:
     """The width of a predicted lane on ``image`` (``(H, W, ...)``): 2 px, and 1 px more per 320 px of width."""
-    return max(2, image.shape[1] // 320)
+    return max(2, int(image.shape[1]) // 320)
 
 
 def gt_width(width: int) -> int:
@@ -94,7 +94,7 @@ def draw_lanes(image: np.ndarray, lanes: Lanes, gt_lanes: Lanes | None = None, t
     """
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
         raise ValueError(f"expected a (H, W, 3) uint8 image, got {image.shape} {image.dtype}")
-    out = image.copy()
+    out: np.ndarray = image.copy()
     width = thickness or line_width(image)
     gt = [pts for pts in map(_points, gt_lanes or []) if len(pts) >= 2]
     for pts in gt:  # every outline first: where two annotated lanes meet, both cores stay visible
@@ -117,7 +117,7 @@ _FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 def text_scale(image: np.ndarray) -> float:
     """OpenCV font scale of legend text on ``image``: 0.5 at 640 px wide, in proportion (0.35 at least)."""
-    return max(0.35, image.shape[1] / 1280)
+    return max(0.35, int(image.shape[1]) / 1280)
 
 
 def draw_legend(
@@ -135,7 +135,7 @@ def draw_legend(
     Args:
         image: ``(H, W, 3)`` uint8 BGR, usually what `draw_lanes` returned.
         model: the model's name (first line); None: none.
-        score: the image's score against its labels (last line, `stamlane.predict.scores.image_score`); None: none.
+        score: the image's score against its labels (last line, `stamlane.predict.image_score.image_score`); None: none.
         ground_truth: the picture shows annotated lanes: their sample is drawn.
         predictions: the sample of a predicted lane is drawn.
         corner: ``"top"`` (top left) or ``"bottom"`` (bottom left).

@@ -7,7 +7,7 @@
 - ``lines/<raw_file stem>.lines.txt`` — CULane text, one per key frame without ``h_samples`` (CULane,
   ApolloScape, VIL-100, folders, videos), scored by ``stamlane-eval culane <output_dir>/lines <gt_dir>``;
 - ``overlays/<raw_file stem>.jpg`` — the original key frame with the predicted lanes and a legend (the model's
-  name; where the split has labels, the annotated lanes and the image's score: `stamlane.predict.scores`), at most
+  name; where the split has labels, the annotated lanes and the image's score: `stamlane.predict.image_score`), at most
   ``max_overlays`` of them;
 - ``overlay.mp4`` — for a video source, every frame with its lanes and legend, at the video's frame rate (mp4v),
   written under a temporary name and renamed when prediction ends.
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +37,13 @@ from lightning.pytorch.callbacks import BasePredictionWriter
 from stamlane_eval.integrations.distributed import gather_records
 from stamlane_eval.io import culane_lines_path
 
+from stamlane.predict.image_score import image_score
 from stamlane.predict.overlay import draw_lanes, draw_legend
-from stamlane.predict.scores import image_score
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
 from stamlane.safety.guard import temporary_name
 from stamlane.safety.images import read_image
 from stamlane.safety.owner import mark
+from stamlane.types import Lanes
 
 __all__ = ["DEFAULT_ROOT", "VIDEO_NAME", "LanePredictionWriter", "default_output_dir", "folder_name"]
 
@@ -108,7 +110,8 @@ class LanePredictionWriter(BasePredictionWriter):
         self.model_name = model_name
         self.owner: dict[str, Any] | None = None  # what the folder holds the results of (stamlane.safety.owner)
         self._json: TusimpleWriter | None = None
-        self._rows: list[tuple[Any, tuple]] = []  # several processes: (image key, json line's values), for rank 0
+        # several processes: (image key, json line's values: raw_file, lanes, h_samples, run_time), for rank 0
+        self._rows: list[tuple[Any, tuple[str, Lanes, Sequence[int], float]]] = []
         self._video: cv2.VideoWriter | None = None
         self._video_fps: float | None = None
         self.written = {"tusimple": 0, "culane": 0, "overlays": 0, "video frames": 0}
@@ -127,9 +130,10 @@ class LanePredictionWriter(BasePredictionWriter):
         self._done = False
         self._json = None
         self._rows = []
-        self._data_root = Path(getattr(trainer.datamodule, "root", ".") or ".")
-        is_video = bool(getattr(trainer.datamodule, "is_video", False))
-        fps = getattr(trainer.datamodule, "video_fps", None) or FALLBACK_FPS
+        datamodule = getattr(trainer, "datamodule", None)  # set by Lightning's data connector, not declared
+        self._data_root = Path(getattr(datamodule, "root", ".") or ".")
+        is_video = bool(getattr(datamodule, "is_video", False))
+        fps = getattr(datamodule, "video_fps", None) or FALLBACK_FPS
         self._video_fps = fps if is_video and trainer.world_size == 1 else None
         if self.owner is not None and trainer.is_global_zero:  # the folder holds this source's results from now on
             mark(self.output_dir, self.owner)
@@ -177,17 +181,23 @@ class LanePredictionWriter(BasePredictionWriter):
                 if overlay is not None and frame:
                     self._write_frame(overlay)
 
-    def _overlay(self, meta: dict, lanes: list[np.ndarray], gt_lanes: list[np.ndarray] | None) -> np.ndarray | None:
+    def _overlay(
+        self, meta: dict[str, Any], lanes: list[np.ndarray], gt_lanes: list[np.ndarray] | None
+    ) -> np.ndarray | None:
         """The key frame with its lanes and legend; None when the frame cannot be read."""
         key_path = self._data_root / meta["frame_paths"][-1] if meta.get("frame_paths") else None
         image = read_image(key_path) if key_path is not None else None  # a FIFO or a bomb: no overlay, no hang
         if image is None:
             return None
         # a folder or a video has no labels; a split's frame without h_samples and without lanes may have none
-        labelled = gt_lanes is not None and meta.get("format") != "frames"
-        labelled = labelled and (meta.get("h_samples") is not None or len(gt_lanes) > 0)
-        picture = draw_lanes(image, lanes, gt_lanes if labelled else None)
-        score = image_score(lanes, gt_lanes, meta.get("h_samples"), image.shape[:2]) if labelled else None
+        labelled = (
+            gt_lanes is not None
+            and meta.get("format") != "frames"
+            and (meta.get("h_samples") is not None or len(gt_lanes) > 0)
+        )
+        shown = gt_lanes if labelled else None
+        picture = draw_lanes(image, lanes, shown)
+        score = image_score(lanes, shown, meta.get("h_samples"), image.shape[:2]) if shown is not None else None
         return draw_legend(picture, model=self.model_name, score=score, ground_truth=labelled)
 
     def _write_picture(self, raw_file: str, overlay: np.ndarray) -> None:
@@ -199,10 +209,11 @@ class LanePredictionWriter(BasePredictionWriter):
 
     def _write_frame(self, overlay: np.ndarray) -> None:
         if self._video is None:
+            assert self._video_fps is not None  # frames are written for a video only (on_predict_batch_end)
             self.output_dir.mkdir(parents=True, exist_ok=True)
             tmp = output_path(self.output_dir, temporary_name(self.video_path))
             size = (overlay.shape[1], overlay.shape[0])  # OpenCV's (W, H)
-            self._video = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), self._video_fps, size)
+            self._video = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), self._video_fps, size)
             self._video_size = size
         if (overlay.shape[1], overlay.shape[0]) != self._video_size:  # a video's frames share one size
             overlay = cv2.resize(overlay, self._video_size, interpolation=cv2.INTER_AREA)

@@ -14,7 +14,7 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -30,7 +30,7 @@ __all__ = [
 ]
 
 
-def tusimple_record(raw_file: str, lanes: Lanes, h_samples: Sequence[int], run_time: float) -> dict:
+def tusimple_record(raw_file: str, lanes: Lanes, h_samples: Sequence[int], run_time: float) -> dict[str, Any]:
     """One TuSimple prediction line.
 
     Args:

@@ -45,7 +45,7 @@ __all__ = [
 LOCK_NAME = ".stamlane.lock"
 """The lock file `exclusive` takes in an output folder."""
 
-PathLike = str | os.PathLike
+PathLike = str | os.PathLike[str]
 
 
 class GuardError(ValueError):

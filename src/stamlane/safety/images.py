@@ -94,7 +94,8 @@ def _exif_orientation(tiff: bytes) -> int | None:
             return None
         tag, kind = struct.unpack(order + "HH", tiff[at : at + 4])
         if tag == _EXIF_ORIENTATION and kind == 3:  # SHORT
-            return struct.unpack(order + "H", tiff[at + 8 : at + 10])[0]
+            orientation: int = struct.unpack(order + "H", tiff[at + 8 : at + 10])[0]
+            return orientation
     return None
 
 
@@ -124,7 +125,7 @@ def declared_size(data: bytes) -> tuple[int, int] | None:
     return None
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray | None:
+def read_image(path: str | os.PathLike[str]) -> np.ndarray | None:
     """The image as BGR uint8 ``(H, W, 3)``, or ``None`` when it is missing, truncated, not an image, not a regular
     file, or larger than `MAX_IMAGE_PIXELS` / ``MAX_IMAGE_SIDE`` / `MAX_IMAGE_BYTES`."""
     path = Path(path)
@@ -153,7 +154,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray | None:
     return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
 
 
-def open_video(path: str | os.PathLike, error: type[Exception] = ValueError) -> cv2.VideoCapture:
+def open_video(path: str | os.PathLike[str], error: type[Exception] = ValueError) -> cv2.VideoCapture:
     """An opened ``cv2.VideoCapture`` of a regular video file whose frames fit `MAX_IMAGE_PIXELS` and
     ``MAX_IMAGE_SIDE``.
 

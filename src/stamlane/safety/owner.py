@@ -30,7 +30,7 @@ MAX_SIBLINGS = 1000
 _OURS = (OWNER_NAME, LOCK_NAME)
 
 
-def owner_of(folder: str | os.PathLike) -> dict[str, Any] | None:
+def owner_of(folder: str | os.PathLike[str]) -> dict[str, Any] | None:
     """What the owner file of ``folder`` says (None: none, or one that cannot be read as a mapping)."""
     path = Path(folder) / OWNER_NAME
     if not path.is_file():
@@ -63,7 +63,7 @@ def _is_ours(folder: Path, owner: dict[str, Any], strict: bool) -> str | None:
 
 
 def claim(
-    folder: str | os.PathLike, owner: dict[str, Any], flag: str, *, chosen: bool = False, strict: bool = False
+    folder: str | os.PathLike[str], owner: dict[str, Any], flag: str, *, chosen: bool = False, strict: bool = False
 ) -> Path:
     """The folder to write ``owner``'s results into (nothing is written yet: `mark` does, when writing starts).
 
@@ -97,7 +97,7 @@ def claim(
     raise GuardError(f"{folder} and {MAX_SIBLINGS - 1} folders beside it hold other sources' results: give {flag}")
 
 
-def mark(folder: str | os.PathLike, owner: dict[str, Any]) -> None:
+def mark(folder: str | os.PathLike[str], owner: dict[str, Any]) -> None:
     """Write ``folder``'s owner file (atomically): ``owner``, and this run (its start time and process id)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

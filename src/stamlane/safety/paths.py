@@ -55,7 +55,7 @@ KINDS = ("file", "folder", "fifo", "device", "socket", "missing", "unusable")
 CKPT_NAMES = ("last", "best", "hpc", "registry", "null", "None")
 """``--ckpt_path`` values that are no file (Lightning's names, and "none")."""
 
-PathLike = str | os.PathLike
+PathLike = str | os.PathLike[str]
 
 
 class PathError(ValueError):
@@ -151,10 +151,11 @@ def inspect_path(path: PathLike | bytes, roots: Iterable[PathLike] = ()) -> Path
 def _os_problem(given: str, err: OSError, link: bool) -> PathInfo:
     if err.errno == errno.ENOTDIR:
         return PathInfo(given, "missing", link=link)  # under a file: nothing can be there
-    problem = {
+    problems: dict[int | None, str] = {
         errno.ENAMETOOLONG: "has a name too long for the file system",
         errno.ELOOP: "is a loop of links",
-    }.get(err.errno, f"cannot be looked at: {err.strerror}")
+    }
+    problem = problems.get(err.errno, f"cannot be looked at: {err.strerror}")
     return PathInfo(given, "unusable", link=link, problem=problem)
 
 

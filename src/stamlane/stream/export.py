@@ -95,9 +95,17 @@ class FuseDecodeGraph(nn.Module):
         """
         if self.num_frames > 1:
             history, grid, key_stages = inputs[0], inputs[1], inputs[2:]
-            warped = F.grid_sample(
-                history.flatten(0, 1), grid.flatten(0, 1), mode="bilinear", padding_mode="zeros", align_corners=False
-            ).unflatten(0, history.shape[:2])
+            warped = torch.unflatten(
+                F.grid_sample(
+                    history.flatten(0, 1),
+                    grid.flatten(0, 1),
+                    mode="bilinear",
+                    padding_mode="zeros",
+                    align_corners=False,
+                ),
+                0,
+                history.shape[:2],
+            )
             last = torch.cat([warped, key_stages[-1][:, None]], dim=1)
         else:
             key_stages = inputs
@@ -157,8 +165,15 @@ def _eval_encode(net: LaneNet, frames: Tensor) -> list[Tensor]:
         net.train(was_training)
 
 
+def _encoder_strides(net: LaneNet) -> list[int]:
+    """The encoder's strides, shallow first (any nn.Module with the attribute: read untyped, as nn.Module types an
+    attribute Tensor | Module)."""
+    strides: list[int] = getattr(net.encoder, "strides")  # noqa: B009
+    return strides
+
+
 def _check_size(net: LaneNet, image_size: tuple[int, int]) -> tuple[int, int]:
-    stride = int(net.encoder.strides[-1])
+    stride = int(_encoder_strides(net)[-1])
     if len(image_size) != 2 or any(int(s) < stride or int(s) % stride for s in image_size):
         raise ValueError(f"image_size must be (H, W), positive multiples of {stride}, got {image_size!r}")
     return int(image_size[0]), int(image_size[1])
@@ -167,7 +182,7 @@ def _check_size(net: LaneNet, image_size: tuple[int, int]) -> tuple[int, int]:
 def export_encoder(net: LaneNet, path: str | Path, image_size: tuple[int, int], opset: int = DEFAULT_OPSET) -> Path:
     """Export the per-frame encoder to ``path`` (see the module docstring); returns the path."""
     height, width = _check_size(net, image_size)
-    num_stages = len(net.encoder.strides)
+    num_stages = len(_encoder_strides(net))
     frames = torch.rand(1, 3, height, width)
     names = [f"stage{i}" for i in range(num_stages)]
     return _export(EncoderGraph(net), (frames,), Path(path), ["frames"], names, opset)
@@ -185,7 +200,7 @@ def export_fuse_decode(
     if num_frames > 1:
         deepest = key_stages[-1]
         history = deepest[:, None].repeat(1, num_frames - 1, 1, 1, 1)
-        grid = identity_grid(1, num_frames - 1, tuple(deepest.shape[-2:]))
+        grid = identity_grid(1, num_frames - 1, (deepest.shape[-2], deepest.shape[-1]))
         args = (history, grid, *args)
         names = ["history", "grid", *names]
     return _export(FuseDecodeGraph(net, num_frames), args, Path(path), names, ["logits", "embedding"], opset)

@@ -29,23 +29,28 @@ class OnnxLaneNet:
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
 
-        def session(name: str, required: bool = True) -> ort.InferenceSession | None:
+        def optional(name: str) -> ort.InferenceSession | None:
             path = folder / name
             if not path.is_file():
-                if required:
-                    raise FileNotFoundError(f"{path} does not exist (export it with stamlane.stream.export)")
                 return None
             return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
 
-        self.encoder = session("encoder.onnx")
-        self.fuse_decode_session = session("fuse_decode.onnx")
-        self.clip_session = session("clip.onnx", required=False)
+        def required(name: str) -> ort.InferenceSession:
+            found = optional(name)
+            if found is None:
+                raise FileNotFoundError(f"{folder / name} does not exist (export it with stamlane.stream.export)")
+            return found
+
+        self.encoder = required("encoder.onnx")
+        self.fuse_decode_session = required("fuse_decode.onnx")
+        self.clip_session = optional("clip.onnx")
         self.num_stages = len(self.encoder.get_outputs())
         self.takes_history = self.fuse_decode_session.get_inputs()[0].name == "history"
 
     def encode(self, frames: np.ndarray) -> list[np.ndarray]:
         """(N, 3, H, W) float32 in [0, 1] -> per-stage features, shallow first."""
-        return self.encoder.run(None, {"frames": np.ascontiguousarray(frames, np.float32)})
+        stages: list[np.ndarray] = self.encoder.run(None, {"frames": np.ascontiguousarray(frames, np.float32)})
+        return stages
 
     def fuse_decode(
         self, key_stages: list[np.ndarray], history: np.ndarray | None = None, grid: np.ndarray | None = None

@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
@@ -52,7 +53,7 @@ from stamlane.models.feature_aligned import fuse_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.types import Lanes
 
-__all__ = ["StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]
+__all__ = ["READ_AHEAD", "StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]
 
 
 @dataclass
@@ -88,6 +89,33 @@ class _Cached:
     prep: FramePrep | None = None  # for direct matching when a chain breaks
     key_from_hist: np.ndarray = field(default_factory=lambda: np.eye(3))  # to the newest frame, original px
     alignment: Alignment = field(default_factory=lambda: Alignment(np.eye(3), 0, 0, True, ""))
+
+
+@dataclass
+class _Prepared:
+    """A frame ready for the network (`StreamingPredictor._prepare`)."""
+
+    size: tuple[int, int]  # (H0, W0)
+    frame: Tensor  # (3, H, W) at the network size
+    prep: FramePrep | None  # the alignment features, None without alignment
+    timings: dict[str, float]
+
+
+@dataclass
+class _Fused:
+    """A frame after the network, before its lanes are decoded (`StreamingPredictor._fused`)."""
+
+    index: int
+    size: tuple[int, int]
+    logits: Tensor
+    embedding: Tensor
+    alignments: list[Alignment]
+    net_from_orig: np.ndarray
+    timings: dict[str, float]
+
+
+READ_AHEAD = 2
+"""Frames `StreamingPredictor.run` prepares ahead of the network."""
 
 
 class StreamingPredictor:
@@ -245,6 +273,45 @@ class StreamingPredictor:
         Raises:
             ValueError: on a non-uint8 / wrongly shaped image or a size change within the stream.
         """
+        return self._decoded(self._fused(self._prepare(image)))
+
+    def run(self, images: Iterable[np.ndarray]) -> Iterator[StreamOutput]:
+        """Lanes of every frame of ``images``, in order: the same outputs as ``predictor(image)`` frame after frame,
+        with the work that does not wait for the network done beside it (threads: CPU decoding, resizing and ORB
+        features of frame t+1, and the lane decoding of frame t, run while the network runs on frame t; OpenCV,
+        numpy and torch release the interpreter lock).
+
+        Args:
+            images: the frames in order (each as `__call__` takes it), read (a video decoded) and prepared ahead
+                by one thread, up to `READ_AHEAD` frames.
+
+        Yields:
+            each frame's `StreamOutput` (``timings`` measure each stage where it ran).
+        """
+        source = iter(images)
+
+        def read() -> _Prepared | None:  # in the reader thread, in order: a video's frames are decoded there too
+            image = next(source, None)
+            return None if image is None else self._prepare(image)
+
+        with ThreadPoolExecutor(1) as reader, ThreadPoolExecutor(1) as decoder:
+            ahead = deque(reader.submit(read) for _ in range(READ_AHEAD))
+            pending: Future[StreamOutput] | None = None
+            while ahead:
+                prepared = ahead.popleft().result()
+                if prepared is None:  # the end: the reads still in flight find it too
+                    break
+                ahead.append(reader.submit(read))
+                fused = self._fused(prepared)
+                if pending is not None:
+                    yield pending.result()
+                pending = decoder.submit(self._decoded, fused)
+            if pending is not None:
+                yield pending.result()
+
+    def _prepare(self, image: np.ndarray) -> _Prepared:
+        """What a frame needs before the network, none of it depending on the frames before: checks, the resize
+        and the alignment features (``FramePrep``)."""
         check_image(image, "image")
         if image.ndim != 3 or image.shape[2] != 3:
             raise ValueError(f"image must be (H, W, 3) uint8 BGR, got shape {image.shape}")
@@ -261,11 +328,17 @@ class StreamingPredictor:
         start = time.perf_counter()
         frame = torch.from_numpy(self.transform.apply_frames([image], np.eye(3)[None], self._params)[0])
         timings["preprocess"] = _ms(start)
-
         start = time.perf_counter()
-        prep, mats, alignments = None, None, []
-        if self.align and self.num_frames > 1:
-            prep = FramePrep(image, self._row, self.align_config)
+        prep = FramePrep(image, self._row, self.align_config) if self.align and self.num_frames > 1 else None
+        timings["align"] = _ms(start)
+        return _Prepared(image.shape[:2], frame, prep, timings)
+
+    def _fused(self, prepared: _Prepared) -> _Fused:
+        """The frame's alignment to the cached history (in stream order) and the network."""
+        timings = dict(prepared.timings)
+        start = time.perf_counter()
+        prep, mats, alignments = prepared.prep, None, []
+        if prep is not None:
             self._align_cached(prep)
             if self._cache:
                 mats = np.stack([c.key_from_hist for c in self._cache])
@@ -273,29 +346,35 @@ class StreamingPredictor:
                 alignments = [self._cache[0].alignment] * pad + [c.alignment for c in self._cache]
             else:
                 alignments = [Alignment(np.eye(3), 0, 0, True, "")] * (self.num_frames - 1)
-        timings["align"] = _ms(start)
+        timings["align"] += _ms(start)
 
         start = time.perf_counter()
-        logits, embedding = self.step(frame, mats, self._net_from_orig if mats is not None else None)
+        logits, embedding = self.step(prepared.frame, mats, self._net_from_orig if mats is not None else None)
         logits, embedding = logits.cpu(), embedding.cpu()  # waits for an accelerator: its time counts here
         timings["network"] = _ms(start)
         if prep is not None:
             self._cache[-1].prep = prep
+        fused = _Fused(self._index, prepared.size, logits, embedding, alignments, self._net_from_orig.copy(), timings)
+        self._index += 1
+        return fused
 
+    @torch.inference_mode()
+    def _decoded(self, fused: _Fused) -> StreamOutput:
+        """The frame's lanes from its network outputs (`stamlane.predict.postprocess.decode_lanes`)."""
         start = time.perf_counter()
-        prob = logits.softmax(dim=1)[0, 1].numpy()
+        prob = fused.logits.softmax(dim=1)[0, 1].numpy()
         lanes = decode_lanes(
             prob,
-            embedding[0].numpy(),
-            np.linalg.inv(self._net_from_orig),
+            fused.embedding[0].numpy(),
+            np.linalg.inv(fused.net_from_orig),
             self.postprocess,
             y_samples=self.y_samples,
-            orig_size=image.shape[:2],
+            orig_size=fused.size,
         )
-        timings["decode"] = _ms(start)
-        out = StreamOutput(self._index, lanes, logits, embedding, alignments, self._net_from_orig.copy(), timings)
-        self._index += 1
-        return out
+        timings = {**fused.timings, "decode": _ms(start)}
+        return StreamOutput(
+            fused.index, lanes, fused.logits, fused.embedding, fused.alignments, fused.net_from_orig, timings
+        )
 
     def _align_cached(self, prep: FramePrep) -> None:
         """Update every cached frame's ``key_from_hist`` to the new frame (chain, direct when the chain breaks)."""

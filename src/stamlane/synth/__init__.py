@@ -8,7 +8,8 @@ One module per job:
   that drives along it, box vehicles (``vehicles``), the ground texture rendered once per clip and sampled through
   each frame's exact ground homography (``render``), the challenging factors' image effects (``effects``) and the
   reveal splits' transient occluders (``transient``); ``dashcam``: what the dashcam world (format 7) adds: the camera
-  spread, marking standards, road surfaces, barriers and rails, skies, sensor effects;
+  spread, marking standards, road surfaces, barriers and rails, skies, sensor effects; ``scenery``: what the dashcam2
+  world adds to it: the sun and its shadows, curbs, poles, surface repairs, vehicles with bodies;
 - ``visibility`` and ``statistics``: where the paint of a labelled point is visible, what a clip offers the history;
 - ``writer``: `write_clip` stores a clip; ``dataset``: `generate_dataset` writes a whole set; ``cli``:
   ``stamlane synth``.
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
     from stamlane.synth.clip import SynthClip, generate_clip
     from stamlane.synth.config import FACTORS, Factor, SynthConfig
     from stamlane.synth.dataset import generate_dataset
-    from stamlane.synth.layout import FORMAT_VERSION, SPLITS, key_frames
+    from stamlane.synth.layout import FORMAT_VERSION, SPLITS, SplitCounts, key_frames
     from stamlane.synth.writer import write_clip
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "FORMAT_VERSION",
     "SPLITS",
     "Factor",
+    "SplitCounts",
     "SynthClip",
     "SynthConfig",
     "generate_clip",
@@ -49,6 +51,7 @@ _HOMES = {
     "FORMAT_VERSION": "stamlane.synth.layout",
     "SPLITS": "stamlane.synth.layout",
     "Factor": "stamlane.synth.config",
+    "SplitCounts": "stamlane.synth.layout",
     "SynthClip": "stamlane.synth.clip",
     "SynthConfig": "stamlane.synth.config",
     "generate_clip": "stamlane.synth.clip",

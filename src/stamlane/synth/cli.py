@@ -15,7 +15,7 @@ from stamlane.safety.guard import check_outputs
 from stamlane.safety.owner import claim, mark
 from stamlane.synth.config import FACTORS, WORLDS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
-from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP
+from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP, SplitCounts
 from stamlane.synth.tusimple_layout import LAYOUTS
 
 SYNTH_OWNER = {"command": "synth"}
@@ -59,7 +59,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="the demo's own set (what `stamlane demo` generates; every count, size and key step its default)",
     )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--size", type=parse_wxh, default=(360, 640), help="frame size WxH (default 640x360)")
+    p.add_argument(
+        "--size",
+        type=parse_wxh,
+        default=(SynthConfig.height, SynthConfig.width),
+        help=f"frame size WxH (default {SynthConfig.width}x{SynthConfig.height})",
+    )
     p.add_argument("--frames", type=int, default=20, help="frames per clip (default 20)")
     p.add_argument("--fps", type=float, default=SynthConfig.fps, help="frame rate of the simulated camera")
     p.add_argument(
@@ -85,20 +90,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=WORLDS,
         default="classic",
         help="classic: the world of formats 1-6 (default); dashcam: format 7's camera, markings, surfaces, barriers, "
-        "skies and sensor effects (docs/data.md)",
+        "skies and sensor effects; dashcam2: the dashcam world plus sun shadows, curbs, poles, surface repairs and "
+        "vehicles with bodies (docs/data.md)",
     )
-    p.add_argument("--randomise", action="store_true", help="dashcam world: a random colour cast per clip")
+    p.add_argument("--randomise", action="store_true", help="dashcam worlds: a random colour cast per clip")
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
-
-
-def split_counts(total: int) -> tuple[int, int, int]:
-    """``(train, val, test)`` of ``total`` clips: 10 % each for val and test (>= 1 when total >= 3)."""
-    if total < 3:
-        return total, 0, 0
-    val = test = max(1, round(total * 0.1))
-    return total - val - test, val, test
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -113,23 +111,22 @@ def _synth(args: argparse.Namespace) -> int:
     if args.clips < 1:
         print(f"stamlane synth: --clips must be >= 1, got {args.clips}", file=sys.stderr)
         return 2
-    # by default every factor has a clip: a small set's challenging-<factor>.json files are never empty
-    challenging = args.challenging_clips if args.challenging_clips is not None else max(args.clips // 10, len(FACTORS))
     flags = {
-        "challenging-clips": challenging,
-        "reveal-clips": 3 * max(1, args.clips // 10) if args.reveal_clips is None else args.reveal_clips,
-        "reveal-traffic-clips": 2 * max(1, args.clips // 10)
-        if args.reveal_traffic_clips is None
-        else args.reveal_traffic_clips,
+        "challenging-clips": args.challenging_clips,
+        "reveal-clips": args.reveal_clips,
+        "reveal-traffic-clips": args.reveal_traffic_clips,
         "train-factors": args.train_factors,
         "val-factors": args.val_factors,
         "train-motion": args.train_motion,
     }
     for flag, n in flags.items():
-        if n < 0:
+        if n is not None and n < 0:
             print(f"stamlane synth: --{flag} must be >= 0, got {n}", file=sys.stderr)
             return 2
-    counts = {flag.removesuffix("-clips").replace("-", "_"): n for flag, n in flags.items()}
+    # by default every factor has a clip: a small set's challenging-<factor>.json files are never empty
+    counts = SplitCounts.of_total(
+        args.clips, **{f.removesuffix("-clips").replace("-", "_"): n for f, n in flags.items()}
+    )
     # never written over: a folder holding anything synth did not write (its owner file), whatever the names; one of
     # synth's own holding a whole set (an interrupted one is written again)
     if (Path(args.out) / "dataset.json").exists():  # written last by either layout: a whole set
@@ -162,8 +159,8 @@ def _synth(args: argparse.Namespace) -> int:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
     check_workers(args.workers, "--workers", minimum=1)
-    if args.randomise and args.world != "dashcam":
-        print("stamlane synth: --randomise is an option of --world dashcam", file=sys.stderr)
+    if args.randomise and not args.world.startswith("dashcam"):
+        print("stamlane synth: --randomise is an option of --world dashcam2 or --world dashcam", file=sys.stderr)
         return 2
     cfg = SynthConfig(
         height=args.size[0],
@@ -173,20 +170,18 @@ def _synth(args: argparse.Namespace) -> int:
         world=args.world,
         randomise=args.randomise,
     )
-    train, val, test = split_counts(args.clips)
-    counts |= {"train": train, "val": val, "test": test}
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
     settings |= {"layout": args.layout}
     if args.demo:  # the demo's set, as ``data.synth``'s defaults make it (stamlane.data.options.SynthOptions)
-        counts = dict(DEMO_SPLITS)
+        counts = DEMO_SPLITS
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
         cfg = SynthConfig(world=args.world, randomise=args.randomise)
     start = time.perf_counter()
     mark(args.out, SYNTH_OWNER)
-    info = generate_dataset(args.out, **counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
+    info = generate_dataset(args.out, counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
     seconds = time.perf_counter() - start
-    long = counts["reveal"] + counts["reveal_traffic"] + counts["train_motion"]
-    frames = (sum(counts.values()) - long) * cfg.num_frames + long * REVEAL_FRAMES
+    long = counts.reveal + counts.reveal_traffic + counts.train_motion
+    frames = (counts.total() - long) * cfg.num_frames + long * REVEAL_FRAMES
     print(
         f"wrote {' / '.join(str(st['clips']) for st in info['statistics'].values())} "
         f"{' / '.join(info['statistics'])} clips to {args.out} ({frames / max(seconds, 1e-9):.1f} frames/s)"

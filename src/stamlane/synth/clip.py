@@ -35,8 +35,9 @@ from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
+from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, draw_bodies
 from stamlane.synth.transient import KeyOccluder
-from stamlane.synth.vehicles import Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
+from stamlane.synth.vehicles import SUN, Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
 __all__ = ["FAR_M", "HAZE_PX", "SynthClip", "generate_clip"]
 
@@ -172,7 +173,7 @@ def generate_clip(
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
     """
-    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world == "dashcam" else None
+    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world in ("dashcam", "dashcam2") else None
     if world is not None:  # the clip's own camera: its labels' rows and homographies follow from it
         cfg = replace(cfg, horizon=world.horizon, hfov_deg=world.hfov_deg, cam_height=world.cam_height)
     camera = cfg.camera()
@@ -192,14 +193,26 @@ def generate_clip(
     )
     poses, track = _ego_poses(cfg, rng, road, ego_lane)
     n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
-    surface = roadside = None
+    surface: Surface | RepairedSurface | None = None
+    roadside = scenery = None
     if world is not None:
         offsets = [m.offset for m in road.marks]
         surface = Surface.sample(rng, road.z_range, max(np.abs(offsets)))
         roadside = Roadside.sample(rng, min(offsets), max(offsets))
+    if world is not None and cfg.world == "dashcam2":  # its draws after the dashcam world's
+        sun = Sun.sample(rng, world.clear_sky)
+        scenery = Scenery.sample(rng, sun, roadside, min(offsets), max(offsets), road.z_range)
+        surface = RepairedSurface.sample(rng, surface, road.z_range, offsets)
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
     textures = render_texture(
-        road, rng, shadows=n_shadows, shadow_depth=cfg.shadow_depth, unpainted=paint_contrast, surface=surface
+        road,
+        rng,
+        shadows=n_shadows,
+        shadow_depth=cfg.shadow_depth,
+        unpainted=paint_contrast,
+        surface=surface,
+        cast=scenery.shadows(road.centre, road.z_range) if scenery is not None else None,
+        cast_depth=scenery.sun.depth if scenery is not None else 0.0,
     )
     texture, bare = textures if paint_contrast else (textures, None)
     vehicles: list[Vehicle] = []
@@ -219,6 +232,9 @@ def generate_clip(
             ahead=cfg.vehicle_ahead,
             speed_ratio=cfg.vehicle_speed,
         )
+    styles = [BodyStyle.sample(rng, v.height > 1.6) for v in vehicles] if scenery is not None else []
+    sun_shift = scenery.sun.displacement() if scenery is not None else SUN
+    moving_depth = scenery.sun.depth if scenery is not None else cfg.moving_shadow_depth
     sky, ridge = _sky(cfg, rng)
     hills = 0.04
     if world is not None:
@@ -256,18 +272,23 @@ def generate_clip(
         _draw_ridge(frame, ridge, horizon, pose, camera, hills)
         if roadside is not None:
             roadside.draw(frame, road.centre, camera, pose, FAR_M)
+        if scenery is not None:
+            scenery.draw(frame, road.centre, camera, pose, FAR_M)
         if vehicles:
             shade = np.zeros((cfg.height, cfg.width), np.uint8)
             for v in vehicles:
-                for poly in shadow_polygons(v, road, t):
+                for poly in shadow_polygons(v, road, t, sun_shift):
                     pix = camera.project_polygon(pose, poly)
                     if pix is not None:
                         cv2.fillPoly(shade, [np.round(pix * 16).astype(np.int32)], 255, lineType=cv2.LINE_AA, shift=4)
             shade = cv2.blur(shade, (5, 5))
-            factor = 1.0 - cfg.moving_shadow_depth * shade.astype(np.float32) / 255.0
+            factor = 1.0 - moving_depth * shade.astype(np.float32) / 255.0
             frame = (frame * factor[..., None]).astype(np.uint8)
         mask = np.zeros((cfg.height, cfg.width), np.uint8)
-        draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
+        if styles:
+            draw_bodies(frame, mask, vehicles, styles, road, camera, pose, t)
+        else:
+            draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
         if night_light is not None:
             frame = night(frame, frame_rng, night_light, horizon)
         if cfg.glare_prob > 0 and frame_rng.random() < cfg.glare_prob:

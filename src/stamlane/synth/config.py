@@ -32,8 +32,10 @@ __all__ = [
     "clip_kinds",
 ]
 
-WORLDS = ("classic", "dashcam")
-"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, or the dashcam world of format 7."""
+WORLDS = ("classic", "dashcam", "dashcam2")
+"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, the dashcam world of format 7, or the dashcam2
+world (the dashcam world plus the sun's shadows, curbs, poles, surface repairs and vehicles with bodies,
+`stamlane.synth.scenery`)."""
 KEY_OCCLUDERS = ("spray", "blobs", "flash")
 """The kinds of transient occluder of the last frames (``SynthConfig.key_occluder``; drawn by
 `stamlane.synth.transient.KeyOccluder`)."""
@@ -234,9 +236,11 @@ class SynthConfig:
     spread over dashcam ranges (its horizon, field of view and height replace ``horizon``, ``hfov_deg`` and
     ``cam_height``), the dash and gap lengths of a marking standard with raised pavement markers, concrete or asphalt
     with joints, seams and a shoulder of another shade, concrete barriers and guard rails, clear or overcast skies,
-    sensor effects (blur, noise, exposure, vignetting, JPEG)."""
+    sensor effects (blur, noise, exposure, vignetting, JPEG); "dashcam2" (`stamlane.synth.scenery`): the dashcam world
+    plus a sun whose direction and height cast every shadow (vehicles, barrier, rail, poles), curbs, poles, long
+    repair strips, sealed joints and cracks, and vehicles with wheels, body, cabin, glass and lights."""
     randomise: bool = False
-    """Domain randomisation in the dashcam world: a random colour cast per clip."""
+    """Domain randomisation in the dashcam worlds: a random colour cast per clip."""
 
     @classmethod
     def with_factor(cls, factor: str, **overrides: object) -> SynthConfig:
@@ -259,8 +263,8 @@ class SynthConfig:
             raise ValueError(f"key_occluder must be one of {KEY_OCCLUDERS} or empty, got {self.key_occluder!r}")
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
-        if self.randomise and self.world != "dashcam":
-            raise ValueError("randomise is an option of the dashcam world: set world='dashcam' too")
+        if self.randomise and not self.world.startswith("dashcam"):
+            raise ValueError("randomise is an option of the dashcam worlds: set world='dashcam' or 'dashcam2' too")
         if not 1 <= self.key_occluder_frames <= self.num_frames:
             raise ValueError(f"key_occluder_frames must be in [1, num_frames], got {self.key_occluder_frames}")
 

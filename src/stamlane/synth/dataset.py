@@ -13,6 +13,7 @@ import json
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path, PurePosixPath
+from typing import Any
 
 import cv2
 import numpy as np
@@ -32,6 +33,7 @@ from stamlane.synth.layout import (
     TEMPORAL_LABELS,
     TRAIN_KEY_STEP,
     VISIBILITY_DIR,
+    SplitCounts,
     key_frames,
 )
 from stamlane.synth.statistics import clip_statistics, key_frame_visibility, visibility_shares
@@ -77,7 +79,7 @@ class _ClipJob:
     """Where the clip's frames go and the rows its lanes are labelled at (`stamlane.synth.tusimple_layout`)."""
 
 
-def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]:
+def _make_clip(job: _ClipJob) -> tuple[list[dict[str, Any]], dict[str, float], list[dict[str, Any]]]:
     """Render and write one clip (a worker of `generate_dataset`): its key-frame records, `clip_statistics` and,
     when asked, the visibility records of its key frames (`key_frame_visibility`)."""
     cv2.setNumThreads(1)  # the pool already runs one clip per core
@@ -99,16 +101,8 @@ def _make_clip(job: _ClipJob) -> tuple[list[dict], dict[str, float], list[dict]]
 
 def generate_dataset(
     root: str | Path,
+    splits: SplitCounts,
     *,
-    train: int = 80,
-    val: int = 10,
-    test: int = 10,
-    challenging: int = 10,
-    train_factors: int = 0,
-    val_factors: int = 0,
-    reveal: int = 0,
-    reveal_traffic: int = 0,
-    train_motion: int = 0,
     seed: int = 0,
     config: SynthConfig | None = None,
     progress: bool = True,
@@ -117,23 +111,22 @@ def generate_dataset(
     workers: int = 1,
     visibility: bool = True,
     layout: str = "stamlane",
-) -> dict:
+) -> dict[str, Any]:
     """Write a synthetic clip set (the layout of `stamlane.synth.layout`).
 
     Args:
         root: output folder (created; existing clips of the same ids are overwritten).
-        train, val, test: clips per split with the normal settings.
-        challenging: clips of the challenging split: clip ``i`` has the factor ``challenging_factor(i)`` on top
-            of ``config`` (`FACTORS`); each factor's key frames also go to ``challenging-<factor>.json``.
-        train_factors, val_factors: clips with a challenging factor added to the train and val splits after
-            their clean clips (ids ``train-<train + i>``: factor ``challenging_factor(i)``), so that training has
-            a reason to read the history; they come from their own seeds (their split and index), never the
-            test or challenging clips', and leave the clean clips as they were. With them, ``train-clean.json``
-            / ``val-clean.json`` list the clean clips' key frames alone.
-        reveal, reveal_traffic: clips of the ``reveal`` and ``reveal-traffic`` splits (`REVEAL`,
+        splits: clips per split (`SplitCounts`). ``challenging``: clip ``i`` has the factor
+            ``challenging_factor(i)`` on top of ``config`` (`FACTORS`); each factor's key frames also go to
+            ``challenging-<factor>.json``. ``train_factors``, ``val_factors``: clips with a challenging factor added
+            to the train and val splits after their clean clips (ids ``train-<train + i>``: factor
+            ``challenging_factor(i)``), so that training has a reason to read the history; they come from their own
+            seeds (their split and index), never the test or challenging clips', and leave the clean clips as they
+            were. With them, ``train-clean.json`` / ``val-clean.json`` list the clean clips' key frames alone.
+            ``reveal``, ``reveal_traffic``: clips of the ``reveal`` and ``reveal-traffic`` splits (`REVEAL`,
             `REVEAL_TRAFFIC`, kinds cycled; the key frame alone labelled; visibility over every history frame).
-        train_motion: `TRAIN_MOTION` clips added to the train split after its factor clips (the reveal splits'
-            ego motion, key frames as ``train_key_step``), named ``motion`` in ``clip_factors``.
+            ``train_motion``: `TRAIN_MOTION` clips added to the train split after its factor clips (the reveal
+            splits' ego motion, key frames as ``train_key_step``), named ``motion`` in ``clip_factors``.
         seed: master seed; clip ``i`` of a split depends only on ``(seed, split, i)``.
         config: settings of the normal splits (default ``SynthConfig()``); every factor and kind overrides it.
         progress: show a tqdm progress bar.
@@ -153,19 +146,8 @@ def generate_dataset(
     """
     root = Path(root)
     cfg = config or SynthConfig()
-    counts = {
-        "train": train,
-        "val": val,
-        "test": test,
-        "challenging": challenging,
-        "reveal": reveal,
-        "reveal-traffic": reveal_traffic,
-    }
-    extra = {"train": train_factors + train_motion, "val": val_factors}
-    named = {"train_factors": train_factors, "val_factors": val_factors, "train_motion": train_motion}
-    for name, n in (counts | named).items():
-        if n < 0:
-            raise ValueError(f"clip count of split {name!r} must be >= 0, got {n}")
+    counts = {split: getattr(splits, split.replace("-", "_")) for split in SPLITS}
+    extra = {"train": splits.train_factors + splits.train_motion, "val": splits.val_factors}
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if layout not in LAYOUTS:
@@ -195,7 +177,7 @@ def generate_dataset(
             jobs, kinds = [], []
             for i in range(counts[split] + extra.get(split, 0)):
                 kind = clip_kinds(split, i, counts[split])
-                if split == "train" and i >= train + train_factors:
+                if split == "train" and i >= splits.train + splits.train_factors:
                     kind = ("motion", TRAIN_MOTION)
                 split_cfg = cfg if kind is None else replace(cfg, **kind[1].overrides)
                 if kind is not None:
@@ -204,9 +186,9 @@ def generate_dataset(
                 see = visibility and split != "train"
                 job = _ClipJob(root, split, split_cfg, seed, code, i, steps[split], see, reach_of[split], layout)
                 jobs.append(job)
-            records: list[dict] = []
-            by_file: dict[str, list[dict]] = {name: [] for name in split_label_files(layout, split)}
-            seen: list[dict] = []
+            records: list[dict[str, Any]] = []
+            by_file: dict[str, list[dict[str, Any]]] = {name: [] for name in split_label_files(layout, split)}
+            seen: list[dict[str, Any]] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
             for index, kind, (clip_records, clip_stats, clip_seen) in zip(
                 range(len(jobs)), kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
@@ -240,7 +222,7 @@ def generate_dataset(
             for name in {"challenging": FACTORS, "reveal": REVEAL, "reveal-traffic": REVEAL_TRAFFIC}[split]:
                 if split == "challenging" or counts[split]:
                     write_json_lines(root / f"{split}-{name}.json", by_kind.get((split, name), []))
-        write_temporal_labels(root, challenging)
+        write_temporal_labels(root, splits.challenging)
     finally:
         if pool:
             pool.shutdown()
@@ -254,7 +236,7 @@ def generate_dataset(
         "reveal_kinds": {name: asdict(kind) for name, kind in (REVEAL | REVEAL_TRAFFIC).items()},
         "clip_factors": clip_factors,
         "visibility_reach": {split: reach_of[split] for split in SPLITS if split != "train" and visibility},
-        "splits": {name.replace("-", "_"): n for name, n in counts.items()} | named,
+        "splits": splits.as_dict(),
         "key_frames": {split: [k + 1 for k in keys[split]] for split in SPLITS[:4]}
         | {split: [REVEAL_FRAMES] for split in ("reveal", "reveal-traffic") if counts[split]},
         "statistics": stats,

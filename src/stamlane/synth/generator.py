@@ -39,6 +39,7 @@ from stamlane.synth.layout import (
     TEMPORAL_LABELS,
     TRAIN_KEY_STEP,
     VISIBILITY_DIR,
+    SplitCounts,
     key_frames,
 )
 from stamlane.synth.statistics import clip_statistics, key_frame_visibility
@@ -65,6 +66,7 @@ __all__ = [
     "TRAIN_MOTION",
     "VISIBILITY_DIR",
     "Factor",
+    "SplitCounts",
     "SynthClip",
     "SynthConfig",
     "challenging_factor",

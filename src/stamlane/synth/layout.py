@@ -31,6 +31,8 @@ that is killed leaves whole files or none.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 __all__ = [
     "DEFAULT_SYNTHETIC_ROOT",
     "DEMO_SPLITS",
@@ -44,6 +46,7 @@ __all__ = [
     "TEMPORAL_LABELS",
     "TRAIN_KEY_STEP",
     "VISIBILITY_DIR",
+    "SplitCounts",
     "key_frames",
 ]
 
@@ -70,21 +73,97 @@ DEFAULT_SYNTHETIC_ROOT = f"data/synthetic-v{FORMAT_VERSION}"
 """Where ``ClipDataModule(root=None)`` and ``stamlane demo`` read the synthetic set (relative to the working
 directory; generated there when missing). Named by the format version, so a newer generator never reuses (or
 overwrites) an older set."""
-DEMO_SPLITS = {
-    "train": 120,
-    "val": 20,
-    "test": 100,
-    "challenging": 128,
-    "reveal": 90,
-    "reveal_traffic": 60,
-    "train_factors": 120,
-    "val_factors": 32,
-    "train_motion": 96,
-}
+
+
+@dataclass(frozen=True)
+class SplitCounts:
+    """Clips per split of a synthetic set: the one place that names the splits' counts, read by the generator
+    (`stamlane.synth.dataset.generate_dataset`), ``data.synth``'s options and ``stamlane synth``.
+
+    Attributes:
+        train, val, test: clean clips of each split.
+        challenging: clips of the challenging split, one challenging factor each.
+        reveal, reveal_traffic: clips of the ``reveal`` and ``reveal-traffic`` splits.
+        train_factors, val_factors: clips with a challenging factor added to the train and val splits.
+        train_motion: clips with the reveal splits' ego motion added to the train split.
+
+    The order of the fields is the order ``dataset.json`` records them in (``splits``).
+    """
+
+    train: int = 0
+    val: int = 0
+    test: int = 0
+    challenging: int = 0
+    reveal: int = 0
+    reveal_traffic: int = 0
+    train_factors: int = 0
+    val_factors: int = 0
+    train_motion: int = 0
+
+    def __post_init__(self) -> None:
+        for name, n in self.as_dict().items():
+            if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+                raise ValueError(f"clip count of split {name!r} must be an int >= 0, got {n!r}")
+
+    @classmethod
+    def of_total(
+        cls,
+        clips: int,
+        *,
+        challenging: int | None = None,
+        reveal: int | None = None,
+        reveal_traffic: int | None = None,
+        train_factors: int = 0,
+        val_factors: int = 0,
+        train_motion: int = 0,
+    ) -> SplitCounts:
+        """``stamlane synth --clips N``'s rule: train+val+test = ``clips`` (10 % each for val and test, >= 1 when
+        ``clips`` >= 3); by default ``clips // 10`` challenging clips but at least one per factor, 3 reveal and 2
+        reveal-traffic clips per 10 (at least 3 and 2).
+
+        >>> SplitCounts.of_total(10).as_dict()["train"], SplitCounts.of_total(2).val
+        (8, 0)
+        """
+        from stamlane.synth.config import FACTORS
+
+        val = test = 0 if clips < 3 else max(1, round(clips * 0.1))
+        tenths = max(1, clips // 10)
+        return cls(
+            train=clips - val - test,
+            val=val,
+            test=test,
+            challenging=max(clips // 10, len(FACTORS)) if challenging is None else challenging,
+            reveal=3 * tenths if reveal is None else reveal,
+            reveal_traffic=2 * tenths if reveal_traffic is None else reveal_traffic,
+            train_factors=train_factors,
+            val_factors=val_factors,
+            train_motion=train_motion,
+        )
+
+    def as_dict(self) -> dict[str, int]:
+        """The counts by field name, as ``dataset.json`` records them."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def total(self) -> int:
+        """Every clip of the set."""
+        return sum(self.as_dict().values())
+
+
+DEMO_SPLITS = SplitCounts(
+    train=120,
+    val=20,
+    test=100,
+    challenging=128,
+    reveal=90,
+    reveal_traffic=60,
+    train_factors=120,
+    val_factors=32,
+    train_motion=96,
+)
 """Clips per split of the default set (``stamlane demo``, ``root: null``, ``stamlane synth --demo``): 120 clean and
 120 factor clips (15 per factor) and 96 ``train_motion`` clips in train (what makes the fusion read its history,
 docs/training.md); 20 clean and 32 factor val clips; 100 test and 128 challenging clips (16 per factor); 90 reveal
-(30 per kind) and 60 reveal-traffic clips (30 per kind). The arguments of `generate_dataset`."""
+(30 per kind) and 60 reveal-traffic clips (30 per kind)."""
 TRAIN_KEY_STEP = 1
 """Default key frames of the train split: every frame from ``FIRST_KEY`` on (13 of a 20-frame clip)."""
 EVAL_KEY_STEP = 3

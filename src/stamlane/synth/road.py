@@ -18,6 +18,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from stamlane.synth.dashcam import DashcamWorld, Surface
+    from stamlane.synth.scenery import RepairedSurface
 
 __all__ = ["LaneMark", "Road", "render_texture", "sample_road"]
 
@@ -195,7 +196,9 @@ def render_texture(
     shadows: int = 4,
     shadow_depth: float = 0.5,
     unpainted: bool = False,
-    surface: Surface | None = None,
+    surface: Surface | RepairedSurface | None = None,
+    cast: list[np.ndarray] | None = None,
+    cast_depth: float = 0.0,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Render the top-down texture of a road.
 
@@ -209,6 +212,9 @@ def render_texture(
             (`stamlane.synth.visibility`).
         surface: the dashcam world's road surface (`stamlane.synth.dashcam.Surface`: concrete or asphalt with
             joints, seams, a shoulder of another shade, wheel paths), drawn over the asphalt before the paint.
+        cast: ground polygons ``(N, 2)`` metres ``(X, Z)`` of sharp sun shadows (the dashcam2 world's barrier, rail
+            and poles, `stamlane.synth.scenery.Scenery.shadows`), darkening the ground and its paint by
+            ``cast_depth``; None: none (no draws either way).
 
     Returns:
         BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``;
@@ -329,6 +335,16 @@ def render_texture(
         k = int(max(3, 0.6 * p)) | 1
         shade = cv2.GaussianBlur(np.minimum(shade, 1.0), (k, k), 0)
         light = 1.0 - shadow_depth * shade
+        planes = [cv2.multiply(pl, light) for pl in planes]
+        bare = [cv2.multiply(pl, light) for pl in bare]
+
+    if cast:  # sharp shadows of the sun: a penumbra of ~5 cm
+        sharp = np.zeros((h, w), np.float32)
+        for poly in cast:
+            pix = np.round((np.c_[poly, np.ones(len(poly))] @ tex_from_ground.T)[:, :2] * 16).astype(np.int32)
+            cv2.fillPoly(sharp, [pix], 1.0, lineType=cv2.LINE_AA, shift=4)
+        sharp = cv2.GaussianBlur(sharp, (0, 0), max(0.8, 0.05 * p))
+        light = 1.0 - cast_depth * np.minimum(sharp, 1.0)
         planes = [cv2.multiply(pl, light) for pl in planes]
         bare = [cv2.multiply(pl, light) for pl in bare]
 

@@ -7,6 +7,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from stamlane.synth.clip import SynthClip
@@ -73,7 +75,7 @@ def key_frame_visibility(clip: SynthClip, key: int, reach: int = FIRST_KEY) -> l
     )
 
 
-def visibility_shares(records: list[dict], num_frames: int = 4) -> dict[str, float]:
+def visibility_shares(records: list[dict[str, Any]], num_frames: int = 4) -> dict[str, float]:
     """The share of labelled key-frame points in each visibility class for ``num_frames`` frames at stride 1.
 
     Args:

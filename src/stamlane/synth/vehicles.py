@@ -144,15 +144,17 @@ def _hits_ego(v: Vehicle, road: Road, ego_track: np.ndarray) -> bool:
     return False
 
 
-def shadow_polygons(vehicle: Vehicle, road: Road, t: float) -> list[np.ndarray]:
-    """Ground polygons (each (4, 3) world points) of a vehicle's contact shadow and cast shadow."""
+def shadow_polygons(vehicle: Vehicle, road: Road, t: float, sun: np.ndarray = SUN) -> list[np.ndarray]:
+    """Ground polygons (each (4, 3) world points) of a vehicle's contact shadow and cast shadow; ``sun``: the ground
+    displacement ``(X, Z)`` of the shadow per metre of height (`SUN`; the dashcam2 world's clip's
+    `stamlane.synth.scenery.Sun.displacement`)."""
     c = vehicle.corners(road, t)
     bottom = c[:4].copy()
     centre = bottom.mean(axis=0)
     contact = centre + (bottom - centre) * 1.12
     cast = bottom.copy()
-    cast[:, 0] += SUN[0] * vehicle.height
-    cast[:, 2] += SUN[1] * vehicle.height
+    cast[:, 0] += sun[0] * vehicle.height
+    cast[:, 2] += sun[1] * vehicle.height
     hull = cv2.convexHull(np.concatenate([bottom[:, [0, 2]], cast[:, [0, 2]]]).astype(np.float32))[:, 0]
     cast_poly = np.stack([hull[:, 0], np.zeros(len(hull)), hull[:, 1]], axis=1).astype(np.float64)
     return [contact, cast_poly]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import cv2
 
@@ -21,7 +22,7 @@ __all__ = ["write_clip", "write_json_lines"]
 
 def write_clip(
     clip: SynthClip, root: Path, clip_id: str, jpeg_quality: int = 92, key_step: int = 0, folder: str | None = None
-) -> list[dict]:
+) -> list[dict[str, Any]]:
     """Write a clip's frames, per-frame labels and homographies under ``root``.
 
     Args:
@@ -66,7 +67,7 @@ def write_clip(
     ]
 
 
-def write_json_lines(path: Path, records: list[dict]) -> None:
+def write_json_lines(path: Path, records: list[dict[str, Any]]) -> None:
     """Write ``records`` to ``path`` as JSON lines (one object a line, each line ended: the TuSimple label files'
     format), atomically; its folder is created when missing."""
     write_atomic(path, "".join(json.dumps(r) + "\n" for r in records))

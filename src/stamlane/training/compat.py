@@ -83,8 +83,8 @@ def _flat_name(group: str, field: str) -> str:
     return f"synth_{field}" if group == "synth" else field
 
 
-GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion")}
-"""Options added after the groups (generator format 6): they never had a flat name."""
+GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion"), ("loader", "memory_mb")}
+"""Options added after the groups (generator format 6; the frame store): they never had a flat name."""
 FLAT_KEYS: dict[str, tuple[str, str]] = {
     _flat_name(group, f.name): (group, f.name)
     for group, cls in GROUPS.items()
@@ -231,7 +231,8 @@ def upgrade_names(value: Any, where: str = "") -> Any:
     if not isinstance(value, Mapping):
         return value
     out = {key: upgrade_names(item, f"{where}.{key}" if where else str(key)) for key, item in value.items()}
-    renamed = RENAMED_OPTIONS.get(out.get("class_path")) if isinstance(out.get("class_path"), str) else None
+    class_path = out.get("class_path")
+    renamed = RENAMED_OPTIONS.get(class_path) if isinstance(class_path, str) else None
     if renamed and isinstance(out.get("init_args"), Mapping):
         out["init_args"] = _renamed_keys(out["init_args"], renamed, f"{where}.init_args" if where else "init_args")
     return out

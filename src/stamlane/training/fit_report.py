@@ -72,7 +72,9 @@ class FitReport(pl.Callback):
     def _better(self, score: float, than: Best | None, mode: str) -> bool:
         return than is None or (score > than.score if mode == "max" else score < than.score)
 
-    def on_load_checkpoint(self, trainer: pl.Trainer, pl_module: pl.LightningModule, checkpoint: dict) -> None:
+    def on_load_checkpoint(
+        self, trainer: pl.Trainer, pl_module: pl.LightningModule, checkpoint: dict[str, Any]
+    ) -> None:
         keeper = _keeper(trainer)
         if keeper is None:
             return

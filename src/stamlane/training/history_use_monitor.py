@@ -25,6 +25,7 @@ from lightning.pytorch import Callback
 from stamlane_eval.integrations.torchmetrics import TuSimpleMetric
 from stamlane_eval.tusimple import lanes_to_xs
 
+from stamlane.training.module import StamLaneModule
 from stamlane.types import NET_HOMOGRAPHIES, nameable
 
 __all__ = ["HistoryUseMonitor", "key_copied"]
@@ -81,6 +82,8 @@ class HistoryUseMonitor(Callback):
     ) -> None:
         if not isinstance(batch, dict) or batch["frames"].shape[1] < 2:
             return
+        if not isinstance(pl_module, StamLaneModule):
+            raise TypeError(f"HistoryUseMonitor watches a StamLaneModule, got {type(pl_module).__name__}")
         logits, embedding = pl_module(batch["frames"], batch.get(NET_HOMOGRAPHIES))
         probe_logits, probe_embedding = pl_module(*key_copied(batch))
         if "binary" in batch and "instance" in batch:

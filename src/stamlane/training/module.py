@@ -52,12 +52,12 @@ from stamlane.types import NET_HOMOGRAPHIES, nameable
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
 
 
-OptimizerCallable = Callable[[Iterable], Optimizer]
+OptimizerCallable = Callable[[Iterable[Any]], Optimizer]
 SchedulerCallable = Callable[[Optimizer, int], LRScheduler]
 
 
 @nameable
-def paper_sgd(params: Iterable) -> Optimizer:
+def paper_sgd(params: Iterable[Any]) -> Optimizer:
     """SGD as in the paper: momentum 0.9. The paper's base learning rate was lost from our copy of the text;
     0.05 (with weight decay 5e-4) is the reference LaneNet implementation's (MaybeShewill-CV/lanenet)."""
     return torch.optim.SGD(params, lr=0.05, momentum=0.9, weight_decay=5e-4)
@@ -80,7 +80,7 @@ class PolyLR(LRScheduler):
         self.power = float(power)
         super().__init__(optimizer)
 
-    def get_lr(self) -> list[float]:
+    def get_lr(self) -> list[float | Tensor]:
         factor = max(0.0, 1.0 - min(self.last_epoch, self.total_steps) / self.total_steps) ** self.power
         return [base_lr * factor for base_lr in self.base_lrs]
 
@@ -201,7 +201,8 @@ class StamLaneModule(LightningModule):
                 )
             self.example_input_array = torch.zeros(1, num_frames or 1, 3, height, width)
         if channels_last:
-            self.net.to(memory_format=torch.channels_last)
+            # torch's stub of Module.to lists no memory_format, which Module.to takes
+            self.net.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self._eval_losses: list[tuple[Any, float]] = []  # (image key, loss) of this evaluation epoch
         self._eval_seen = 0
 
@@ -263,7 +264,8 @@ class StamLaneModule(LightningModule):
         """
         from stamlane.training.registry import build_module
 
-        return build_module(read_checkpoint(path), path)
+        module: StamLaneModule = build_module(read_checkpoint(path), path)  # built from the registry
+        return module
 
     # ------------------------------------------------------------------ network
     def forward(self, clip: Tensor, key_from_hist_net: Tensor | None = None) -> tuple[Tensor, Tensor]:
@@ -290,15 +292,17 @@ class StamLaneModule(LightningModule):
                 logits, embedding = forward_feature_aligned(self.net, clip, key_from_hist_net)
         return logits.float(), embedding.float()
 
-    def _run(self, batch: dict) -> tuple[Tensor, Tensor]:
+    def _run(self, batch: dict[str, Any]) -> tuple[Tensor, Tensor]:
         """The network on a batch, in the alignment space of its data (``key_from_hist_net`` present or not)."""
-        return self(batch["frames"], batch.get(NET_HOMOGRAPHIES))
+        out: tuple[Tensor, Tensor] = self(batch["frames"], batch.get(NET_HOMOGRAPHIES))
+        return out
 
-    def _losses(self, batch: dict, logits: Tensor, embedding: Tensor) -> dict[str, Tensor]:
-        return self.loss(logits, embedding, batch["binary"], batch["instance"])
+    def _losses(self, batch: dict[str, Any], logits: Tensor, embedding: Tensor) -> dict[str, Tensor]:
+        terms: dict[str, Tensor] = self.loss(logits, embedding, batch["binary"], batch["instance"])
+        return terms
 
     # ------------------------------------------------------------------ steps
-    def training_step(self, batch: dict, batch_idx: int) -> Tensor:
+    def training_step(self, batch: dict[str, Any], batch_idx: int) -> Tensor:
         logits, embedding = self._run(batch)
         terms = self._losses(batch, logits, embedding)
         size = batch["frames"].shape[0]
@@ -307,7 +311,7 @@ class StamLaneModule(LightningModule):
             self.log(f"train/loss_{name}", terms[name], batch_size=size)
         return terms["loss"]
 
-    def decode(self, logits: Tensor, embedding: Tensor, metas: Sequence[dict]) -> list[list[np.ndarray]]:
+    def decode(self, logits: Tensor, embedding: Tensor, metas: Sequence[dict[str, Any]]) -> list[list[np.ndarray]]:
         """Lanes of each image of a batch, in original pixels (see `stamlane.predict.postprocess.decode_lanes`).
 
         Args:
@@ -335,7 +339,7 @@ class StamLaneModule(LightningModule):
             )
         return lanes
 
-    def _detect(self, batch: dict) -> tuple[Tensor, Tensor, list[list[np.ndarray]], list[float]]:
+    def _detect(self, batch: dict[str, Any]) -> tuple[Tensor, Tensor, list[list[np.ndarray]], list[float]]:
         start = time.perf_counter()
         logits, embedding = self._run(batch)
         network_ms = (time.perf_counter() - start) * 1000.0 / max(len(batch["meta"]), 1)
@@ -346,7 +350,7 @@ class StamLaneModule(LightningModule):
             run_time.append(network_ms + (time.perf_counter() - start) * 1000.0)
         return logits, embedding, lanes, run_time
 
-    def _eval_step(self, batch: dict, stage: str) -> dict[str, Any]:
+    def _eval_step(self, batch: dict[str, Any], stage: str) -> dict[str, Any]:
         logits, embedding, lanes, run_time = self._detect(batch)
         metas = batch["meta"]
         keys = [self._image_key(meta, i) for i, meta in enumerate(metas)]
@@ -367,7 +371,7 @@ class StamLaneModule(LightningModule):
             "image_id": keys,
         }
 
-    def _image_key(self, meta: dict, i: int) -> Any:
+    def _image_key(self, meta: dict[str, Any], i: int) -> Any:
         """An image's key in its split: its index (``meta["index"]``, `stamlane.data.datamodule.Indexed`), else its
         position on this process with the rank (the order of a strided sampler)."""
         index = meta.get(INDEX_KEY)
@@ -398,13 +402,13 @@ class StamLaneModule(LightningModule):
         else:
             self.log(f"{stage}/loss", mean)
 
-    def validation_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
+    def validation_step(self, batch: dict[str, Any], batch_idx: int) -> dict[str, Any]:
         return self._eval_step(batch, "val")
 
-    def test_step(self, batch: dict, batch_idx: int) -> dict[str, Any]:
+    def test_step(self, batch: dict[str, Any], batch_idx: int) -> dict[str, Any]:
         return self._eval_step(batch, "test")
 
-    def predict_step(self, batch: dict, batch_idx: int, dataloader_idx: int = 0) -> list[dict[str, Any]]:
+    def predict_step(self, batch: dict[str, Any], batch_idx: int, dataloader_idx: int = 0) -> list[dict[str, Any]]:
         """Per image: ``{"lanes", "meta", "run_time"}`` (lanes in original pixels, run_time in ms)."""
         _, _, lanes, run_time = self._detect(batch)
         return [

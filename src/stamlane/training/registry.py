@@ -301,7 +301,8 @@ def check_hparams(hparams: Any, source: str | Path) -> dict[str, Any]:
         raise CheckpointError(f"checkpoint {source}: hyper_parameters.{err}") from None
     except RecursionError:
         raise CheckpointError(f"checkpoint {source}: hyper_parameters nested too deeply") from None
-    return hparams
+    checked: dict[str, Any] = hparams  # a mapping: check_section refused anything else
+    return checked
 
 
 def check_data_hparams(hparams: Any, source: str | Path) -> None:

@@ -26,7 +26,9 @@ __all__ = ["ExactResume", "get_rng_states", "set_rng_states"]
 
 def get_rng_states() -> dict[str, Any]:
     """Global random states of torch, numpy and ``random``, as tensors and plain values."""
-    kind, keys, pos, has_gauss, cached = np.random.get_state()  # noqa: NPY002 (the global state is the point)
+    legacy = np.random.get_state()  # noqa: NPY002 (the global state is the point)
+    assert isinstance(legacy, tuple)  # legacy=True (the default): the 5-tuple, never the dict
+    kind, keys, pos, has_gauss, cached = legacy
     version, state, gauss = random.getstate()
     return {
         "torch": torch.get_rng_state(),

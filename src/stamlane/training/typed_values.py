@@ -143,7 +143,8 @@ def parameter_hints(target: Any) -> tuple[dict[str, Any], tuple[str, ...]]:
     if dataclasses.is_dataclass(target):
         hints = typing.get_type_hints(target)
         return hints, tuple(f.name for f in dataclasses.fields(target) if f.init)
-    function = target.__init__ if isinstance(target, type) else target
+    is_class = isinstance(target, type)  # (not narrowed: mypy refuses __init__ on a narrowed type)
+    function = target.__init__ if is_class else target
     try:
         hints = typing.get_type_hints(function)
     except (NameError, TypeError, AttributeError):  # an annotation that names what is not importable: unchecked
@@ -188,7 +189,7 @@ def _lookup(name: Any, key: str) -> Any:
     return found
 
 
-def _check_class(value: dict, arms: list[Any], key: str) -> Any:
+def _check_class(value: dict[str, Any], arms: list[Any], key: str) -> Any:
     """A ``{class_path, init_args}`` mapping: the name in the table, of a kind one of ``arms`` takes."""
     for extra in value:
         if extra not in ("class_path", "init_args"):
@@ -284,7 +285,7 @@ def _check_text(value: str, arms: list[Any], kinds: list[str], key: str) -> None
         raise Refused(key, f"names {value!r}, which is no {_wanted(arms)}")
 
 
-def _check_list(value: list, arms: list[Any], kinds: list[str], key: str) -> None:
+def _check_list(value: list[Any], arms: list[Any], kinds: list[str], key: str) -> None:
     for arm, k in zip(arms, kinds):
         if k == "any":
             return _check_any(value, key)
@@ -303,7 +304,7 @@ def _check_list(value: list, arms: list[Any], kinds: list[str], key: str) -> Non
     raise Refused(key, f"must be {_describe_arms(arms)}, got a list {short(value)}")
 
 
-def _check_mapping(value: dict, arms: list[Any], kinds: list[str], key: str) -> None:
+def _check_mapping(value: dict[str, Any], arms: list[Any], kinds: list[str], key: str) -> None:
     if "class_path" in value:
         if not any(k in ("class", "callable") for k in kinds):
             raise Refused(f"{key}.class_path", f"a class where a plain value goes ({short(value['class_path'])})")

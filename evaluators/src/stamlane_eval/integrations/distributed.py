@@ -12,13 +12,22 @@ scores them.
 from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 import torch
 
 __all__ = ["RepeatedImageError", "broadcast_from_zero", "gather_records", "is_distributed", "rank", "world_size"]
 
 T = TypeVar("T")
+
+
+class SortKey(Hashable, Protocol):
+    """What `gather_records` needs of a key: hashable (one image once) and ordered (the order of the split)."""
+
+    def __lt__(self, other: Any, /) -> bool: ...
+
+
+K = TypeVar("K", bound=SortKey)
 
 
 class RepeatedImageError(ValueError):
@@ -38,7 +47,7 @@ def rank() -> int:
     return torch.distributed.get_rank() if torch.distributed.is_initialized() else 0
 
 
-def gather_records(records: Sequence[tuple[Hashable, T]], what: str) -> list[tuple[Hashable, T]]:
+def gather_records(records: Sequence[tuple[K, T]], what: str) -> list[tuple[K, T]]:
     """The records of every process, sorted by key, on every process.
 
     Args:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import lightning.pytorch as pl
 import numpy as np
@@ -131,7 +131,8 @@ class LaneEvalCallback(pl.Callback):
         self.temporal_metric = TemporalStabilityMetric(
             video_iou_thresholds, size, protocol=temporal_protocol, sync_on_compute=False
         )
-        self._records: list[tuple[object, dict[str, object]]] = []  # (key, one image's inputs) of this epoch
+        # (key, one image's inputs) of this epoch: the key and the values are the step's (any sortable key)
+        self._records: list[tuple[Any, dict[str, Any]]] = []
 
     # ---------------------------------------------------------------------------------------- hooks
     def on_validation_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
@@ -191,7 +192,7 @@ class LaneEvalCallback(pl.Callback):
             record["pred_lanes"], record["gt_lanes"] = _lanes(record["pred_lanes"]), _lanes(record["gt_lanes"])
             self._records.append((key, record))
 
-    def _score(self, records: list[dict[str, object]]) -> None:
+    def _score(self, records: list[dict[str, Any]]) -> None:
         """Update the metrics with every image's record, in the order given (that of the split)."""
         n = len(records)
         preds = [r["pred_lanes"] for r in records]
@@ -225,13 +226,14 @@ class LaneEvalCallback(pl.Callback):
         records = [record for _, record in gather_records(self._records, f"{prefix} scores")]
         self._records = []
         values = broadcast_from_zero(self._values(records, prefix) if rank() == 0 else None)
+        assert values is not None  # process 0's numbers, on every process
         for name, value in values.items():
             if is_distributed():  # the same number on every process: max gives it back exactly (mean may not)
                 pl_module.log(name, value, sync_dist=True, reduce_fx="max")
             else:
                 pl_module.log(name, value)
 
-    def _values(self, records: list[dict[str, object]], prefix: str) -> dict[str, float]:
+    def _values(self, records: list[dict[str, Any]], prefix: str) -> dict[str, float]:
         """The logged numbers of every image's record (process 0), ``{log name: value}``."""
         limit = self.tusimple_time_limit
         self.tusimple_metric.time_limit = limit is True or (limit == "test" and prefix == self.test_prefix)

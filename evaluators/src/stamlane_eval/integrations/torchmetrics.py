@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import warnings
 from collections.abc import Hashable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -72,6 +73,15 @@ class TuSimpleMetric(Metric):
     higher_is_better = True
     _FLOATS = ("acc", "fp", "fn")
     _INTS = ("images", "lane_tp", "lane_pred", "lane_gt")
+    # the states (add_state), 0-d: float64 sums, int64 counts
+    acc_sum: torch.Tensor
+    fp_sum: torch.Tensor
+    fn_sum: torch.Tensor
+    images: torch.Tensor
+    lane_tp: torch.Tensor
+    lane_pred: torch.Tensor
+    lane_gt: torch.Tensor
+    late: torch.Tensor
 
     def __init__(self, time_limit: bool = True, **kwargs: object) -> None:
         super().__init__(**kwargs)
@@ -83,8 +93,15 @@ class TuSimpleMetric(Metric):
         self.add_state("late", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
 
     def _sums(self) -> TuSimpleSums:
-        floats = {name: float(getattr(self, f"{name}_sum")) for name in self._FLOATS}
-        return TuSimpleSums(**floats, **{name: int(getattr(self, name)) for name in self._INTS})
+        return TuSimpleSums(
+            acc=float(self.acc_sum),
+            fp=float(self.fp_sum),
+            fn=float(self.fn_sum),
+            images=int(self.images),
+            lane_tp=int(self.lane_tp),
+            lane_pred=int(self.lane_pred),
+            lane_gt=int(self.lane_gt),
+        )
 
     def update(
         self,
@@ -142,6 +159,11 @@ class CULaneMetric(Metric):
 
     full_state_update = False
     higher_is_better = True
+    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images
+    tp: torch.Tensor
+    fp: torch.Tensor
+    fn: torch.Tensor
+    images: torch.Tensor
 
     def __init__(
         self,
@@ -255,6 +277,13 @@ class VideoMetric(Metric):
 
     full_state_update = False
     higher_is_better = True
+    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images; "cat" lists of (n,) tensors
+    tp: torch.Tensor
+    fp: torch.Tensor
+    fn: torch.Tensor
+    images: torch.Tensor
+    frame_miou: list[torch.Tensor]
+    frame_sequence: list[torch.Tensor]
 
     def __init__(
         self,
@@ -309,7 +338,8 @@ class VideoMetric(Metric):
             keys = dim_zero_cat(self.frame_sequence).tolist()
             for key, value in zip(keys, dim_zero_cat(self.frame_miou).tolist(), strict=True):
                 per_sequence.setdefault(key, []).append(value)
-        mious = [sequence_miou(v) for v in per_sequence.values()]  # frames of a sequence in the order they came
+        # frames of a sequence in the order they came; no list is empty, so no mIoU is None
+        mious = [m for m in map(sequence_miou, per_sequence.values()) if m is not None]
         out = {"miou": torch.tensor(dataset_miou(mious), dtype=torch.float64)}
         for i, t in enumerate(self.iou_thresholds):
             c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
@@ -337,6 +367,12 @@ class TemporalStabilityMetric(Metric):
 
     full_state_update = False
     higher_is_better = None  # Rs up, Rj and Rm down
+    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images and pairs
+    ns: torch.Tensor
+    nj: torch.Tensor
+    nm: torch.Tensor
+    images: torch.Tensor
+    pairs: torch.Tensor
 
     def __init__(
         self,
@@ -389,7 +425,7 @@ class TemporalStabilityMetric(Metric):
         self.images += len(frames)
         self.pairs += len(per_pair)
 
-    def forward(self, *args: object, **kwargs: object) -> None:
+    def forward(self, *args: Any, **kwargs: Any) -> None:
         self.update(*args, **kwargs)
 
     def reset(self) -> None:

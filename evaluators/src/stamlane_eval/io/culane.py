@@ -37,7 +37,7 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 
 
 def read_culane_lines(
-    path: str | os.PathLike, missing_ok: bool = True, *, prediction: bool = False
+    path: str | os.PathLike[str], missing_ok: bool = True, *, prediction: bool = False
 ) -> list[np.ndarray]:
     """Read one CULane ``.lines.txt`` file.
 
@@ -138,6 +138,7 @@ def cpp_stream_doubles(raw: bytes) -> list[float]:
     pos = 0
     while True:
         m = _CPP_DOUBLE.match(raw, pos)
+        assert m is not None  # every part of the pattern is optional: it matches at any position
         try:
             v = float(m.group(1))  # the accumulated characters must be one whole number, as strtod's check
         except ValueError:
@@ -148,7 +149,7 @@ def cpp_stream_doubles(raw: bytes) -> list[float]:
         pos = m.end()
 
 
-def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
+def culane_lines_path(root: str | os.PathLike[str], entry: str) -> Path:
     """The ``.lines.txt`` of a list entry: ``/driver_x/y.MP4/00000.jpg`` -> ``root/driver_x/y.MP4/00000.lines.txt``.
 
     Raises:
@@ -176,7 +177,7 @@ def culane_lines_path(root: str | os.PathLike, entry: str) -> Path:
     return Path(root) / (stem + ".lines.txt")
 
 
-def culane_entries(gt_dir: str | os.PathLike, list_file: str | os.PathLike | None = None) -> list[str]:
+def culane_entries(gt_dir: str | os.PathLike[str], list_file: str | os.PathLike[str] | None = None) -> list[str]:
     """The images to evaluate: the lines of ``list_file``, or every ``.lines.txt`` under ``gt_dir`` (sorted).
 
     Raises:

@@ -44,7 +44,7 @@ class LaneFileError(ValueError):
     """An input file that cannot be evaluated; the message names the file and the problem."""
 
 
-def read_text(path: str | os.PathLike, limit: int = MAX_FILE_BYTES, universal_newlines: bool = True) -> str:
+def read_text(path: str | os.PathLike[str], limit: int = MAX_FILE_BYTES, universal_newlines: bool = True) -> str:
     """The text of a regular file of at most ``limit`` bytes; with ``universal_newlines`` "\\r\\n" and "\\r" read
     as "\\n", as ``open(path).read()`` (lane.py's reading).
 
@@ -88,7 +88,7 @@ def read_text(path: str | os.PathLike, limit: int = MAX_FILE_BYTES, universal_ne
     return text
 
 
-def read_file(path: str | os.PathLike) -> str:
+def read_file(path: str | os.PathLike[str]) -> str:
     """`read_text`, a missing file included among the errors.
 
     Raises:

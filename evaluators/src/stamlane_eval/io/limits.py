@@ -3,6 +3,8 @@ on, never coordinate values (docs/evaluators.md, "What is scored and what is ref
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 __all__ = [
     "MAX_COORDINATE",
     "MAX_DRAWN_PIXELS",
@@ -50,7 +52,9 @@ def check_image_size(size: object) -> tuple[int, int]:
         ValueError: naming the size.
     """
     try:
-        h, w = (int(v) for v in size)  # type: ignore[union-attr]
+        if not isinstance(size, Iterable):
+            raise TypeError(size)
+        h, w = (int(v) for v in size)
     except (TypeError, ValueError):
         raise ValueError(f"size must be the image (H, W), two integers, got {size!r:.60}") from None
     if not (0 < h <= MAX_IMAGE_SIDE and 0 < w <= MAX_IMAGE_SIDE):

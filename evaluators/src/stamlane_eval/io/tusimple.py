@@ -20,6 +20,7 @@ import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +63,7 @@ class TuSimpleInputError(ValueError):
         return where + self.message
 
 
-def read_tusimple(path: str | os.PathLike, *, text: str | None = None) -> list[dict]:
+def read_tusimple(path: str | os.PathLike[str], *, text: str | None = None) -> list[dict[str, Any]]:
     """Read a TuSimple json-lines file (predictions or ground truth).
 
     As the official ``lane.py`` (``[json.loads(line) for line in readlines()]``), every line must be one JSON
@@ -88,7 +89,7 @@ def read_tusimple(path: str | os.PathLike, *, text: str | None = None) -> list[d
     body = text[:-1] if text.endswith("\n") else text
     try:  # fast path: one parse for the whole file (a blank line makes ",," and falls to the slow path)
         with gc_paused():
-            records = json.loads("[" + body.replace("\n", ",") + "]")
+            records: list[dict[str, Any]] = json.loads("[" + body.replace("\n", ",") + "]")
         if len(records) == body.count("\n") + 1 and all(type(r) is dict for r in records):
             refuse_booleans(records, text, p)
             return records
@@ -113,8 +114,8 @@ def _one_document(text: str) -> bool:
 
 
 def iter_tusimple(
-    path: str | os.PathLike, role: str | None = None, *, text: str | None = None
-) -> Iterator[tuple[int, dict | LaneFileError]]:
+    path: str | os.PathLike[str], role: str | None = None, *, text: str | None = None
+) -> Iterator[tuple[int, dict[str, Any] | LaneFileError]]:
     """The records of a TuSimple json-lines file one line at a time, for readers that may skip bad ones.
 
     Args:
@@ -173,7 +174,9 @@ def iter_tusimple(
         yield i, (LaneFileError(f"{p}: line {i}: {problem}") if problem else rec)
 
 
-def refuse_booleans(records: list[dict], text: str, path: Path, first_line: int = 1, unit: str = "line") -> None:
+def refuse_booleans(
+    records: list[dict[str, Any]], text: str, path: Path, first_line: int = 1, unit: str = "line"
+) -> None:
     """JSON ``true``/``false`` where a number belongs (lane.py would read them as 1 and 0): refused, a type error.
     Only looked for when the words occur in the text at all (``unit``: how the message names a record)."""
     if "true" not in text and "false" not in text:
@@ -187,7 +190,7 @@ def refuse_booleans(records: list[dict], text: str, path: Path, first_line: int 
             raise LaneFileError(f"{path}: {unit} {i}: a boolean (true/false) where a number belongs")
 
 
-def _numbers(value: object) -> list:
+def _numbers(value: object) -> list[Any]:
     return value if isinstance(value, list) else []
 
 
@@ -257,7 +260,7 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
         raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
     keys, missing_message = _KEYS[role]
     names: list[str] = []
-    lanes_of: list[object] = []
+    lanes_of: list[Sequence[Any] | np.ndarray] = []
     extra: list[object] = []  # h_samples (gt) or run_time (pred)
     first: dict[str, int] = {}
     for i, rec in enumerate(records):
@@ -306,7 +309,7 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
         return TuSimpleFile(names, lanes, lengths, counts, h_samples=h_samples, rows=rows)
     run_times = np.zeros(len(extra))
     for i, rt in enumerate(extra):
-        if type(rt) not in (int, float):
+        if type(rt) not in (int, float) or not isinstance(rt, (int, float)):  # exactly int/float: no bool, no numpy
             raise TuSimpleInputError(f"Format of lanes error: run_time must be a number, got {rt!r:.40}", role, i + 1)
         run_times[i] = json_float(rt)
     odd_rt = np.flatnonzero(~np.isfinite(run_times))
@@ -326,13 +329,15 @@ def duplicate_raw_file(name: str, first: str) -> str:
 
 def _row_lengths(rows: list[object], role: str, kind: str, owner: np.ndarray | None = None) -> np.ndarray:
     """Lengths of number lists (each a list/tuple/array), checked against ``MAX_LANE_POINTS``."""
+    sizes: list[int] = []
     for j, row in enumerate(rows):
         if not isinstance(row, _SEQUENCES):
             line = int(owner[j]) + 1 if owner is not None else j + 1
             raise TuSimpleInputError(
                 f"{_LANE_ERROR[role]}{_name(kind, owner, j)} must be a list of numbers, got {row!r:.60}", role, line
             )
-    lengths = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+        sizes.append(len(row))
+    lengths = np.array(sizes, dtype=np.int64)
     if len(lengths) and lengths.max() > MAX_LANE_POINTS:
         j = int(np.argmax(lengths))
         line = int(owner[j]) + 1 if owner is not None else j + 1
@@ -427,7 +432,7 @@ def tusimple_record_error(rec: object, role: str) -> str | None:
     return None
 
 
-def tusimple_points(lanes: list, h_samples: list) -> list[np.ndarray]:
+def tusimple_points(lanes: Sequence[Sequence[float]], h_samples: Sequence[float]) -> list[np.ndarray]:
     """TuSimple lanes (one x per row of ``h_samples``, ``x < 0`` where the lane is absent) as ``(N, 2)`` float
     arrays of ``(x, y)`` points, one per lane, in order. A lane absent on every row becomes a lane of 0 points:
     the CULane metric counts it as a lane, as the C++ tool counts an empty line of a ``.lines.txt`` (callers
@@ -442,8 +447,8 @@ def tusimple_points(lanes: list, h_samples: list) -> list[np.ndarray]:
 
 
 def tusimple_lanes(
-    records: Sequence[object], path: str | os.PathLike, h_samples: dict[str, list] | None = None
-) -> tuple[dict[str, list[np.ndarray]], dict[str, list]]:
+    records: Sequence[object], path: str | os.PathLike[str], h_samples: dict[str, list[float]] | None = None
+) -> tuple[dict[str, list[np.ndarray]], dict[str, list[float]]]:
     """THE typed check of TuSimple-format files scored with the CULane metric (``stamlane-eval culane PRED.json
     GT.json``): the lanes of each ``raw_file`` as ``(x, y)`` points (rows with x < 0 dropped).
 
@@ -496,8 +501,8 @@ def tusimple_lanes(
 def tusimple_lanes_by_image(
     pred_records: Sequence[object],
     gt_records: Sequence[object],
-    pred_path: str | os.PathLike,
-    gt_path: str | os.PathLike,
+    pred_path: str | os.PathLike[str],
+    gt_path: str | os.PathLike[str],
 ) -> tuple[list[str], list[list[np.ndarray]], list[list[np.ndarray]]]:
     """TuSimple prediction and ground-truth files as the CULane metric takes them (``stamlane-eval culane
     PRED.json GT.json``): the images of the ground truth in its order, each with its predicted and annotated lanes

@@ -17,6 +17,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -77,7 +78,7 @@ class Frame:
     size: tuple[int, int] | None = None
 
 
-def video_frames(gt_dir: str | os.PathLike) -> tuple[str, dict[str, list[tuple[str, Path]]]]:
+def video_frames(gt_dir: str | os.PathLike[str]) -> tuple[str, dict[str, list[tuple[str, Path]]]]:
     """The sequences and frames of an annotated video set, in name order.
 
     Two layouts: VIL-100 (``GT/Json/<video>/<frame>.jpg.json``) or CULane-style text
@@ -143,7 +144,7 @@ class TuSimpleFrames:
 
     sequences: dict[str, list[str]]
     lanes: dict[tuple[str, str], list[np.ndarray]]
-    rows: dict[tuple[str, str], list]
+    rows: dict[tuple[str, str], list[float]]
     timed: int = 0
 
 
@@ -156,7 +157,7 @@ def tusimple_frame_key(raw_file: str) -> tuple[str, str] | None:
     return (seq, stem) if seq and stem else None
 
 
-def _tusimple_file_records(path: Path) -> tuple[list[dict], str]:
+def _tusimple_file_records(path: Path) -> tuple[list[dict[str, Any]], str]:
     """The records of one file: json-lines (``predictions.json``, ``challenging-frames.json``) or one JSON list of
     objects (the generator's ``frame_labels/<clip>.json``), and how a message names a record."""
     text = read_file(path)
@@ -189,7 +190,7 @@ def _tusimple_files(path: Path) -> list[Path]:
 
 
 def read_tusimple_frames(
-    path: str | os.PathLike, role: str, rows: dict[tuple[str, str], list] | None = None
+    path: str | os.PathLike[str], role: str, rows: dict[tuple[str, str], list[float]] | None = None
 ) -> TuSimpleFrames:
     """THE typed reader of TuSimple records scored as video frames (``stamlane-eval video``): a json-lines file,
     a file holding one JSON list of records, or a folder of such files (``.json``/``.jsonl`` directly in it, in
@@ -219,7 +220,7 @@ def read_tusimple_frames(
     root = Path(path)
     sequences: dict[str, list[str]] = {}
     lanes: dict[tuple[str, str], list[np.ndarray]] = {}
-    out_rows: dict[tuple[str, str], list] = {}
+    out_rows: dict[tuple[str, str], list[float]] = {}
     first: dict[tuple[str, str], str] = {}
     timed = 0
     for file in _tusimple_files(root):
@@ -243,12 +244,14 @@ def read_tusimple_frames(
                     f"{where}: raw_file {name!r:.80} names no folder: the folder of raw_file is the sequence "
                     f"(clips/<clip>/<frame>.jpg)"
                 )
-            h = rec.get("h_samples")
+            h: list[float]
             if role == "pred":
-                if h is None and rows is not None and key not in rows:
+                if rec.get("h_samples") is None and rows is not None and key not in rows:
                     continue  # a frame the ground truth lacks: not scored
-                h = _frame_rows(h, rows, key, where)
+                h = _frame_rows(rec.get("h_samples"), rows, key, where)
                 _check_pred_lanes(rec["lanes"], len(h), where)
+            else:
+                h = rec["h_samples"]  # a list of numbers: check_tusimple passed
             if key in first:
                 what = "labelled" if role == "gt" else "predicted"
                 raise LaneFileError(f"{where}: frame {key[0]}/{key[1]} is {what} twice (also at {first[key]})")
@@ -259,17 +262,19 @@ def read_tusimple_frames(
     return TuSimpleFrames(dict(sorted(sequences.items())), lanes, out_rows, timed)
 
 
-def _frame_rows(h: object, rows: dict[tuple[str, str], list] | None, key: tuple[str, str], where: str) -> list:
+def _frame_rows(
+    h: object, rows: dict[tuple[str, str], list[float]] | None, key: tuple[str, str], where: str
+) -> list[float]:
     """A prediction's rows: its own ``h_samples`` (a list of finite JSON numbers, at most ``MAX_LANE_POINTS``), or
     the ground truth's frame's."""
     if h is None:
-        h = None if rows is None else rows.get(key)
-        if h is None:
+        gt_rows = None if rows is None else rows.get(key)
+        if gt_rows is None:
             raise LaneFileError(
                 f"{where}: no h_samples, and the ground truth has none for this frame (give predictions with "
                 f"h_samples, as stamlane predict writes them, or TuSimple ground truth)"
             )
-        return h
+        return gt_rows
     if not (isinstance(h, list) and len(h) <= MAX_LANE_POINTS and all(map(is_json_number, h))):
         raise LaneFileError(f"{where}: h_samples must be a list of at most {MAX_LANE_POINTS} JSON numbers")
     if not all(math.isfinite(json_float(v)) and abs(v) <= MAX_COORDINATE for v in h):
@@ -277,7 +282,7 @@ def _frame_rows(h: object, rows: dict[tuple[str, str], list] | None, key: tuple[
     return h
 
 
-def _check_pred_lanes(pred_lanes: list, rows: int, where: str) -> None:
+def _check_pred_lanes(pred_lanes: list[object], rows: int, where: str) -> None:
     """A prediction's lanes: at most ``MAX_LANES``, each ``rows`` finite JSON numbers."""
     if len(pred_lanes) > MAX_LANES:
         raise LaneFileError(f"{where}: {len(pred_lanes)} lanes, more than the limit of {MAX_LANES}")

@@ -16,7 +16,7 @@ from stamlane_eval.io.limits import MAX_COORDINATE, MAX_IMAGE_SIDE, MAX_LANE_POI
 __all__ = ["read_vil100_json"]
 
 
-def read_vil100_json(path: str | os.PathLike) -> tuple[list[np.ndarray], list[int], tuple[int, int] | None]:
+def read_vil100_json(path: str | os.PathLike[str]) -> tuple[list[np.ndarray], list[int], tuple[int, int] | None]:
     """Read one VIL-100 frame annotation (``Json/<video>/<frame>.jpg.json``): THE typed check of the format.
 
     Types are the format's and nothing else is read as a number: ``points`` a list of ``[x, y]`` pairs of JSON

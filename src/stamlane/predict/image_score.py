@@ -19,7 +19,7 @@ __all__ = ["image_score", "iou_width"]
 def iou_width(size: tuple[int, int]) -> int:
     """The CULane metric's line thickness for images of ``size`` (H, W): the protocol's 30 px on CULane's
     1640-px-wide frames, scaled with the image width (12 px at 640), so that a lane covers the same fraction of
-    the image as in the benchmark (the experiment engine scores with the same width)."""
+    the image as in the benchmark (`stamlane.experiments.split_scores` scores whole splits with it)."""
     from stamlane_eval.culane import CULANE_SIZE, LANE_WIDTH
 
     return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
@@ -36,15 +36,16 @@ def image_score(lanes: Lanes, gt_lanes: Lanes, h_samples: Sequence[int] | None, 
         size: the image's ``(H, W)``.
     """
     if h_samples:
-        from stamlane_eval.tusimple import evaluate_image, lanes_to_xs
+        from stamlane_eval.tusimple import evaluate_image as tusimple_image
+        from stamlane_eval.tusimple import lanes_to_xs
 
         rows = list(h_samples)
-        result = evaluate_image(lanes_to_xs(lanes, rows), lanes_to_xs(gt_lanes, rows), rows)
+        result = tusimple_image(lanes_to_xs(lanes, rows), lanes_to_xs(gt_lanes, rows), rows)
         return f"TuSimple acc {100 * result.acc:.1f} %, {result.matched}/{result.n_gt} lanes"
     from stamlane_eval.aggregate import prf
-    from stamlane_eval.culane import evaluate_image
+    from stamlane_eval.culane import evaluate_image as culane_image
 
-    result = evaluate_image(lanes, gt_lanes, (0.5,), iou_width(size), size)
-    tp, fp, fn = result.counts[0.5]
+    counts = culane_image(lanes, gt_lanes, (0.5,), iou_width(size), size).counts
+    tp, fp, fn = counts[0.5]
     f1 = prf(tp, fp, fn)[2]  # the evaluators' convention: 0 where nothing was labelled or predicted
     return f"IoU F1@0.5 {f1:.2f} ({tp} of {tp + fn} lanes, {fp} false)"

@@ -18,11 +18,13 @@ import json
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from stamlane_eval.tusimple import PIXEL_THRESH
 
-from stamlane.experiments.metrics import METRICS
+from stamlane.experiments.metrics import REPORTED
+from stamlane.predict.image_score import iou_width
 from stamlane.safety.guard import write_atomic
 from stamlane.synth.layout import VISIBILITY_DIR
 from stamlane.synth.visibility import VISIBILITY_CLASSES, visibility_class
@@ -34,7 +36,6 @@ __all__ = [
     "class_counts",
     "clip_of",
     "image_size",
-    "iou_width",
     "point_hits",
     "read_per_clip",
     "read_per_image",
@@ -49,15 +50,6 @@ SCORING = "no-time-limit+culane+classes"
 """How `score_split` scores (kept in each run's record): a run scored otherwise is scored again from its saved
 predictions (``no-time-limit+iou``: before the recall per visibility class; ``no-time-limit``: TuSimple F1
 only)."""
-
-
-def iou_width(size: tuple[int, int]) -> int:
-    """The CULane metric's line thickness for images of ``size`` (H, W): the protocol's 30 px on CULane's
-    1640-px-wide frames, scaled with the image width (12 px at 640), so that a lane covers the same fraction of
-    the image as in the benchmark."""
-    from stamlane_eval.culane import CULANE_SIZE, LANE_WIDTH
-
-    return max(1, round(LANE_WIDTH * size[1] / CULANE_SIZE[1]))
 
 
 def image_size(root: Path, split: str) -> tuple[int, int]:
@@ -84,7 +76,7 @@ def clip_of(raw_file: str) -> str:
     return raw_file.rsplit("/", 1)[0]
 
 
-def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict:
+def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict[str, Any]:
     """Score ``pred_dir/predictions.json`` against ``root/<split>.json``; write ``pred_dir/per_image.jsonl``.
 
     Args:
@@ -95,7 +87,7 @@ def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict
 
     Returns:
         the totals: ``accuracy``, ``fp``, ``fn``, ``f1``, ``images``, ``late`` (TuSimple) and per metric key of
-        `METRICS` its value on the whole split (class recalls only where the set has visibility masks), and
+        `REPORTED` its value on the whole split (class recalls only where the set has visibility masks), and
         ``iou_width``.
     """
     from stamlane_eval import culane
@@ -129,7 +121,7 @@ def score_split(pred_dir: Path, root: Path, split: str, num_frames: int) -> dict
     write_atomic(pred_dir / PER_IMAGE, "".join(json.dumps(row) + "\n" for row in rows))
     totals = {k: result.as_dict()[k] for k in ("accuracy", "fp", "fn", "f1", "images")}
     totals["late"] = sum(p["run_time"] > MAX_RUN_TIME_MS for p in preds)
-    for m in METRICS:
+    for m in REPORTED:
         values = [m.columns(row) for row in rows]
         if values and all(v is not None for v in values):
             totals[m.key] = m.statistic(np.mean(np.array(values, dtype=np.float64), axis=0))
@@ -142,14 +134,14 @@ def read_per_image(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     and each image's clip, in label order."""
     rows = [json.loads(line) for line in (pred_dir / PER_IMAGE).read_text().splitlines()]
     found = {}
-    for m in METRICS:
+    for m in REPORTED:
         values = [m.columns(row) for row in rows]
         if values and all(v is not None for v in values):
             found[m.key] = np.array(values, dtype=np.float64)
     return found, [row["clip"] for row in rows]
 
 
-def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
+def score_temporal(pred_dir: Path, root: Path, split: str) -> dict[str, Any]:
     """Score the frame-after-frame predictions ``pred_dir/predictions.json`` of the clips of ``root/<split>.json``
     (every frame of each clip, oldest first) with RVLD's temporal stability (`stamlane_eval.temporal`, the VIL-100
     protocol at the frames' size); write ``pred_dir/per_clip.jsonl`` (each clip's ``(Ns, Nj, Nm)`` per IoU
@@ -162,10 +154,10 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
     from stamlane_eval.io import read_tusimple, tusimple_points
     from stamlane_eval.video import Frame
 
-    from stamlane.experiments.metrics import TEMPORAL
+    from stamlane.experiments.metrics import TEMPORAL_STABILITY
 
     preds = {p["raw_file"]: p for p in read_tusimple(pred_dir / "predictions.json")}
-    sequences: dict[str, list] = {}
+    sequences: dict[str, list[Any]] = {}
     for gt in read_tusimple(root / f"{split}.json"):
         pred = preds[gt["raw_file"]]
         frame = Frame(tusimple_points(pred["lanes"], gt["h_samples"]), tusimple_points(gt["lanes"], gt["h_samples"]))
@@ -180,18 +172,18 @@ def score_temporal(pred_dir: Path, root: Path, split: str) -> dict:
         for (clip, frames), seq in zip(sequences.items(), result.per_sequence)
     ]
     write_atomic(pred_dir / PER_CLIP, "".join(json.dumps(row) + "\n" for row in rows))
-    totals: dict = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
-    for m in TEMPORAL:
+    totals: dict[str, Any] = {"clips": len(rows), "frames": sum(r["frames"] for r in rows)}
+    for m in TEMPORAL_STABILITY:
         totals[m.key] = m.statistic(np.mean(np.array([m.columns(r) for r in rows], dtype=np.float64), axis=0))
     return totals
 
 
 def read_per_clip(pred_dir: Path) -> tuple[dict[str, np.ndarray], list[str]]:
     """Per temporal metric key, the per-clip ``(Ns, Nj, Nm)`` (N, 3) of a scored split, and the clips."""
-    from stamlane.experiments.metrics import TEMPORAL
+    from stamlane.experiments.metrics import TEMPORAL_STABILITY
 
     rows = [json.loads(line) for line in (pred_dir / PER_CLIP).read_text().splitlines()]
-    return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL}, [
+    return {m.key: np.array([m.columns(r) for r in rows], dtype=np.float64) for m in TEMPORAL_STABILITY}, [
         r["clip"] for r in rows
     ]
 
@@ -215,7 +207,8 @@ def _threshold(gt: np.ndarray, ys: np.ndarray) -> float:
     if on.sum() < 2:
         return PIXEL_THRESH
     k = np.polyfit(ys[on], gt[on], 1)[0]
-    return PIXEL_THRESH / np.cos(np.arctan(k))
+    threshold: float = PIXEL_THRESH / np.cos(np.arctan(k))
+    return threshold
 
 
 def point_hits(
@@ -257,4 +250,5 @@ def class_counts(hits: list[list[bool]], masks: list[list[int]], num_frames: int
             cls = visibility_class(mask, num_frames, stride)
             if cls is not None:
                 counts[VISIBILITY_CLASSES.index(cls)] += (float(hit), 1.0)
-    return counts.ravel().tolist()
+    per_class: list[float] = counts.ravel().tolist()
+    return per_class

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.stats import bootstrap, paired_bootstrap, seed_interval
 
-from stamlane.experiments.metrics import METRICS, Metric
+from stamlane.experiments.metrics import REPORTED, Metric
 from stamlane.experiments.summary import Difference, Value, Values
 
 __all__ = ["MIN_CLASS_POINTS", "Scores", "View", "views"]
@@ -91,7 +91,7 @@ class Scores:
         std = float(values.std(ddof=1)) if len(values) > 1 else None
         return Value(float(values.mean()), std, ci, len(values), len(view.rows))
 
-    def values(self, subject: str, all_views: list[View], metrics: tuple[Metric, ...] = METRICS) -> Values:
+    def values(self, subject: str, all_views: list[View], metrics: tuple[Metric, ...] = REPORTED) -> Values:
         """Every metric of a subject on every view where it was measured."""
         found: Values = {}
         for metric in metrics:
@@ -129,7 +129,7 @@ class Scores:
         )
 
     def differences(
-        self, kind: str, pairs: list[tuple[str, str]], all_views: list[View], metrics: tuple[Metric, ...] = METRICS
+        self, kind: str, pairs: list[tuple[str, str]], all_views: list[View], metrics: tuple[Metric, ...] = REPORTED
     ) -> list[Difference]:
         """`difference` of every pair on every view and metric where both were measured."""
         found = []

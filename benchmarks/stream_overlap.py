@@ -1,0 +1,113 @@
+"""The streaming predictor frame after frame and pipelined (`StreamingPredictor.run`), side by side.
+
+    python benchmarks/stream_overlap.py [--frames 60] [--repeats 3] [--device cpu] [--out outputs/benchmarks/stream_overlap.json]
+
+The shipped 4-frame model (80x256, ORB alignment on the 640x360 frames) on the first ``--frames`` frames of the real
+highway video beside the project (``../shared/data/real/solidWhiteRight.mp4``, resized to 640x360; rendered road
+frames where it is absent), in turn ``--repeats`` times: ``serial`` (``predictor(image)`` per frame, the video
+read in between, as ``stamlane stream`` ran before) and ``pipelined`` (``predictor.run(frames)``: reading and
+ORB features of frame t+1 and lane decoding of frame t beside the network on frame t). Prints the medians of the
+ms a frame and whether both gave the same lanes, logits and homographies; keeps them in ``--out``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning OpenMP threads starve a shared CPU
+
+import argparse
+import json
+import statistics
+import sys
+import time
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+VIDEO = REPO.parent / "shared" / "data" / "real" / "solidWhiteRight.mp4"
+
+
+def frames(count: int) -> Iterator[np.ndarray]:
+    """The video's first ``count`` frames at 640x360, decoded as they are asked for (or rendered road frames)."""
+    if VIDEO.is_file():
+        capture = cv2.VideoCapture(str(VIDEO))
+        try:
+            for _ in range(count):
+                ok, image = capture.read()
+                if not ok:
+                    return
+                yield cv2.resize(image, (640, 360), interpolation=cv2.INTER_AREA)
+        finally:
+            capture.release()
+        return
+    from stamlane.align.egomotion import RoadCamera
+    from stamlane.align.synthetic import render_road, road_texture
+
+    camera = RoadCamera(width=640, height=360, focal=500.0, horizon_row=140.0, camera_height=1.5)
+    texture = road_texture(seed=3)
+    for i in range(count):
+        yield render_road(texture, camera, forward=0.5 * (i % 8), yaw=0.002 * (i % 8))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=60)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/stream_overlap.json"))
+    args = parser.parse_args(argv)
+    import torch
+
+    from stamlane.stream import StreamingPredictor
+    from stamlane.training.hardware import cpu_name
+    from stamlane.training.module import StamLaneModule
+    from stamlane.weights import shipped_path
+
+    warnings.filterwarnings("ignore")
+    torch.set_num_threads(max(1, os.cpu_count() or 1))
+    module = StamLaneModule.from_checkpoint(shipped_path("stam4-synthetic")).eval().to(args.device)
+    result: dict = {"cpu": cpu_name(), "cores": os.cpu_count(), "device": args.device, "video": VIDEO.is_file()}
+    result["load_1min_at_start"] = round(os.getloadavg()[0], 1)
+    times: dict[str, list[float]] = {"serial": [], "pipelined": []}
+    outputs: dict[str, list] = {}
+    for _ in range(args.repeats):
+        for mode in times:
+            predictor = StreamingPredictor.from_module(module)
+            start = time.perf_counter()
+            if mode == "serial":
+                got = [predictor(image) for image in frames(args.frames)]
+            else:
+                got = list(predictor.run(frames(args.frames)))
+            times[mode].append(round((time.perf_counter() - start) * 1000.0 / len(got), 2))
+            outputs[mode] = got
+    serial, piped = outputs["serial"], outputs["pipelined"]
+    same = len(serial) == len(piped) and all(
+        torch.equal(a.logits, b.logits)
+        and len(a.lanes) == len(b.lanes)
+        and all(np.array_equal(x, y) for x, y in zip(a.lanes, b.lanes))
+        and all(np.array_equal(x.key_from_hist, y.key_from_hist) for x, y in zip(a.alignments, b.alignments))
+        for a, b in zip(serial, piped)
+    )
+    stages = {k: round(statistics.median(o.timings[k] for o in serial), 2) for k in serial[0].timings}
+    med = {k: statistics.median(v) for k, v in times.items()}
+    result |= {"frames": len(serial), "ms_per_frame": times, "median_ms": med, "serial_stages_ms": stages}
+    result |= {"ratio": round(med["serial"] / med["pipelined"], 3), "same_outputs": same}
+    result["load_1min_at_end"] = round(os.getloadavg()[0], 1)
+    print(
+        f"{len(serial)} frames on {args.device}: serial {med['serial']:.1f} ms a frame {stages}, pipelined "
+        f"{med['pipelined']:.1f} (x{result['ratio']:.2f}, medians of {args.repeats} in turn); the same outputs: "
+        f"{same}; load {result['load_1min_at_start']} -> {result['load_1min_at_end']}"
+    )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,486 @@
+"""The dashcam2 world (``SynthConfig(world="dashcam2")``): the dashcam world plus what a detector mistakes for paint.
+
+The real-road check (docs/results/real-roads/) found the models following a concrete barrier's foot and drawing lines
+through cars. The dashcam world (format 7, `stamlane.synth.dashcam`) added barriers, guard rails, joints and seams;
+this world keeps all of it and adds, per clip:
+
+- **the sun** (`Sun`): a direction and height, so every shadow falls the same way: the vehicles' moving shadows,
+  and static shadows on the road cast by the barrier, the guard rail and lamp or sign poles (long thin dark stripes
+  across the lanes when the sun is low and to the side); weak, soft shadows under an overcast sky;
+- **curbs and poles** (`Scenery`): a raised curb (a vertical face and a light top, two long edges parallel to the
+  lanes) on a side without a barrier, poles beside the road;
+- **surface repairs** (`RepairedSurface`): long strips of newer or older asphalt along a lane with straight edges,
+  straight tar-sealed joints beside the marks, sealed transverse cracks: bright or dark lines the paint is not;
+- **vehicles with bodies** (`BodyStyle`, `draw_bodies`): wheels, a body and a narrower cabin with slanted glass for
+  cars, a cab and a cargo box on a chassis for trucks, tail lights, number plate and bumper at the rear, headlights
+  and grille at the front, seen from behind and from the side.
+
+Every draw comes from the clip's generator in this world only (after the dashcam world's own draws), so the classic
+world and the dashcam world of format 7 draw what they drew, byte for byte (``tests/synth/test_scenery.py``).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from stamlane.align.camera import Camera, Pose
+from stamlane.synth.dashcam import Roadside, Surface
+
+__all__ = [
+    "SUN_ELEVATION_DEG",
+    "BodyStyle",
+    "RepairedSurface",
+    "Scenery",
+    "Sun",
+    "draw_bodies",
+]
+
+SUN_ELEVATION_DEG = (12.0, 60.0)
+"""Range of the sun's height above the horizon (degrees): a low morning or evening sun casts shadows 4.7 times as
+long as the object is high, a midday sun at mid latitudes about half as long."""
+POLE_SPACING_M = (25.0, 80.0)
+"""Metres between two poles (lamps, signs) on one side of the road."""
+
+
+@dataclass(frozen=True)
+class Sun:
+    """Where the light comes from: ``azimuth`` (radians, 0 = straight ahead, positive to the right) and ``elevation``
+    (radians) of the sun, and ``depth``: how much a shadow darkens the ground (0: none, overcast skies little)."""
+
+    azimuth: float
+    elevation: float
+    depth: float
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator, clear_sky: bool) -> Sun:
+        return cls(
+            float(rng.uniform(-np.pi, np.pi)),
+            float(np.radians(rng.uniform(*SUN_ELEVATION_DEG))),
+            float(rng.uniform(0.45, 0.7) if clear_sky else rng.uniform(0.08, 0.22)),
+        )
+
+    def displacement(self) -> np.ndarray:
+        """Ground displacement ``(X, Z)`` of a shadow per metre of height: away from the sun, ``1 / tan(elevation)``
+        long (`stamlane.synth.vehicles.shadow_polygons` takes it as ``sun``)."""
+        return -np.array([np.sin(self.azimuth), np.cos(self.azimuth)]) / np.tan(self.elevation)
+
+
+@dataclass(frozen=True)
+class RepairedSurface:
+    """The dashcam world's `Surface` with repairs that run along and across the road (metres from the road centre).
+
+    Attributes:
+        surface: the format-7 surface drawn first.
+        strips: ``(lateral centre, width, z0, length, grey change)``: a strip of other asphalt with straight edges.
+        joints: ``(lateral, z0, length)``: a straight tar-sealed joint (dark, ~5 cm) along the road.
+        cracks: ``(z, lateral from, lateral to, wobble)``: a sealed crack across the road.
+    """
+
+    surface: Surface
+    strips: list[tuple[float, float, float, float, float]] = field(default_factory=list)
+    joints: list[tuple[float, float, float]] = field(default_factory=list)
+    cracks: list[tuple[float, float, float, float]] = field(default_factory=list)
+
+    @classmethod
+    def sample(
+        cls, rng: np.random.Generator, surface: Surface, z_range: tuple[float, float], offsets: list[float]
+    ) -> RepairedSurface:
+        length = z_range[1] - z_range[0]
+        left, right = min(offsets), max(offsets)
+        strips = [
+            (
+                float(rng.uniform(left, right)),
+                float(rng.uniform(0.6, 2.2)),
+                float(rng.uniform(*z_range)),
+                float(rng.uniform(8, 60)),
+                float(rng.choice([-1, 1]) * rng.uniform(10, 35)),
+            )
+            for _ in range(int(rng.poisson(length / 70.0)))
+        ]
+        joints = [
+            (
+                float(mark + rng.choice([-1, 1]) * rng.uniform(0.15, 0.7)),
+                float(rng.uniform(*z_range)),
+                float(rng.uniform(20, 120)),
+            )
+            for mark in offsets
+            if rng.random() < 0.5
+        ]
+        cracks = [
+            (
+                float(rng.uniform(*z_range)),
+                float(rng.uniform(left - 1, 0)),
+                float(rng.uniform(0, right + 1)),
+                float(rng.uniform(0, 0.5)),
+            )
+            for _ in range(int(rng.poisson(length / 30.0)))
+        ]
+        return cls(surface, strips, joints, cracks)
+
+    def draw(
+        self, lum: np.ndarray, rel: np.ndarray, zs: np.ndarray, ppm: float, offsets: list[float], base: float
+    ) -> np.ndarray:
+        """The texture's grey plane with the surface and its repairs (the arguments of `Surface.draw`)."""
+        lum = self.surface.draw(lum, rel, zs, ppm, offsets, base)
+        metres = rel / ppm
+        line = max(1.0, 0.025 * ppm)  # half width of a sealed joint in texels
+        for centre, width, z0, length, shade in self.strips:
+            rows = (zs >= z0) & (zs <= z0 + length)
+            inside = np.abs(metres[rows] - centre) < width / 2
+            lum[rows] = np.where(inside, lum[rows] + shade, lum[rows])
+            edge = np.abs(np.abs(metres[rows] - centre) - width / 2) * ppm < line  # the strip's sealed edges
+            lum[rows] = np.where(edge, lum[rows] * 0.55, lum[rows])
+        for lateral, z0, length in self.joints:
+            rows = (zs >= z0) & (zs <= z0 + length)
+            near = np.abs(metres[rows] - lateral) * ppm < line
+            lum[rows] = np.where(near, lum[rows] * 0.5, lum[rows])
+        for z, x0, x1, wobble in self.cracks:
+            across = (metres >= x0) & (metres <= x1)
+            bend = z + wobble * np.sin(metres * 1.3 + z)
+            near = (np.abs(zs[:, None] - bend) * ppm < line) & across
+            lum = np.where(near, lum * 0.5, lum)
+        return lum.astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Scenery:
+    """What this world stands beside the road and the shadows cast on it.
+
+    Attributes:
+        sun: the clip's `Sun`.
+        curbs: lateral metres (from the road centre) of each curb's face, with ``curb_height`` and a top ``curb_top``
+            metres wide, away from the road; ``curb_grey`` its concrete.
+        poles: ``(lateral, z, height)`` of each pole (0.2 m thick, grey).
+        roadside: the dashcam world's barrier and rail (their shadows).
+    """
+
+    sun: Sun
+    curbs: list[float]
+    curb_height: float
+    curb_top: float
+    curb_grey: float
+    poles: list[tuple[float, float, float]]
+    roadside: Roadside
+
+    @classmethod
+    def sample(
+        cls,
+        rng: np.random.Generator,
+        sun: Sun,
+        roadside: Roadside,
+        left: float,
+        right: float,
+        z_range: tuple[float, float],
+    ) -> Scenery:
+        """Curbs (50 % per side without a barrier) 0.3-2.5 m beyond the outer marks (``left``, ``right``: their
+        lateral metres), poles every `POLE_SPACING_M` on one or both sides."""
+        taken = {np.sign(x) for x in (roadside.barrier,) if x is not None}
+        curbs = [
+            mark + side * float(rng.uniform(0.3, 2.5))
+            for mark, side in ((left, -1.0), (right, 1.0))
+            if side not in taken and rng.random() < 0.5
+        ]
+        poles = []
+        for mark, side in ((left, -1.0), (right, 1.0)):
+            if rng.random() < 0.6:
+                z = z_range[0] + float(rng.uniform(0, POLE_SPACING_M[1]))
+                spacing = float(rng.uniform(*POLE_SPACING_M))
+                lateral = mark + side * float(rng.uniform(2.0, 5.0))
+                while z < z_range[1]:
+                    poles.append((lateral, z, float(rng.uniform(6.0, 11.0))))
+                    z += spacing * float(rng.uniform(0.9, 1.1))
+        return cls(
+            sun,
+            curbs,
+            float(rng.uniform(0.10, 0.18)),
+            float(rng.uniform(0.15, 0.3)),
+            float(rng.uniform(140, 215)),
+            poles,
+            roadside,
+        )
+
+    def shadows(self, centre: Callable[[np.ndarray], np.ndarray], z_range: tuple[float, float]) -> list[np.ndarray]:
+        """Ground polygons ``(N, 2)`` metres ``(X, Z)`` of the static shadows cast on the road by the barrier, the rail
+        and the poles (for `stamlane.synth.road.render_texture`'s ``cast``, darkened by ``sun.depth``)."""
+        d = self.sun.displacement()
+        polys = []
+        zs = np.arange(z_range[0], z_range[1] + 10.0, 10.0)
+        for z0, z1 in itertools.pairwise(zs):
+            c0, c1 = float(centre(np.asarray(z0))), float(centre(np.asarray(z1)))
+            bands = []
+            if self.roadside.barrier is not None:
+                out = -0.6 if self.roadside.barrier < 0 else 0.6  # the barrier's thickness, away from the road
+                bands.append((self.roadside.barrier, out, 0.0, 0.85))
+            if self.roadside.rail is not None:
+                bands.append((self.roadside.rail, 0.0, 0.45, 0.78))
+            for lateral, thick, low, high in bands:
+                foot = np.array(
+                    [[c0 + lateral, z0], [c1 + lateral, z1], [c1 + lateral + thick, z1], [c0 + lateral + thick, z0]]
+                )
+                hull = cv2.convexHull(np.concatenate([foot + low * d, foot + high * d]).astype(np.float32))[:, 0]
+                polys.append(hull.astype(np.float64))
+        for lateral, z, height in self.poles:
+            x = float(centre(np.asarray(z))) + lateral
+            side = np.array([d[1], -d[0]]) / max(float(np.hypot(*d)), 1e-6) * 0.12
+            base = np.array([x, z])
+            polys.append(np.array([base - side, base + side, base + side + height * d, base - side + height * d]))
+        return polys
+
+    def draw(
+        self, frame: np.ndarray, centre: Callable[[np.ndarray], np.ndarray], camera: Camera, pose: Pose, far: float
+    ) -> None:
+        """Draw the curbs and poles into ``frame`` (BGR uint8, in place), far to near (before the vehicles)."""
+        zs = pose.z + np.concatenate([np.arange(0.5, 20.0, 1.0), np.arange(20.0, far, 4.0)])[::-1]
+        g, h, top = self.curb_grey, self.curb_height, self.curb_top
+        for z1, z0 in itertools.pairwise(zs):
+            c0, c1 = float(centre(np.asarray(z0))), float(centre(np.asarray(z1)))
+            for lateral in self.curbs:
+                x0, x1 = c0 + lateral, c1 + lateral
+                away = -top if lateral < 0 else top
+                face = [(x0, 0.0), (x1, 0.0), (x1, h), (x0, h)]
+                lid = [(x0, h), (x1, h), (x1 + away, h), (x0 + away, h)]
+                _quad(frame, camera, pose, face, (z0, z1, z1, z0), (g * 0.7, g * 0.72, g * 0.75))
+                _quad(frame, camera, pose, lid, (z0, z1, z1, z0), (g, g, g * 1.02))
+        for lateral, z, height in sorted(self.poles, key=lambda p: -p[1]):
+            if not pose.z + 0.5 < z < pose.z + far:
+                continue
+            x = float(centre(np.asarray(z))) + lateral
+            pole = [(x - 0.1, 0.0), (x + 0.1, 0.0), (x + 0.1, height), (x - 0.1, height)]
+            _quad(frame, camera, pose, pole, (z, z, z, z), (105, 110, 115))
+
+
+def _quad(
+    frame: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    xy: list[tuple[float, float]],
+    zs: tuple[float, ...],
+    colour: tuple[float, ...],
+    mask: np.ndarray | None = None,
+) -> None:
+    """Fill the world quad ``(x, y)`` at depths ``zs`` into ``frame`` (and 255 into ``mask``)."""
+    _poly(frame, camera, pose, np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64), colour, mask)
+
+
+def _poly(
+    frame: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    world: np.ndarray,
+    colour: tuple[float, ...],
+    mask: np.ndarray | None = None,
+) -> None:
+    poly = camera.project_polygon(pose, world)
+    if poly is None or not np.isfinite(poly).all() or np.abs(poly).max() > 1e5:
+        return
+    pts = np.round(poly * 16).astype(np.int32)
+    cv2.fillPoly(frame, [pts], tuple(float(c) for c in colour), lineType=cv2.LINE_AA, shift=4)
+    if mask is not None:
+        cv2.fillPoly(mask, [pts], 255, shift=4)
+
+
+# ------------------------------------------------------------------------------------------- vehicle bodies
+@dataclass(frozen=True)
+class BodyStyle:
+    """How one vehicle's box is drawn: ``cabin`` ``(rear, front)``: fractions of its length where a car's cabin
+    stands (glass from ``belt`` of its height up), ``glass`` BGR of its windows, ``lights`` BGR of its tail lights."""
+
+    cabin: tuple[float, float]
+    belt: float
+    glass: tuple[float, float, float]
+    lights: tuple[float, float, float]
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator, boxy: bool) -> BodyStyle:
+        rear = float(rng.uniform(0.02, 0.08) if boxy else rng.uniform(0.12, 0.25))
+        front = float(rng.uniform(0.6, 0.72))
+        tint = float(rng.uniform(25, 70))
+        return cls(
+            (rear, front),
+            float(rng.uniform(0.5, 0.6)),
+            (tint * 1.1, tint, tint * 0.9),
+            (float(rng.uniform(20, 50)), float(rng.uniform(20, 50)), float(rng.uniform(170, 235))),
+        )
+
+
+def _box(
+    origin: np.ndarray,
+    right: np.ndarray,
+    fwd: np.ndarray,
+    u: tuple[float, float],
+    y: tuple[float, float],
+    s: tuple[float, float],
+    inset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> np.ndarray:
+    """The 8 corners (as `Vehicle.corners`: bottom rear-left, rear-right, front-right, front-left, then the top) of a
+    box in a vehicle's frame: ``u`` across (right), ``y`` up, ``s`` along (from the rear); ``inset``: how far the top
+    face is drawn in at the sides, the rear and the front (slanted glass)."""
+    side, back, front = inset
+    layers = []
+    for height, du, ds0, ds1 in ((y[0], 0.0, 0.0, 0.0), (y[1], side, back, front)):
+        for uu, ss in (
+            (u[0] + du, s[0] + ds0),
+            (u[1] - du, s[0] + ds0),
+            (u[1] - du, s[1] - ds1),
+            (u[0] + du, s[1] - ds1),
+        ):
+            p = origin + uu * right + ss * fwd
+            layers.append((p[0], height, p[1]))
+    return np.array(layers, np.float64)
+
+
+_FACES = {"rear": (0, 1, 5, 4), "front": (2, 3, 7, 6), "left": (3, 0, 4, 7), "right": (1, 2, 6, 5), "top": (4, 5, 6, 7)}
+_SHADE = {"rear": 0.78, "front": 0.82, "left": 0.62, "right": 0.62, "top": 1.0}
+
+
+def _visible_faces(corners: np.ndarray, cam: np.ndarray) -> list[str]:
+    centre = corners.mean(axis=0)
+    names = []
+    for name, idx in _FACES.items():
+        face = corners[list(idx)]
+        fc = face.mean(axis=0)
+        normal = np.cross(face[1] - face[0], face[3] - face[0])
+        if np.dot(normal, fc - centre) < 0:
+            normal = -normal
+        if np.dot(normal, cam - fc) > 0:
+            names.append(name)
+    return names
+
+
+def _draw_box(
+    frame: np.ndarray,
+    mask: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    corners: np.ndarray,
+    colour: tuple[float, ...],
+    faces: dict[str, tuple[float, ...]] | None = None,
+    only: tuple[str, ...] = tuple(_FACES),
+) -> list[str]:
+    """Draw a box's faces that face the camera (``faces``: a colour per face name instead of the shaded ``colour``;
+    ``only``: of these faces); returns their names."""
+    cam = np.array([pose.x, pose.height, pose.z])
+    names = [name for name in _visible_faces(corners, cam) if name in only]
+    for name in names:
+        col = (faces or {}).get(name) or tuple(c * _SHADE[name] for c in colour)
+        _poly(frame, camera, pose, corners[list(_FACES[name])], col, mask)
+    return names
+
+
+def _panel(
+    frame: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    face: np.ndarray,
+    a: tuple[float, float],
+    b: tuple[float, float],
+    colour: tuple[float, ...],
+) -> None:
+    """A rectangle on a face (4 corners: bottom-left, bottom-right, top-right, top-left) from fractions ``a`` = (across,
+    up) to ``b``."""
+    bl, br, _tr, tl = face
+    across, up = br - bl, tl - bl
+    quad = np.array(
+        [
+            bl + a[0] * across + a[1] * up,
+            bl + b[0] * across + a[1] * up,
+            bl + b[0] * across + b[1] * up,
+            bl + a[0] * across + b[1] * up,
+        ]
+    )
+    _poly(frame, camera, pose, quad, colour)
+
+
+def draw_bodies(
+    frame: np.ndarray,
+    mask: np.ndarray,
+    vehicles: list,
+    styles: list[BodyStyle],
+    road: object,
+    camera: Camera,
+    pose: Pose,
+    t: float,
+) -> None:
+    """Draw the vehicles (`stamlane.synth.vehicles.Vehicle`, each with its `BodyStyle`) far to near into ``frame``
+    with wheels, body, cabin or cargo box, glass and lights, and mark their pixels in ``mask``: what
+    `stamlane.synth.vehicles.draw_vehicles` draws as boxes."""
+    cam = np.array([pose.x, pose.height, pose.z])
+    order = sorted(
+        range(len(vehicles)), key=lambda i: -np.hypot(*(np.array(vehicles[i].state(road, t)[:2]) - [pose.x, pose.z]))
+    )
+    for i in order:
+        v, style = vehicles[i], styles[i]
+        x, z, heading = v.state(road, t)
+        fwd = np.array([np.sin(heading), np.cos(heading)])
+        right = np.array([np.cos(heading), -np.sin(heading)])
+        origin = np.array([x, z])
+        half, length, height = v.width / 2.0, v.length, v.height
+        colour = tuple(float(c) for c in v.colour)
+        truck = height > 2.5
+        radius = 0.5 if truck else 0.33
+        axles = (1.1, 2.4, length - 1.3) if truck else (0.85, length - 0.95)
+        wheels = [
+            (_box(origin, right, fwd, (u - 0.13, u + 0.13), (0.0, 2 * radius), (s - radius, s + radius)), u)
+            for s in axles
+            for u in (-half + 0.14, half - 0.14)
+        ]
+        # the tyres on the camera's side show their outer face in front of the body; every tyre is drawn whole behind it
+        near = [(w, "right" if u > 0 else "left") for w, u in wheels if np.dot(u * right, cam[[0, 2]] - origin) > 0]
+        for w, _ in wheels:
+            _draw_box(frame, mask, camera, pose, w, (28, 28, 30))
+        if truck:
+            chassis = _box(origin, right, fwd, (-half + 0.3, half - 0.3), (0.45, 1.0), (0.0, length))
+            _draw_box(frame, mask, camera, pose, chassis, (35, 35, 38))
+            cargo = _box(origin, right, fwd, (-half, half), (1.0, height), (0.0, length - 2.6))
+            drawn = _draw_box(frame, mask, camera, pose, cargo, colour)
+            if "rear" in drawn:
+                rear = cargo[list(_FACES["rear"])]
+                _panel(frame, camera, pose, rear, (0.495, 0.02), (0.505, 0.98), (60, 60, 60))  # the doors' seam
+                for a, b in (((0.03, 0.02), (0.13, 0.1)), ((0.87, 0.02), (0.97, 0.1))):
+                    _panel(frame, camera, pose, rear, a, b, style.lights)
+            cab = _box(
+                origin,
+                right,
+                fwd,
+                (-half + 0.05, half - 0.05),
+                (0.5, height - 0.4),
+                (length - 2.4, length),
+                (0.05, 0.0, 0.3),
+            )
+            drawn = _draw_box(frame, mask, camera, pose, cab, (210, 210, 205))
+            if "front" in drawn:
+                _panel(frame, camera, pose, cab[list(_FACES["front"])], (0.05, 0.55), (0.95, 0.92), style.glass)
+        else:
+            body_top = style.belt * height
+            body = _box(origin, right, fwd, (-half, half), (0.25, body_top), (0.0, length))
+            drawn = _draw_box(frame, mask, camera, pose, body, colour)
+            rear, front = body[list(_FACES["rear"])], body[list(_FACES["front"])]
+            if "rear" in drawn:
+                _panel(frame, camera, pose, rear, (0.0, 0.0), (1.0, 0.22), (35, 35, 38))  # bumper
+                _panel(frame, camera, pose, rear, (0.4, 0.3), (0.6, 0.5), (215, 215, 210))  # number plate
+                for a, b in (((0.02, 0.55), (0.2, 0.85)), ((0.8, 0.55), (0.98, 0.85))):
+                    _panel(frame, camera, pose, rear, a, b, style.lights)
+            if "front" in drawn:
+                _panel(frame, camera, pose, front, (0.3, 0.25), (0.7, 0.6), (40, 40, 42))  # grille
+                for a, b in (((0.03, 0.55), (0.22, 0.85)), ((0.78, 0.55), (0.97, 0.85))):
+                    _panel(frame, camera, pose, front, a, b, (170, 225, 235))
+            s0, s1 = style.cabin[0] * length, style.cabin[1] * length + 0.6
+            slant = min(0.5, (s1 - s0) / 4)
+            cabin = _box(
+                origin,
+                right,
+                fwd,
+                (-half + 0.08, half - 0.08),
+                (body_top, height),
+                (s0, s1),
+                (0.12, slant * 0.6, slant),
+            )
+            glass = {name: style.glass for name in ("rear", "front", "left", "right")}
+            _draw_box(frame, mask, camera, pose, cabin, colour, glass)
+        for w, outer in near:
+            _draw_box(frame, mask, camera, pose, w, (28, 28, 30), only=(outer,))
