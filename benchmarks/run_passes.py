@@ -7,7 +7,7 @@ The run is the shipped 4-frame model (``stam4-synthetic``, copied into a run fol
 synthetic set of the demo's format (``--clips`` test and val clips). `Runner.score` predicts and scores ``test`` with
 its real history and four probes (``key``, ``other_clip``, ``warped_key``, ``exact``) and ``val`` with two: 7 passes.
 Each repeat scores into a fresh store, after one untimed run that fills the data root's alignment cache. Give ``--src`` the ``src`` folder of another checkout (stamlane before runs were
-opened once) to time that code in a subprocess, alternating with this one; prints the median seconds of each and
+opened once) to time that code in a subprocess, alternating with this one (in turn first and second); prints the median seconds of each and
 their ratio, and writes ``<out>/run_passes.json``.
 """
 
@@ -85,7 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     shutil.rmtree(warm, ignore_errors=True)
     subprocess.run([sys.executable, __file__, "--one", str(root), str(warm)], capture_output=True, check=True)
     for i in range(args.repeats):
-        for name, src in codes.items():
+        order = list(codes.items()) if i % 2 == 0 else list(reversed(codes.items()))  # ABBA: a load trend evens out
+        for name, src in order:
             out = args.out / f"{name}-{i}"
             shutil.rmtree(out, ignore_errors=True)
             env = dict(os.environ, **({"PYTHONPATH": str(src)} if src else {}))

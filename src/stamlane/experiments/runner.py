@@ -334,7 +334,7 @@ def frames_of(run: Path) -> int:
 
 def aligns(run: Path) -> bool:
     """Whether a run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-    return (_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly"
+    return bool((_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly")
 
 
 def postprocess_of(run: Path) -> dict[str, Any]:

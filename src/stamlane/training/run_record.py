@@ -71,7 +71,7 @@ class RunRecord:
         for f in fields(cls):
             if f.name == "settings":
                 continue
-            value = data.get(f.name)
+            value: Any = data.get(f.name)
             required = f.default is MISSING and f.default_factory is MISSING
             if value is None and not required:
                 continue

@@ -259,7 +259,7 @@ class Run:
     @property
     def aligns(self) -> bool:
         """Whether the run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-        return (self.data().get("clip") or {}).get("align", "fly") == "fly"
+        return bool((self.data().get("clip") or {}).get("align", "fly") == "fly")
 
     def data_root(self) -> Path | None:
         """The data root to give the run when it recorded its root relative to the folder it was started in
@@ -378,6 +378,7 @@ def open_run(where: str | Path) -> Run:
 
     path = Path(where)
     start: Any = None
+    text: Any = None
     try:
         if path.is_dir():  # a run folder: its config.yaml, read only inside it
             ckpt, source = path / "checkpoints" / "last.ckpt", path / "config.yaml"
