@@ -63,7 +63,7 @@ MODELS = (
 )
 SINGLE_CLEAN = Row("single_clean", "1 frame, no key-frame corruption", ("demo_single.yaml",), recipe_args=False)
 """``--single-clean``: the single frame trained without the recipe's key-frame corruption, which it cannot undo."""
-PAIRS = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noalign"))
+PAIRS: tuple[tuple[str, str], ...] = (("stam4", "single"), ("stam4_noalign", "single"), ("stam4", "stam4_noalign"))
 PAIRS += (("stam4", "single_clean"), ("single", "single_clean"))
 """The demo's comparisons, A against B: what the history frames bring, with and without alignment; what the
 key-frame corruption costs a single frame and whether STAM is ahead of one trained without it."""
@@ -184,6 +184,7 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
         if labels.is_file() and labels.stat().st_size:  # a factor without a clip has an empty label file
             factor_of.update({g["raw_file"]: factor for g in read_tusimple(labels)})
     grid = []
+    image = None
     for name in frames:
         image = read_image(experiment.root / name)
         if image is None:
@@ -202,6 +203,8 @@ def _comparison(experiment: Experiment, rows: list[Row], path: Path, count: int 
         row_label = f"{what}: accuracy {min(accs):.0f}-{max(accs):.0f} % across the models"
         strip = label_strip(image.shape[1] * len(cells), [row_label], round(60 * scale), scale)
         grid += [strip, np.concatenate(cells, axis=1)]
+    if image is None:  # no frame to show
+        return None
     scale = text_scale(image)
     header = label_strip(image.shape[1] * len(rows), [r.label for r in rows], round(70 * scale), 1.2 * scale)
     legend = "coloured lines: each model's lanes (one colour per lane);  yellow band in black: the ground truth"
@@ -295,7 +298,12 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-    return run_command("stamlane demo", lambda: run(args, extra) or 0, ExperimentError)
+
+    def demo() -> int:
+        run(args, extra)
+        return 0
+
+    return run_command("stamlane demo", demo, ExperimentError)
 
 
 if __name__ == "__main__":

@@ -195,6 +195,7 @@ class Experiment:
         for seed in self.seeds:
             init = base = None
             if pretraining is not None:
+                assert self.recipe.pretrain is not None  # a recipe with a stage 1 names its model
                 base = self.runner.train(self.recipe.pretrain, seed, pretraining, settings, label="stage 1")
                 init = base.last_ckpt
             for row in self.rows:

@@ -62,6 +62,13 @@ class ConfigInCheckpoint(Callback):
         checkpoint[START_DIR_KEY] = self.start_dir
 
 
+def callbacks_of(trainer: Trainer) -> list[Callback]:
+    """The trainer's callbacks, the list itself (Lightning sets ``Trainer.callbacks`` when the trainer is made, without
+    declaring it on the class, so a type checker does not see it)."""
+    callbacks: list[Callback] = vars(trainer)["callbacks"]
+    return callbacks
+
+
 class StamLaneCLI(LightningCLI):
     """LightningCLI with `StamLaneModule` and ``ClipDataModule``, linked sizes and the lane callbacks.
 
@@ -171,15 +178,15 @@ class StamLaneCLI(LightningCLI):
         if self.subcommand == "predict":  # its files go to its output folder: no config.yaml where it is run
             self.save_config_callback = None
         trainer = super().instantiate_trainer(**kwargs)
-        trainer.callbacks.insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
-        trainer.callbacks.append(FinalCheckpoint())  # last.ckpt = the weights training ended with
+        callbacks_of(trainer).insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
+        callbacks_of(trainer).append(FinalCheckpoint())  # last.ckpt = the weights training ended with
         if self.subcommand == "fit":  # the run's config travels inside its checkpoints (predict from one alone)
             config = self._parser(self.subcommand).dump(self.config[self.subcommand], skip_none=False)
-            trainer.callbacks.append(ConfigInCheckpoint(config))
-            trainer.callbacks.append(FitReport(verbose=self.report))  # a line per validation, the true best
+            callbacks_of(trainer).append(ConfigInCheckpoint(config))
+            callbacks_of(trainer).append(FitReport(verbose=self.report))  # a line per validation, the true best
         elif self.subcommand is not None:  # checkpoints and learning rates are fit's: nothing to save or restore
-            trainer.callbacks = [
-                cb for cb in trainer.callbacks if not isinstance(cb, (ModelCheckpoint, LearningRateMonitor))
+            callbacks_of(trainer)[:] = [
+                cb for cb in callbacks_of(trainer) if not isinstance(cb, (ModelCheckpoint, LearningRateMonitor))
             ]
         return trainer
 
@@ -195,7 +202,7 @@ class StamLaneCLI(LightningCLI):
             print(f"stamlane fit: done ({self.trainer.world_size} processes); checkpoints, logs and config: {where}")
             return
         lines = [f"stamlane fit: done after {self.trainer.global_step} steps"]
-        report = next((cb for cb in self.trainer.callbacks if isinstance(cb, FitReport)), None)
+        report = next((cb for cb in callbacks_of(self.trainer) if isinstance(cb, FitReport)), None)
         keeper = next(
             (cb for cb in self.trainer.checkpoint_callbacks if isinstance(cb, ModelCheckpoint) and cb.monitor), None
         )
@@ -204,7 +211,14 @@ class StamLaneCLI(LightningCLI):
             step = best.step if best.step is not None else step_of(best.path)
             where = f": {best.path}" if best.path else ""
             lines.append(f"  best {keeper.monitor} {best.score:.4f}{f' at step {step}' if step else ''}{where}")
-        last = next((cb.last_model_path for cb in self.trainer.checkpoint_callbacks if cb.last_model_path), None)
+        last = next(
+            (
+                cb.last_model_path
+                for cb in self.trainer.checkpoint_callbacks
+                if isinstance(cb, ModelCheckpoint) and cb.last_model_path
+            ),
+            None,
+        )
         if last:
             lines.append(f"  last (final weights): {last}")
         if self.trainer.logger is not None and self.trainer.logger.log_dir:
@@ -249,14 +263,14 @@ class StamLaneCLI(LightningCLI):
         inputs = [getattr(self.datamodule, "root", None), config.get("source"), *configs]
         ckpt = self.config_init[subcommand].get("ckpt_path") if subcommand != "fit" else None
         reads = [*inputs, ckpt if ckpt not in ("last", "best", "hpc", "registry") else None]
-        folders = [self.trainer.default_root_dir]
+        folders: list[str | Path | None] = [self.trainer.default_root_dir]
         folders += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
-        files = []
-        saver = next((cb for cb in self.trainer.callbacks if isinstance(cb, SaveConfigCallback)), None)
+        files: list[str | Path | None] = []
+        saver = next((cb for cb in callbacks_of(self.trainer) if isinstance(cb, SaveConfigCallback)), None)
         if saver is not None:  # the merged config, written over a --config of the same name in that folder
             files.append(Path(self.trainer.log_dir or self.trainer.default_root_dir) / saver.config_filename)
         if subcommand == "predict":
-            for cb in self.trainer.callbacks:
+            for cb in callbacks_of(self.trainer):
                 if isinstance(cb, LanePredictionWriter):
                     folders += [cb.output_dir, cb.output_dir / "lines", cb.output_dir / "overlays"]
                     files += [cb.output_dir / "predictions.json", cb.video_path, temporary_name(cb.video_path)]
@@ -297,8 +311,9 @@ class StamLaneCLI(LightningCLI):
         """The newest ``last.ckpt`` under the run's logger folder (``save_dir/name``), else ``default_root_dir``."""
         logger = self.trainer.logger
         folder = Path(self.trainer.default_root_dir)
-        if logger is not None and getattr(logger, "save_dir", None):
-            folder = Path(logger.save_dir) / (logger.name or "")
+        save_dir = logger.save_dir if logger is not None else None
+        if logger is not None and save_dir:
+            folder = Path(save_dir) / (logger.name or "")
         found = sorted(folder.rglob("last*.ckpt"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
         if not found:
             raise CheckpointError(
@@ -328,7 +343,7 @@ class StamLaneCLI(LightningCLI):
             raise ValueError(f"predict_again needs a predict command, this one is {self.subcommand!r}")
         self.datamodule = datamodule
         self.config_init["predict"]["ckpt_path"] = None  # the weights are in the model already
-        for writer in self.trainer.callbacks:
+        for writer in callbacks_of(self.trainer):
             if isinstance(writer, LanePredictionWriter):
                 writer.use_output_dir(output_dir)
                 writer.given_output_dir, writer.max_overlays = True, max_overlays
@@ -350,7 +365,7 @@ class StamLaneCLI(LightningCLI):
             origin = f"{Path(self.datamodule.root).resolve()}: {labels}"
         # one folder per model and source: a second source of the same name gets its own (stamlane.safety.owner)
         owner = {"command": "predict", "source": origin}
-        for writer in self.trainer.callbacks:
+        for writer in callbacks_of(self.trainer):
             if isinstance(writer, LanePredictionWriter):
                 if writer.given_output_dir:
                     claim(writer.output_dir, owner, "--predictions.output_dir")
