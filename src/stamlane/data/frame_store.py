@@ -151,9 +151,10 @@ class _StoredClip:
     def size(self) -> tuple[int, int]:
         """The frames' ``(H, W)``."""
         store, key = self.dataset.frame_store, ("size", self.ids)
-        size = store.get(key)
+        size: tuple[int, int] | None = store.get(key)
         if size is None:
-            size = tuple(self.frames()[-1].shape[:2])
+            height, width = self.frames()[-1].shape[:2]
+            size = (height, width)
             store.put(key, size)
         return size
 
@@ -161,11 +162,12 @@ class _StoredClip:
         """``key_from_hist`` (T, 3, 3) as the dataset's aligner gives it."""
         aligner = self.dataset.aligner
         if not aligner.reads_pixels:
-            return aligner(self.entry.frame_paths, None)[0]
+            key_from_hist: np.ndarray = aligner(self.entry.frame_paths, None)[0]
+            return key_from_hist
         store = self.dataset.frame_store
         settings = (aligner.mode, aligner.strategy, aligner.horizon_row, str(aligner.root), str(aligner.cache_dir))
         key = ("align", settings, aligner.pair_cache is not None, self.ids)
-        mats = store.get(key)
+        mats: np.ndarray | None = store.get(key)
         if mats is None:
             mats = aligner(self.entry.frame_paths, self.frames())[0].copy()
             mats.setflags(write=False)

@@ -176,7 +176,8 @@ def dbscan(points: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
         ``(N,)`` labels: ``0..K-1`` in the order DBSCAN finds the clusters, ``-1`` noise.
     """
     if _dbscan_inner is None:  # ball_tree: 2-3x faster than kd_tree on tight 4-d clusters (benchmarks/postprocess.py)
-        return DBSCAN(eps=eps, min_samples=min_samples, algorithm="ball_tree").fit_predict(points)
+        found: np.ndarray = DBSCAN(eps=eps, min_samples=min_samples, algorithm="ball_tree").fit_predict(points)
+        return found
     data = np.asarray(points, dtype=np.float64)
     neighbourhoods = BallTree(data, leaf_size=30, metric="euclidean").query_radius(data, eps)
     counts = np.fromiter((len(n) for n in neighbourhoods), dtype=np.intp, count=len(data))
@@ -198,7 +199,8 @@ class LaneCurve:
         ys = np.asarray(ys, dtype=np.float64)
         x = np.polyval(self.coef, np.clip(ys, self.y_lo, self.y_hi))
         slope = np.polyval(np.polyder(self.coef), np.clip(ys, self.y_lo, self.y_hi)) if len(self.coef) > 1 else 0.0
-        return x + slope * (ys - np.clip(ys, self.y_lo, self.y_hi))
+        xs: np.ndarray = x + slope * (ys - np.clip(ys, self.y_lo, self.y_hi))
+        return xs
 
 
 def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None:
@@ -229,6 +231,7 @@ def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None
         if new_keep.sum() < 2 or np.array_equal(new_keep, keep):
             break
         keep = new_keep
+    assert coef is not None  # the loop fitted at least once
     return LaneCurve(coef, float(by[keep].min()), float(by[keep].max()))
 
 
@@ -275,7 +278,8 @@ def _band_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.nda
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     lo = starts + (counts - 1) // 2
     hi = starts + counts // 2
-    return 0.5 * (sorted_values[lo] + sorted_values[hi])
+    medians: np.ndarray = 0.5 * (sorted_values[lo] + sorted_values[hi])
+    return medians
 
 
 def decode_lanes(
@@ -356,8 +360,10 @@ def sample_lanes(
     """
     if config.extend and curves:
         top = min(c.y_lo for c in curves)
-        bottom = max(y_samples) if y_samples is not None and len(y_samples) else None
-        if bottom is None:
+        bottom: float
+        if y_samples is not None and len(y_samples):
+            bottom = max(y_samples)
+        else:
             bottom = orig_size[0] - 1 if orig_size is not None else max(c.y_hi for c in curves)
     lanes: Lanes = []
     for curve in curves:
