@@ -92,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from stamlane.data.frame_store import FRAME_STORE
     from stamlane.synth import generate_dataset
+    from stamlane.synth.layout import SplitCounts
     from stamlane.training.hardware import cpu_name
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
@@ -99,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict = {"cpu": cpu_name(), "cores": os.cpu_count(), "load_1min_at_start": round(os.getloadavg()[0], 1)}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"
-        generate_dataset(root, train=0, val=0, test=args.test, challenging=0, seed=0, progress=False)
+        generate_dataset(root, SplitCounts(test=args.test), seed=0, progress=False)
         _, lanes = predict(root, Path(tmp) / "warm-up", 0)  # imports, first calls and the alignment cache out
         FRAME_STORE.clear()
         first, reference = data_pass(root, 1024)  # fills the store

@@ -43,7 +43,7 @@ def same_weights(a: Path, b: Path) -> list[str]:
         x, y = ta[name], tb[name]
         if x.dtype != y.dtype or x.shape != y.shape:
             differ.append(name)
-        elif not torch.equal(x.contiguous().view(torch.uint8), y.contiguous().view(torch.uint8)):
+        elif not torch.equal(x.reshape(-1).view(torch.uint8), y.reshape(-1).view(torch.uint8)):
             differ.append(name)
     return differ
 

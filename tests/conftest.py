@@ -14,6 +14,11 @@ from stamlane.synth.layout import SplitCounts
 
 # With the other core busy, torch's default OpenMP spin-waiting ran 15x slower on the 2-core CI machine.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+if os.environ.get("PYTEST_XDIST_WORKER"):  # `pytest -n N`: N workers share the cores, one torch thread each
+    os.environ["OMP_NUM_THREADS"] = "1"  # and so does every process a test starts
+    import torch
+
+    torch.set_num_threads(1)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"

@@ -1,11 +1,9 @@
-"""``stamlane fit|validate|test|predict`` (StamLaneCLI): configs, fit -> predict -> stamlane-eval, resume, DDP."""
+"""``stamlane fit|validate|test|predict`` (StamLaneCLI): configs, fit -> predict -> stamlane-eval, resume (DDP: tests/training/test_distributed.py)."""
 
 from __future__ import annotations
 
 import csv
 import json
-import os
-import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -245,45 +243,6 @@ def test_resume_equals_uninterrupted_run(tiny_set: Path, tmp_path: Path) -> None
     assert resumed.trainer.global_step == 6
     for key, value in resumed.model.state_dict().items():
         assert torch.equal(value, final[key]), key
-
-
-def _metrics(csv_path: Path) -> dict[str, float]:
-    rows = list(csv.DictReader(csv_path.open()))
-    return {k: float(v) for row in rows for k, v in row.items() if v and k.startswith("val/")}
-
-
-def test_ddp_validate_equals_single_process(tiny_set: Path, tmp_path: Path) -> None:
-    train = _args(tiny_set, tmp_path / "fit", "--trainer.max_steps=2", "--trainer.limit_val_batches=0")
-    train = [a for a in train if not a.startswith("--trainer.callbacks")] + ["--trainer.callbacks=[]"]
-    cli = _fit_in_process(train)
-    ckpt = tmp_path / "w.ckpt"
-    cli.trainer.save_checkpoint(ckpt)
-
-    def validate(out: Path, *extra: str) -> list[str]:
-        args = _args(
-            tiny_set, out, "--data.loader.batch_size=1", "--model.report_run_time=false", f"--ckpt_path={ckpt}"
-        )
-        return ["validate", *[a for a in args if not a.startswith("--trainer.callbacks")], *extra]
-
-    assert main(validate(tmp_path / "single")) == 0
-    single = _metrics(next((tmp_path / "single").rglob("metrics.csv")))
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
-    ddp = ["--trainer.strategy=ddp", "--trainer.devices=2", "--trainer.accelerator=cpu"]
-    proc = subprocess.run(  # a real command line: DDP re-launches it for rank 1
-        [sys.executable, "-m", "stamlane.cli", *validate(tmp_path / "ddp", *ddp)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=240,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    double = _metrics(next((tmp_path / "ddp").rglob("metrics.csv")))
-    assert "val/tusimple_f1" in single and "val/culane_f1@0.5" in single
-    assert double.keys() == single.keys()
-    for key, value in single.items():
-        if key != "val/loss":  # the mean of per-rank batch means: equal here (1 image a batch) up to rounding
-            assert double[key] == pytest.approx(value, abs=1e-9), key
-    assert double["val/loss"] == pytest.approx(single["val/loss"], rel=1e-5)
 
 
 def test_the_sky_cut_travels_from_the_data_to_the_model_and_the_streaming_predictor() -> None:

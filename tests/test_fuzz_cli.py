@@ -64,10 +64,15 @@ def _peak_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux reports KiB
 
 
+class _Hang(BaseException):
+    """A command that ran past its time: not an ``Exception``, so no command's error boundary turns it into a
+    refusal (a ``TimeoutError`` was said as one line and exit 2, and the hang passed as a refusal)."""
+
+
 @contextmanager
 def _bounded(seconds: int = 60) -> Iterator[None]:
     def hang(*_: object) -> None:
-        raise TimeoutError(f"the command ran past {seconds} s (a hang: a FIFO read, an endless video)")
+        raise _Hang(f"the command ran past {seconds} s (a hang: a FIFO read, an endless video)")
 
     previous = signal.signal(signal.SIGALRM, hang)
     signal.alarm(seconds)

@@ -19,7 +19,8 @@ _spec.loader.exec_module(same_numbers)
 def _experiment(root: Path, weight: torch.Tensor, run_time: float, acc: float) -> Path:
     ckpt = root / "stam4-s0" / "run" / "checkpoints" / "last.ckpt"
     ckpt.parent.mkdir(parents=True)
-    torch.save({"state_dict": {"encoder.w": weight, "head.b": torch.zeros(2, dtype=torch.float64)}}, ckpt)
+    state = {"encoder.w": weight, "head.b": torch.zeros(2, dtype=torch.float64), "bn.steps": torch.tensor(7)}
+    torch.save({"state_dict": state}, ckpt)  # a 0-d long tensor too, as batch norms count their batches
     pred = root / "predictions" / "stam4-s0" / "test"
     pred.mkdir(parents=True)
     line = {"raw_file": "clips/a/8.jpg", "lanes": [[1.5, 2.0]], "h_samples": [10, 20], "run_time": run_time}

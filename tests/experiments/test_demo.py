@@ -34,11 +34,19 @@ VIEWS += [
 ]
 
 
+QUICK_EXTRA = "--trainer.log_every_n_steps=1"
+"""The ``stamlane fit`` argument the module's quick demo gives every run after ``--`` (a call on its folder without
+it has other settings)."""
+
+pytestmark = pytest.mark.xdist_group("demo")  # `pytest -n N`: the module's quick demo is made once, on one worker
+
+
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One quick demo (seed 0), with a ``stamlane fit`` argument for every run after ``--``: its output folder."""
+    """One quick demo (seed 0), with a ``stamlane fit`` argument for every run after ``--``: its output folder.
+    Tests may run ``stamlane demo`` on it again, but leave it as they found it."""
     out = tmp_path_factory.mktemp("demo") / "demo"
-    assert main(["demo", "--quick", "--out", str(out), "--", "--trainer.log_every_n_steps=1"]) == 0
+    assert main(["demo", "--quick", "--out", str(out), "--", QUICK_EXTRA]) == 0
     return out
 
 
@@ -168,10 +176,92 @@ def test_demo_bad_input(argv: list[str], message: str, tmp_path: Path, capsys: p
         assert not list(tmp_path.iterdir())
 
 
-def test_the_paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(
-    tmp_path: Path, capsys: pytest.CaptureFixture
-) -> None:
+def test_a_data_link_to_nothing_is_refused_before_anything_is_made(tmp_path: Path, capsys) -> None:
+    (tmp_path / "data").symlink_to(tmp_path / "nothing-here")
+    assert main(["demo", "--quick", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "is a link to nothing" in err and len(err.splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]  # neither --out nor the link's target made
+
+
+def test_a_tampered_run_folder_is_refused_in_one_line(quick: Path, capsys: pytest.CaptureFixture) -> None:
+    """The module's quick demo, tampered with and given back as it was (the last call rewrites its summary)."""
+    out, again = quick, ["demo", "--quick", "--out", str(quick), "--", QUICK_EXTRA]
+    done = out / "single-s0" / "done.json"
+    config = out / "single-s0" / "run" / "config.yaml"
+    record = json.loads(done.read_text())
+    ckpt = Path(record["last_ckpt"])
+    kept = {path: path.read_bytes() for path in (done, config, ckpt, out / "summary.json")}
+    try:
+        _tamper(out, again, done, config, record, capsys)
+    finally:
+        for path, content in kept.items():
+            path.write_bytes(content)
+
+
+def _tamper(out: Path, again: list[str], done: Path, config: Path, record: dict, capsys: pytest.CaptureFixture) -> None:
+    cases = [
+        ("{not json", "is not a run record"),
+        (json.dumps(record | {"run": "/etc"}), "is not a path inside"),
+        (json.dumps(record | {"last_ckpt_sha256": "0" * 64}), "changed since the run finished"),
+        (json.dumps([1, 2]), "is not a run record"),
+        (json.dumps(record | {"frames": None}), "frames must be int >= 1, got None"),
+        (json.dumps(record | {"scores": [1]}), "scores must be dict"),
+    ]
+    for text, message in cases:
+        done.write_text(text)
+        capsys.readouterr()
+        assert main(again) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    done.write_text(json.dumps(record))
+    original = config.read_text()
+    config.write_text(original.replace("class_path: torch.optim.AdamW", "class_path: os.system", 1))
+    capsys.readouterr()
+    assert main(again) == 2  # a run folder's config may not import anything
+    err = capsys.readouterr().err.strip()
+    assert "names 'os.system'" in err and len(err.splitlines()) == 1
+    config.write_text(
+        original.replace("class_path: stamlane.models.", "class_path: stamlane.experiments.demo.os.system  #", 1)
+    )
+    capsys.readouterr()
+    assert main(again) == 2  # a stamlane. prefix reaching the shell: not in the table
+    err = capsys.readouterr().err.strip()
+    assert "names 'stamlane.experiments.demo.os.system'" in err and len(err.splitlines()) == 1
+    config.write_text(original)
+    ckpt = Path(record["last_ckpt"])  # a checkpoint weights_only refuses, its digest forged, predicted again
+    kept = ckpt.read_bytes()
+    torch.save({"state_dict": {}, "x": partial(print)}, ckpt)
+    done.write_text(json.dumps(record | {"last_ckpt_sha256": file_sha256(ckpt), "scores": {}}))
+    capsys.readouterr()
+    assert main(again) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not a readable torch checkpoint" in err and len(err.splitlines()) == 1, err
+    ckpt.write_bytes(kept)
+    done.write_text(json.dumps(record))
+    (out / "summary.json").write_text("{tampered")
+    assert main(again) == 0  # the summary is rewritten from the runs
+
+
+def test_a_demo_folder_run_again_is_reused_rescored_and_grown(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """One ``--out`` over the calls a user makes on it, in order (each step made a quick demo of its own before; one
+    quick set and one stage 1 serve them all now, and the calls after the first ask for the key probe alone): the
+    reveal splits with fewer probes and the paper tables on them, a second seed and other settings refused, a split's
+    labels changed with paper rows added, and a model added."""
     out = tmp_path / "demo"
+    _paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(out, capsys)
+    _demo_reuses_finished_runs_and_refuses_other_settings(out, capsys)
+    _demo_scores_a_finished_run_again_when_a_split_changes(out, capsys)
+    _single_clean_is_the_single_frame_trained_without_the_key_frame_corruption(out)
+
+
+FEWER = ("--splits", "test", "challenging", "--reveal-probes", "key")
+"""The splits and probes of the calls after the first: the checks need no more (seeds, labels and models change)."""
+
+
+def _paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(
+    out: Path, capsys: pytest.CaptureFixture
+) -> None:
     assert main(["demo", "--quick", "--splits", "test", "--reveal-probes", "key", "--out", str(out)]) == 0
     summary = Summary.read(out / "summary.json")
     assert set(summary.splits_sha256) == {"test", "reveal", "reveal-traffic"}  # the reveal splits always
@@ -204,31 +294,17 @@ def test_the_paper_tables_on_reveal_score_only_the_splits_and_probes_asked_for(
     assert "| not run |" in not_run and not_run.count("|") == table[2].count("|")
 
 
-def test_single_clean_is_the_single_frame_trained_without_the_key_frame_corruption(tmp_path: Path) -> None:
-    out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--single-clean", "--out", str(out)]) == 0
-    assert "key_corruption: 0.5" in (out / "single-s0" / "run" / "config.yaml").read_text()
-    assert "key_corruption: 0.0" in (out / "single_clean-s0" / "run" / "config.yaml").read_text()
-    assert json.loads((out / "single_clean-s0" / "done.json").read_text())["recipe_args"] is False
-    summary = Summary.read(out / "summary.json")
-    assert [m.name for m in summary.models] == ["stam4", "single", "single_clean"]
-    for a, b in (("stam4", "single_clean"), ("single", "single_clean")):  # compared, with a clip interval
-        diff = summary.difference(a, b, "challenging", "tusimple_f1")
-        assert diff.ci95[0] <= diff.diff <= diff.ci95[1]
-    compared = {(d.a, d.b) for d in summary.differences if d.kind == "models"}
-    assert compared == {("stam4", "single"), ("stam4", "single_clean"), ("single", "single_clean")}
-
-
-def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
+def _demo_reuses_finished_runs_and_refuses_other_settings(out: Path, capsys: pytest.CaptureFixture) -> None:
     first = json.loads((out / "stam4-s0" / "done.json").read_text())
     capsys.readouterr()
-    assert main(["demo", "--quick", "--seeds", "2", "--out", str(out)]) == 0  # seed 0 reused, seed 1 trained
+    assert main(["demo", "--quick", "--seeds", "2", *FEWER, "--out", str(out)]) == 0  # seed 0 reused, seed 1 trained
     printed = capsys.readouterr().out
     assert "seed 0, stage 1: 1 frame, stage 1 (every model starts here), done before, reused" in printed
     assert "seed 1, stage 1: 1 frame, stage 1 (every model starts here), 3 steps" in printed
-    assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first  # not retrained
+    again = json.loads((out / "stam4-s0" / "done.json").read_text())
+    trained = ("last_ckpt_sha256", "train_minutes")
+    assert {k: again[k] for k in trained} == {k: first[k] for k in trained}  # not retrained
+    assert all(again["scores"][k] == v for k, v in first["scores"].items())  # challenging scored besides
     summary = Summary.read(out / "summary.json")
     runs = {m.name: m.runs for m in summary.models}
     assert [r.seed for r in runs["stam4"]] == [0, 1] and runs["stam4"][0].scores["test"] == first["scores"]["test"]
@@ -246,61 +322,10 @@ def test_demo_reuses_finished_runs_and_refuses_other_settings(tmp_path: Path, ca
         assert main(["demo", "--out", str(out), *other]) == 2
         err = capsys.readouterr().err.strip()
         assert "was made with other settings" in err and len(err.splitlines()) == 1
-    assert json.loads((out / "stam4-s0" / "done.json").read_text()) == first
+    assert json.loads((out / "stam4-s0" / "done.json").read_text()) == again
 
 
-def test_a_tampered_run_folder_is_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
-    done = out / "single-s0" / "done.json"
-    record = json.loads(done.read_text())
-    cases = [
-        ("{not json", "is not a run record"),
-        (json.dumps(record | {"run": "/etc"}), "is not a path inside"),
-        (json.dumps(record | {"last_ckpt_sha256": "0" * 64}), "changed since the run finished"),
-        (json.dumps([1, 2]), "is not a run record"),
-        (json.dumps(record | {"frames": None}), "frames must be int >= 1, got None"),
-        (json.dumps(record | {"scores": [1]}), "scores must be dict"),
-    ]
-    for text, message in cases:
-        done.write_text(text)
-        capsys.readouterr()
-        assert main(["demo", "--quick", "--out", str(out)]) == 2
-        err = capsys.readouterr().err.strip()
-        assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
-    done.write_text(json.dumps(record))
-    config = out / "single-s0" / "run" / "config.yaml"
-    original = config.read_text()
-    config.write_text(original.replace("class_path: torch.optim.AdamW", "class_path: os.system", 1))
-    capsys.readouterr()
-    assert main(["demo", "--quick", "--out", str(out)]) == 2  # a run folder's config may not import anything
-    err = capsys.readouterr().err.strip()
-    assert "names 'os.system'" in err and len(err.splitlines()) == 1
-    config.write_text(
-        original.replace("class_path: stamlane.models.", "class_path: stamlane.experiments.demo.os.system  #", 1)
-    )
-    capsys.readouterr()
-    assert main(["demo", "--quick", "--out", str(out)]) == 2  # a stamlane. prefix reaching the shell: not in the table
-    err = capsys.readouterr().err.strip()
-    assert "names 'stamlane.experiments.demo.os.system'" in err and len(err.splitlines()) == 1
-    config.write_text(original)
-    ckpt = Path(record["last_ckpt"])  # a checkpoint weights_only refuses, its digest forged, predicted again
-    kept = ckpt.read_bytes()
-    torch.save({"state_dict": {}, "x": partial(print)}, ckpt)
-    done.write_text(json.dumps(record | {"last_ckpt_sha256": file_sha256(ckpt), "scores": {}}))
-    capsys.readouterr()
-    assert main(["demo", "--quick", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "not a readable torch checkpoint" in err and len(err.splitlines()) == 1, err
-    ckpt.write_bytes(kept)
-    done.write_text(json.dumps(record))
-    (out / "summary.json").write_text("{tampered")
-    assert main(["demo", "--quick", "--out", str(out)]) == 0  # the summary is rewritten from the runs
-
-
-def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
+def _demo_scores_a_finished_run_again_when_a_split_changes(out: Path, capsys: pytest.CaptureFixture) -> None:
     first = json.loads((out / "single-s0" / "done.json").read_text())
     labels = out / "quick_data" / "challenging.json"
     labels.write_text("".join(line + "\n" for line in labels.read_text().splitlines()[: len(FACTORS)]))
@@ -314,7 +339,7 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     preds.write_text("".join(json.dumps(r) + "\n" for r in records))
     capsys.readouterr()
     # and rows of the tables: f4_add is trained, f4_mixed_cs_features IS the demo's stam4 and is not trained again
-    assert main(["demo", "--quick", "--out", str(out), "--rows", "f4_add", "f4_mixed_cs_features"]) == 0
+    assert main(["demo", "--quick", *FEWER, "--out", str(out), "--rows", "f4_add", "f4_mixed_cs_features"]) == 0
     printed = capsys.readouterr().out
     assert "single-s0: the challenging labels changed, predicting them again" in printed
     assert "test labels changed" not in printed and not (out / "f4_mixed_cs_features-s0").exists()
@@ -338,6 +363,20 @@ def test_demo_scores_a_finished_run_again_when_a_split_changes(tmp_path: Path, c
     assert rescored["scoring"] == SCORING and rescored["scores"]["test"]["late"] == 1
     assert json.loads(preds.read_text().splitlines()[0])["run_time"] == 500.0  # not predicted again
     assert rescored["scores"]["test"]["f1"] == before["scores"]["test"]["f1"]
+
+
+def _single_clean_is_the_single_frame_trained_without_the_key_frame_corruption(out: Path) -> None:
+    assert main(["demo", "--quick", "--single-clean", *FEWER, "--out", str(out)]) == 0
+    assert "key_corruption: 0.5" in (out / "single-s0" / "run" / "config.yaml").read_text()
+    assert "key_corruption: 0.0" in (out / "single_clean-s0" / "run" / "config.yaml").read_text()
+    assert json.loads((out / "single_clean-s0" / "done.json").read_text())["recipe_args"] is False
+    summary = Summary.read(out / "summary.json")
+    assert [m.name for m in summary.models] == ["stam4", "single", "single_clean"]
+    for a, b in (("stam4", "single_clean"), ("single", "single_clean")):  # compared, with a clip interval
+        diff = summary.difference(a, b, "challenging", "tusimple_f1")
+        assert diff.ci95[0] <= diff.diff <= diff.ci95[1]
+    compared = {(d.a, d.b) for d in summary.differences if d.kind == "models"}
+    assert compared == {("stam4", "single"), ("stam4", "single_clean"), ("single", "single_clean")}
 
 
 def test_score_split_iou_is_what_stamlane_eval_culane_says(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -4,6 +4,7 @@ history, scored with RVLD's temporal stability per clip, and the per-clip counts
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from stamlane_eval.video import Frame
 
 from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import Recipe, Row
+from stamlane.experiments.summary import Summary
 from stamlane.synth.generator import FIRST_KEY, TEMPORAL_LABELS
 
 torch.set_num_threads(1)
@@ -28,15 +30,27 @@ SHRINK = (
 )
 
 
-@pytest.mark.usefixtures("plain_argv")
-def test_clips_followed_frame_after_frame(tiny_synthetic, tmp_path: Path) -> None:
-    root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=1, challenging=8)  # 3 frames with history
+ROW = Row.paper_row("f2_mixed_cs_features")
+pytestmark = pytest.mark.xdist_group("engine_temporal")  # `pytest -n N`: the module's run is made once
+
+
+@pytest.fixture(scope="module")
+def followed(tiny_synthetic, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Experiment, Summary]:
+    """One run of 2 steps whose challenging clips are followed frame after frame, with its history probed (the
+    data root, the experiment and its summary): both tests of the module read it."""
+    root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=2, challenging=8)  # 3 frames with history
+    out = tmp_path_factory.mktemp("temporal") / "out"
+    experiment = Experiment([ROW], Recipe("paper", steps=2), [0], root, out, extra=SHRINK, max_overlays=0)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(sys, "argv", ["stamlane"])  # LightningCLI warns when given args while it holds pytest's own
+        return root, experiment, experiment.run([])
+
+
+def test_clips_followed_frame_after_frame(followed: tuple[Path, Experiment, Summary]) -> None:
+    root, experiment, summary = followed
+    row = ROW
     labels = [json.loads(line) for line in (root / TEMPORAL_LABELS).read_text().splitlines()]
     assert len(labels) == 8 * 3  # one clip per factor, frames 8, 9 and 10
-    recipe = Recipe("paper", steps=2)
-    row = Row.paper_row("f2_mixed_cs_features")
-    experiment = Experiment([row], recipe, [0], root, tmp_path / "out", probes=False, extra=SHRINK, max_overlays=0)
-    summary = experiment.run([])
     run = summary.model(row.name).runs[0]
     frames = experiment.temporal_split()
     assert run.scores[frames]["clips"] == 8 and run.scores[frames]["frames"] == 24
@@ -62,16 +76,15 @@ def test_clips_followed_frame_after_frame(tiny_synthetic, tmp_path: Path) -> Non
     assert [r["frames"] for r in rows] == [3] * 8 and sum(r["temporal"]["0.5"][0] for r in rows) == expected.ns
 
 
-@pytest.mark.usefixtures("plain_argv")
-def test_frame_after_frame_with_the_key_frame_copied_into_the_history(tiny_synthetic, tmp_path: Path) -> None:
+def test_frame_after_frame_with_the_key_frame_copied_into_the_history(
+    followed: tuple[Path, Experiment, Summary],
+) -> None:
     """History use of temporal stability: the clips followed again with the key frame in every history slot (not
     with another clip's history, which would be one clip's for every frame), compared with the real history."""
     from stamlane.experiments.tables import tables
 
-    root = tiny_synthetic(128, 72, FIRST_KEY + 3, train=2, val=1, test=2, challenging=8)
-    row = Row.paper_row("f2_mixed_cs_features")
-    experiment = Experiment([row], Recipe("paper", steps=2), [0], root, tmp_path / "out", extra=SHRINK, max_overlays=0)
-    summary = experiment.run([])
+    _, experiment, summary = followed
+    row = ROW
     frames = experiment.temporal_split()
     scores = summary.model(row.name).runs[0].scores
     assert scores[f"{frames}@key"]["clips"] == 8 and f"{frames}@other_clip" not in scores

@@ -130,12 +130,13 @@ class ClipAligner:
         else:
             mats, oks = eye.copy(), [True] * t
             cached = [self._cached(frame_paths[-1], p) for p in frame_paths[:-1]] if self.mode == "cache" else []
-            if self.mode == "fly" or any(al is None for al in cached):
-                assert frames is not None  # checked above: these modes read pixels, and t > 1 here
+            found: list[Alignment] = [al for al in cached if al is not None]
+            if self.mode == "fly" or len(found) < len(cached):
+                if frames is None:  # reads_pixels: refused above
+                    raise ValueError(f"align {self.mode!r} estimates from the frames' pixels: frames must be given")
                 estimated = self._estimate(frames)
-                cached = [c if c is not None else e for c, e in zip(cached, estimated)] if cached else [*estimated]
-            for i, al in enumerate(cached):
-                assert al is not None  # every pair the cache lacked was estimated just above
+                found = [c if c is not None else e for c, e in zip(cached, estimated)] if cached else estimated
+            for i, al in enumerate(found):
                 mats[i], oks[i] = np.asarray(al.key_from_hist, dtype=np.float64), bool(al.ok)
                 self.failures += int(not al.ok)
             result = (mats, oks)

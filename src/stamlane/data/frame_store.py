@@ -154,7 +154,7 @@ class _StoredClip:
         size: tuple[int, int] | None = store.get(key)
         if size is None:
             height, width = self.frames()[-1].shape[:2]
-            size = (height, width)
+            size = (int(height), int(width))
             store.put(key, size)
         return size
 
@@ -162,8 +162,8 @@ class _StoredClip:
         """``key_from_hist`` (T, 3, 3) as the dataset's aligner gives it."""
         aligner = self.dataset.aligner
         if not aligner.reads_pixels:
-            key_from_hist: np.ndarray = aligner(self.entry.frame_paths, None)[0]
-            return key_from_hist
+            unread: np.ndarray = aligner(self.entry.frame_paths, None)[0]
+            return unread
         store = self.dataset.frame_store
         settings = (aligner.mode, aligner.strategy, aligner.horizon_row, str(aligner.root), str(aligner.cache_dir))
         key = ("align", settings, aligner.pair_cache is not None, self.ids)

@@ -188,8 +188,8 @@ class ClipTransform:
 def to_network(rgb: np.ndarray) -> np.ndarray:
     """A warped frame (`ClipTransform.warp_frame`: RGB uint8 (H, W, 3)) as the network reads it: float32 (3, H, W)
     in [0, 1]."""
-    chw: np.ndarray = rgb.transpose(2, 0, 1).astype(np.float32) / 255.0
-    return chw
+    out: np.ndarray = rgb.transpose(2, 0, 1).astype(np.float32) / 255.0
+    return out
 
 
 def net_homographies(key_from_hist: np.ndarray, net_from_orig: np.ndarray) -> np.ndarray:

@@ -41,6 +41,7 @@ from stamlane.experiments.workspace import (
     prepare_data,
     split_name,
 )
+from stamlane.safety.paths import MAX_CONFIG_BYTES, require
 
 __all__ = ["build_parser", "main"]
 
@@ -146,6 +147,7 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
     base = args.base.resolve() if args.base else index.default_base
     if not base.is_file():
         raise ValueError(f"--base {args.base} not found")
+    require(base, "--base", limit=MAX_CONFIG_BYTES)  # a config over 16 MiB: refused before the data are made
     if extra:  # before the data are made: a fit argument every run would refuse is said now
         check_fit_arguments(base, extra)
     rows = _rows(index, args.table, args.rows, base)

@@ -65,6 +65,8 @@ def check_data(root: Path | None, *, quick: bool = False, must_exist: bool = Fal
     its tiny set over them."""
     if root is None:
         return
+    if root.is_symlink() and not root.exists():  # --quick would make its set there: through the link, then fail
+        raise ExperimentError(f"--data {root} is a link to nothing")
     if (root.exists() or must_exist) and not root.is_dir():
         raise ExperimentError(f"--data {root} is not a folder")
     labels = [name for name in ("train.json", "val.json", "test.json") if os.path.lexists(root / name)]

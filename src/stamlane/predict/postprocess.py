@@ -199,8 +199,8 @@ class LaneCurve:
         ys = np.asarray(ys, dtype=np.float64)
         x = np.polyval(self.coef, np.clip(ys, self.y_lo, self.y_hi))
         slope = np.polyval(np.polyder(self.coef), np.clip(ys, self.y_lo, self.y_hi)) if len(self.coef) > 1 else 0.0
-        xs: np.ndarray = x + slope * (ys - np.clip(ys, self.y_lo, self.y_hi))
-        return xs
+        out: np.ndarray = x + slope * (ys - np.clip(ys, self.y_lo, self.y_hi))
+        return out
 
 
 def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None:
@@ -221,7 +221,7 @@ def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None
     # one point per band of rows: the median x and the median y (robust to a stray pixel)
     bx, by = _band_median(x, inverse, len(bands)), _band_median(y, inverse, len(bands))
     keep = np.ones(len(bx), dtype=bool)
-    coef = None
+    coef = np.zeros(1)  # set by the first fit
     for _ in range(3):
         degree = min(config.degree, int(keep.sum()) - 1)
         coef = np.polyfit(by[keep], bx[keep], degree)
@@ -231,7 +231,6 @@ def fit_curve(points: np.ndarray, config: PostprocessConfig) -> LaneCurve | None
         if new_keep.sum() < 2 or np.array_equal(new_keep, keep):
             break
         keep = new_keep
-    assert coef is not None  # the loop fitted at least once
     return LaneCurve(coef, float(by[keep].min()), float(by[keep].max()))
 
 
@@ -278,8 +277,8 @@ def _band_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> np.nda
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     lo = starts + (counts - 1) // 2
     hi = starts + counts // 2
-    medians: np.ndarray = 0.5 * (sorted_values[lo] + sorted_values[hi])
-    return medians
+    out: np.ndarray = 0.5 * (sorted_values[lo] + sorted_values[hi])
+    return out
 
 
 def decode_lanes(
@@ -358,13 +357,13 @@ def sample_lanes(
     Returns:
         ``(N, 2)`` ``(x, y)`` float arrays, left to right by x at their lowest row.
     """
+    top = bottom = 0.0
     if config.extend and curves:
         top = min(c.y_lo for c in curves)
-        bottom: float
         if y_samples is not None and len(y_samples):
-            bottom = max(y_samples)
+            bottom = float(max(y_samples))
         else:
-            bottom = orig_size[0] - 1 if orig_size is not None else max(c.y_hi for c in curves)
+            bottom = float(orig_size[0] - 1) if orig_size is not None else max(c.y_hi for c in curves)
     lanes: Lanes = []
     for curve in curves:
         lo, hi = (top, bottom) if config.extend else (curve.y_lo, curve.y_hi)

@@ -272,9 +272,9 @@ def _sequence(args: argparse.Namespace, source: Path) -> str | None:
             raise StreamError("--sequence and --first-frame name the frames of --tusimple / --culane: give one of them")
         return None
     if args.sequence is not None:
-        return args.sequence
+        return str(args.sequence)
     if source.is_dir():
-        return check_sequence(source.resolve().name, "--sequence (default: the folder's name)")
+        return str(check_sequence(source.resolve().name, "--sequence (default: the folder's name)"))
     return check_sequence(source.stem, "--sequence (default: the video's name)")
 
 
@@ -380,7 +380,7 @@ def _stream(
                 if writer is None:
                     frame_wh = (image.shape[1], image.shape[0])  # OpenCV's (W, H)
                     writer = cv2.VideoWriter(
-                        str(video_path), cv2.VideoWriter_fourcc(*"mp4v"), args.fps or fps or 10.0, frame_wh
+                        str(video_path), cv2.VideoWriter.fourcc(*"mp4v"), args.fps or fps or 10.0, frame_wh
                     )
                 writer.write(draw_lanes(image, out.lanes))
             written += 1

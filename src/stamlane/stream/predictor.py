@@ -378,7 +378,7 @@ class StreamingPredictor:
 
     def _align_cached(self, prep: FramePrep) -> None:
         """Update every cached frame's ``key_from_hist`` to the new frame (chain, direct when the chain breaks)."""
-        if not self._cache:
+        if not self._cache or self._shape is None:
             return
         cfg, shape, row = self.align_config, self._shape, self._row
         assert shape is not None  # set by _prepare with the stream's first frame, before any frame is cached

@@ -31,6 +31,8 @@ import numpy as np
 
 from stamlane.align.camera import Camera, Pose
 from stamlane.synth.dashcam import Roadside, Surface
+from stamlane.synth.road import Road
+from stamlane.synth.vehicles import Vehicle
 
 if TYPE_CHECKING:
     from stamlane.synth.road import Road
@@ -185,11 +187,11 @@ class Scenery:
     ) -> Scenery:
         """Curbs (50 % per side without a barrier) 0.3-2.5 m beyond the outer marks (``left``, ``right``: their
         lateral metres), poles every `POLE_SPACING_M` on one or both sides."""
-        taken = {np.sign(x) for x in (roadside.barrier,) if x is not None}
+        barrier_side = float(np.sign(roadside.barrier)) if roadside.barrier is not None else 0.0
         curbs = [
             mark + side * float(rng.uniform(0.3, 2.5))
             for mark, side in ((left, -1.0), (right, 1.0))
-            if side not in taken and rng.random() < 0.5
+            if side != barrier_side and rng.random() < 0.5
         ]
         poles = []
         for mark, side in ((left, -1.0), (right, 1.0)):
