@@ -98,10 +98,10 @@ def _fast(gray: np.ndarray, box: tuple[int, int, int, int], threshold: int) -> t
     # 3 px of context so that corners at the window's edge see their full Bresenham circle
     cx0, cy0 = max(x0 - 3, 0), max(y0 - 3, 0)
     crop = gray[cy0 : y1 + 3, cx0 : x1 + 3]
-    keypoints = cv2.FastFeatureDetector_create(threshold, True).detect(crop)
+    keypoints = cv2.FastFeatureDetector.create(threshold, True).detect(crop)
     if not keypoints:
         return np.zeros((0, 2), np.float32), np.zeros(0, np.float32)
-    points = cv2.KeyPoint_convert(keypoints) + np.array([cx0, cy0], np.float32)
+    points = cv2.KeyPoint.convert(keypoints) + np.array([cx0, cy0], np.float32)
     scores = np.fromiter((k.response for k in keypoints), np.float32, len(keypoints))
     inside = (points[:, 0] >= x0) & (points[:, 0] < x1) & (points[:, 1] >= y0) & (points[:, 1] < y1)
     return points[inside], scores[inside]
@@ -159,7 +159,8 @@ def _quadtree(points: np.ndarray, scores: np.ndarray, box: tuple[int, int, int, 
         n = 2**level
         gx = np.floor(rel[:, 0] * n).astype(np.int64)
         gy = np.minimum(np.floor(rel[:, 1] * n).astype(np.int64), n - 1)
-        return gy * (1 << 40) + gx
+        ids: np.ndarray = gy * (1 << 40) + gx
+        return ids
 
     level, parent = 0, node_ids(0)
     child = node_ids(1)
@@ -213,7 +214,8 @@ def _orientation(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
     row_sum = (f0[b] - f0[a]).astype(np.float64)
     m10 = ((f1[b] - f1[a]).astype(np.float64) - xi[:, None] * row_sum).sum(axis=1)
     m01 = row_sum @ _ROW_OFFSETS.astype(np.float64)
-    return np.degrees(np.arctan2(m01, m10)) % 360.0
+    degrees: np.ndarray = np.degrees(np.arctan2(m01, m10)) % 360.0
+    return degrees
 
 
 def _describe(gray: np.ndarray, points: np.ndarray, scores: np.ndarray, horizon_row: int) -> Features:
@@ -224,11 +226,12 @@ def _describe(gray: np.ndarray, points: np.ndarray, scores: np.ndarray, horizon_
     keypoints = [
         cv2.KeyPoint(x, y, 31.0, a, s, 0) for x, y, a, s in zip(xs, ys, angles.tolist(), scores.tolist(), strict=True)
     ]
-    orb = cv2.ORB_create(edgeThreshold=EDGE, patchSize=31)
-    keypoints, descriptors = orb.compute(gray[top:], keypoints)
-    if descriptors is None or not keypoints:
+    orb = cv2.ORB.create(edgeThreshold=EDGE, patchSize=31)
+    described, descriptors = orb.compute(gray[top:], keypoints)
+    if descriptors is None or not described:
         return _empty()
-    points = cv2.KeyPoint_convert(keypoints).astype(np.float32) + np.array([0, top], np.float32)
+    # KeyPoint.convert returns an (N, 2) float32 array (the stub says a sequence of points)
+    points = np.asarray(cv2.KeyPoint.convert(described), np.float32) + np.array([0, top], np.float32)
     return Features(points, descriptors)
 
 
@@ -255,7 +258,7 @@ def detect_spread_features(gray: np.ndarray, horizon_row: int, cfg: FeatureConfi
 
 
 def detect_plain_orb(gray: np.ndarray, horizon_row: int, max_features: int = 500, nlevels: int = 8) -> Features:
-    """Plain ``cv2.ORB_create(max_features)`` on the ground region: the top-N corners by score (Figure 2a).
+    """Plain ``cv2.ORB.create(max_features)`` on the ground region: the top-N corners by score (Figure 2a).
 
     Args:
         gray: ``(H, W)`` uint8 grey image.
@@ -268,10 +271,10 @@ def detect_plain_orb(gray: np.ndarray, horizon_row: int, max_features: int = 500
     """
     mask = np.zeros(gray.shape, np.uint8)
     mask[max(int(horizon_row), 0) :] = 255
-    keypoints, descriptors = cv2.ORB_create(max_features, nlevels=nlevels).detectAndCompute(gray, mask)
+    keypoints, descriptors = cv2.ORB.create(max_features, nlevels=nlevels).detectAndCompute(gray, mask)
     if descriptors is None or not keypoints:
         return _empty()
-    return Features(cv2.KeyPoint_convert(keypoints).astype(np.float32), descriptors)
+    return Features(np.asarray(cv2.KeyPoint.convert(keypoints), np.float32), descriptors)
 
 
 def concat_features(parts: list[Features]) -> Features:

@@ -268,7 +268,7 @@ def check_plausible(
     of the width.
     """
     cfg = cfg or AlignConfig()
-    h = np.asarray(key_from_hist, np.float64)
+    h: np.ndarray = np.asarray(key_from_hist, np.float64)
     if h.shape != (3, 3) or not np.all(np.isfinite(h)):
         return "non-finite homography"
     if abs(np.linalg.det(h)) < 1e-12:
@@ -332,7 +332,8 @@ def refine_homography(
     warped = cv2.warpPerspective(hist.normalized_at(s), warp, target.shape[::-1], flags=cv2.INTER_LINEAR)
     points = (points * np.float32(s) - np.array([0, s * key.top], np.float32)).reshape(-1, 1, 2)
     side = max(round(cfg.lk_window * s) | 1, 7)
-    moved, status, _ = cv2.calcOpticalFlowPyrLK(target, warped, points, None, winSize=(side, side), maxLevel=1)
+    # the stub wants an array for nextPts; OpenCV takes None (an output unless OPTFLOW_USE_INITIAL_FLOW)
+    moved, status, _ = cv2.calcOpticalFlowPyrLK(target, warped, points, None, winSize=(side, side), maxLevel=1)  # type: ignore[call-overload]
     good = status.ravel() == 1
     tracked = len(points)
     if good.sum() < cfg.min_inliers:
@@ -411,6 +412,7 @@ def estimate_prepared(hist: FramePrep, key: FramePrep, cfg: AlignConfig | None =
         if mask is None or alignment.num_inliers < cfg.min_inliers:
             break  # nothing was fitted, or too little to set aside: another fit would not differ
         src, dst = src[~mask], dst[~mask]  # set the rejected model's inliers aside and fit the rest
+    assert first is not None, "max_models >= 1 (AlignConfig checks it): the loop fitted at least once"
     return first
 
 

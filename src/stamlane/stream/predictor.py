@@ -381,6 +381,7 @@ class StreamingPredictor:
         if not self._cache or self._shape is None:
             return
         cfg, shape, row = self.align_config, self._shape, self._row
+        assert shape is not None  # set by _prepare with the stream's first frame, before any frame is cached
 
         def estimate(entry: _Cached) -> Alignment:
             if entry.prep is None:  # cached by `step` without its image

@@ -76,12 +76,14 @@ class SynthClip:
     def key_from_hist(self, key: int, hist: int) -> np.ndarray:
         """Exact ground-plane homography from frame ``hist`` pixels to frame ``key`` pixels (0-based), (3, 3)."""
         h = self.image_from_ground[key] @ np.linalg.inv(self.image_from_ground[hist])
-        return h / h[2, 2]
+        normalised: np.ndarray = h / h[2, 2]
+        return normalised
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
+    smooth: np.ndarray = x * x * (3 - 2 * x)
+    return smooth
 
 
 def _ego_poses(cfg: SynthConfig, rng: np.random.Generator, road: Road, ego_lane: int) -> tuple[list[Pose], np.ndarray]:
@@ -201,6 +203,7 @@ def generate_clip(
         roadside = Roadside.sample(rng, min(offsets), max(offsets))
     if world is not None and cfg.world == "dashcam2":  # its draws after the dashcam world's
         sun = Sun.sample(rng, world.clear_sky)
+        assert roadside is not None and isinstance(surface, Surface)  # both drawn just above for every dashcam world
         scenery = Scenery.sample(rng, sun, roadside, min(offsets), max(offsets), road.z_range)
         surface = RepairedSurface.sample(rng, surface, road.z_range, offsets)
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
@@ -214,7 +217,7 @@ def generate_clip(
         cast=scenery.shadows(road.centre, road.z_range) if scenery is not None else None,
         cast_depth=scenery.sun.depth if scenery is not None else 0.0,
     )
-    texture, bare = textures if paint_contrast else (textures, None)
+    texture, bare = textures if isinstance(textures, tuple) else (textures, None)  # a pair with paint_contrast
     vehicles: list[Vehicle] = []
     if rng.random() < cfg.occluder_prob:
         count = int(rng.integers(cfg.vehicles[0], cfg.vehicles[1] + 1))
@@ -275,7 +278,7 @@ def generate_clip(
         if scenery is not None:
             scenery.draw(frame, road.centre, camera, pose, FAR_M)
         if vehicles:
-            shade = np.zeros((cfg.height, cfg.width), np.uint8)
+            shade: np.ndarray = np.zeros((cfg.height, cfg.width), np.uint8)
             for v in vehicles:
                 for poly in shadow_polygons(v, road, t, sun_shift):
                     pix = camera.project_polygon(pose, poly)

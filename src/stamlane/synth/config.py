@@ -8,8 +8,9 @@ is `clip_kinds`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -247,7 +248,13 @@ class SynthConfig:
         """The clean settings (with ``overrides``) plus one challenging factor of `FACTORS`."""
         if factor not in FACTORS:
             raise ValueError(f"factor must be one of {tuple(FACTORS)}, got {factor!r}")
-        return replace(cls(**overrides), **FACTORS[factor].overrides)
+        return cls().overridden(overrides).overridden(FACTORS[factor].overrides)
+
+    def overridden(self, overrides: Mapping[str, object]) -> SynthConfig:
+        """These settings with ``overrides`` (field name -> value, as `Factor.overrides`): an unknown name raises
+        TypeError, a bad value `__post_init__`'s ValueError."""
+        # one mapping holds values of several fields' types, which no static type pairs with their names
+        return replace(self, **cast("dict[str, Any]", overrides))
 
     def __post_init__(self) -> None:
         if self.width < 64 or self.height < 48:

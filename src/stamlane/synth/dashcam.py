@@ -264,7 +264,8 @@ class Sensor:
     def sample(cls, rng: np.random.Generator, randomise: bool) -> Sensor:
         cast = (1.0, 1.0, 1.0)
         if randomise:
-            cast = tuple(float(c) for c in rng.uniform(0.8, 1.2, 3))
+            blue, green, red = (float(c) for c in rng.uniform(0.8, 1.2, 3))
+            cast = (blue, green, red)
         return cls(
             float(rng.uniform(0.0, 1.2)),
             float(rng.uniform(0.0, 5.0)),
@@ -272,13 +273,13 @@ class Sensor:
             float(rng.uniform(0.8, 1.25)),
             float(rng.uniform(0.0, 0.35)),
             int(rng.integers(30, 90)) if rng.random() < 0.7 else 0,
-            cast,  # type: ignore[arg-type]
+            cast,
         )
 
     def apply(self, frame: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The frame (BGR uint8 ``(H, W, 3)``) as this camera records it; draws the frame's noise from ``rng``."""
         h, w = frame.shape[:2]
-        out = frame.astype(np.float32)
+        out: np.ndarray = frame.astype(np.float32)
         sigma = self.blur * w / 640.0
         if sigma > 0.3:
             out = cv2.GaussianBlur(out, (0, 0), sigma)
@@ -290,7 +291,9 @@ class Sensor:
         out = np.clip(out, 0, 255).astype(np.uint8)
         if self.jpeg:
             _, data = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg])
-            out = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            assert decoded is not None, "a JPEG cv2.imencode just wrote decodes"
+            out = decoded
         return out
 
 
@@ -349,6 +352,10 @@ class DashcamWorld:
             sky = np.broadcast_to(top * (1 - a) + bottom * a, (height, width, 3)).copy()
         else:
             grey = float(rng.uniform(110, 200))
-            clouds = cv2.resize(rng.normal(0, 1, (6, 12)).astype(np.float32), (width, height), cv2.INTER_CUBIC)
+            # bilinear: the frozen sets' clouds (a third positional argument cv2.INTER_CUBIC was taken as dst)
+            clouds = cv2.resize(
+                rng.normal(0, 1, (6, 12)).astype(np.float32), (width, height), interpolation=cv2.INTER_LINEAR
+            )
             sky = (grey + 18 * clouds + 20 * a[..., 0])[..., None] * np.array([1.02, 1.0, 0.97], np.float32)
-        return np.clip(sky, 0, 255).astype(np.uint8)
+        sky_bgr: np.ndarray = np.clip(sky, 0, 255).astype(np.uint8)
+        return sky_bgr

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -166,9 +166,9 @@ def generate_dataset(
     reach_of = {split: REVEAL_FRAMES - 1 if split in ("reveal", "reveal-traffic") else FIRST_KEY for split in SPLITS}
     root.mkdir(parents=True, exist_ok=True)
     (root / "dataset.json").unlink(missing_ok=True)  # the old set's record first: incomplete until written, last
-    stats: dict[str, dict[str, float]] = {}
+    stats: dict[str, dict[str, float | dict[str, float]]] = {}
     clip_factors: dict[str, str] = {}
-    by_kind: dict[tuple[str, str], list[dict]] = {}
+    by_kind: dict[tuple[str, str], list[dict[str, Any]]] = {}
     total = sum(counts.values()) + sum(extra.values())
     bar = tqdm(total=total, desc=f"synthetic clips -> {root}", unit="clip", disable=not progress)
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
@@ -179,7 +179,7 @@ def generate_dataset(
                 kind = clip_kinds(split, i, counts[split])
                 if split == "train" and i >= splits.train + splits.train_factors:
                     kind = ("motion", TRAIN_MOTION)
-                split_cfg = cfg if kind is None else replace(cfg, **kind[1].overrides)
+                split_cfg = cfg if kind is None else cfg.overridden(kind[1].overrides)
                 if kind is not None:
                     clip_factors[f"{split}-{i:04d}"] = kind[0]
                 kinds.append(None if kind is None else kind[0])
@@ -190,14 +190,14 @@ def generate_dataset(
             by_file: dict[str, list[dict[str, Any]]] = {name: [] for name in split_label_files(layout, split)}
             seen: list[dict[str, Any]] = []
             totals = {"key_points": 0, "hidden": 0, "revealed": 0, "unaligned_shift": 0.0}
-            for index, kind, (clip_records, clip_stats, clip_seen) in zip(
+            for index, kind_name, (clip_records, clip_stats, clip_seen) in zip(
                 range(len(jobs)), kinds, pool.map(_make_clip, jobs) if pool else map(_make_clip, jobs)
             ):
                 records += clip_records
                 by_file[label_file(layout, split, index)] += clip_records
                 seen += clip_seen
-                if split in KIND_SPLITS and kind is not None:
-                    by_kind.setdefault((split, kind), []).extend(clip_records)
+                if split in KIND_SPLITS and kind_name is not None:
+                    by_kind.setdefault((split, kind_name), []).extend(clip_records)
                 for k, v in clip_stats.items():
                     totals[k] += v
                 bar.update(1)

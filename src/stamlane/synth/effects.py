@@ -147,13 +147,14 @@ def glare(frame: np.ndarray, rng: np.random.Generator, horizon: float) -> np.nda
         veil = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * radius**2)) * float(rng.uniform(0.7, 0.95))
         streak = np.exp(-((yy - cy) ** 2) / (2 * (0.02 * h) ** 2)) * 0.6
         a = np.clip(veil + streak, 0, 1)[..., None]
-        return np.clip(frame * (1 - a) + 255.0 * a, 0, 255).astype(np.uint8)
+        flared: np.ndarray = np.clip(frame * (1 - a) + 255.0 * a, 0, 255).astype(np.uint8)
+        return flared
     # motion blur: a line kernel of 9-21 px in a random direction (camera shake)
     n = int(rng.integers(9, 22)) | 1
     kernel = np.zeros((n, n), np.float32)
     kernel[n // 2, :] = 1.0 / n
     rot = cv2.getRotationMatrix2D((n / 2 - 0.5, n / 2 - 0.5), float(rng.uniform(0, 180)), 1.0)
-    kernel = cv2.warpAffine(kernel, rot, (n, n))
+    kernel = np.asarray(cv2.warpAffine(kernel, rot, (n, n)), dtype=np.float32)  # float32 in, float32 out: no copy
     return cv2.filter2D(frame, -1, kernel / max(float(kernel.sum()), 1e-6))
 
 
@@ -190,4 +191,5 @@ def night(frame: np.ndarray, rng: np.random.Generator, light: NightLight, horizo
     gain[: int(max(horizon, 0))] = light.ambient * 0.5  # sky
     out = frame.astype(np.float32) * gain[..., None] * np.array([1.0, 0.95, 0.85], np.float32)  # warm bulbs
     out += rng.normal(0.0, light.noise, size=(h, w, 1)).astype(np.float32)
-    return np.clip(out, 0, 255).astype(np.uint8)
+    dark: np.ndarray = np.clip(out, 0, 255).astype(np.uint8)
+    return dark

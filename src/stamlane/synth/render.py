@@ -40,14 +40,13 @@ class GrainLayer:
 
     def __init__(self, rng: np.random.Generator, strength: float = 0.12) -> None:
         h, w = GRAIN_TILE
-        fine = rng.standard_normal((h, w), dtype=np.float32)
-        fine = cv2.GaussianBlur(fine, (0, 0), 0.7)
+        fine: np.ndarray = cv2.GaussianBlur(rng.standard_normal((h, w), dtype=np.float32), (0, 0), 0.7)
         stones = rng.random((h, w), dtype=np.float32)
         fine += np.where(stones < 0.02, 2.5, 0.0).astype(np.float32) - np.where(stones > 0.985, 2.5, 0.0).astype(
             np.float32
         )
         fine *= strength / max(float(fine.std()), 1e-6)
-        coarse = cv2.GaussianBlur(rng.standard_normal((h, w), dtype=np.float32), (0, 0), 3.0)
+        coarse: np.ndarray = cv2.GaussianBlur(rng.standard_normal((h, w), dtype=np.float32), (0, 0), 3.0)
         coarse *= strength / max(float(coarse.std()), 1e-6)
         self.tile = cv2.merge([fine, coarse])
         angle = float(rng.uniform(0, 2 * np.pi))
@@ -119,7 +118,8 @@ class GroundRenderer:
 
         def tex_at(u: np.ndarray | float, v: np.ndarray) -> np.ndarray:
             p = np.stack([np.broadcast_to(u, v.shape), v, np.ones_like(v)], axis=1) @ tex_from_img.T
-            return p[:, :2] / p[:, 2:3]
+            uv: np.ndarray = p[:, :2] / p[:, 2:3]
+            return uv
 
         here = tex_at(cx, rows)
         along = np.abs(tex_at(cx, rows + 1.0)[:, 1] - here[:, 1])  # texture rows spanned by one image row

@@ -238,7 +238,7 @@ def render_texture(
     )
     grain = rng.integers(-10, 11, (h, w), dtype=np.int16).astype(np.float32)
     base_grey = float(rng.uniform(80, 120))
-    lum = cv2.addWeighted(low, 8.0, grain, 1.0, base_grey)
+    lum: np.ndarray = cv2.addWeighted(low, 8.0, grain, 1.0, base_grey)
     # stones: bright and dark specks of 1-3 texels
     n_stones = int(w * h * 0.004)
     ys, xs = rng.integers(0, h, n_stones), rng.integers(0, w, n_stones)
@@ -257,11 +257,11 @@ def render_texture(
         zc = float(rng.uniform(*road.z_range))
         xc = float(road.centre(zc) + rng.uniform(left / p - 1, right / p + 1))
         pw, ph = float(rng.uniform(0.4, 2.5)), float(rng.uniform(0.4, 3.0))
-        ang = float(rng.uniform(0, 180))
+        angle_deg = float(rng.uniform(0, 180))
         ctr = (tex_from_ground @ np.array([xc, zc, 1.0]))[:2]
-        box = cv2.boxPoints(((float(ctr[0]), float(ctr[1])), (pw * p, ph * p), ang)).astype(np.int32)
-        shade = float(rng.choice([-1, 1]) * rng.uniform(15, 35))
-        cv2.fillConvexPoly(lum, box, base_grey + shade, lineType=cv2.LINE_AA)
+        box = cv2.boxPoints(((float(ctr[0]), float(ctr[1])), (pw * p, ph * p), angle_deg)).astype(np.int32)
+        tone = float(rng.choice([-1, 1]) * rng.uniform(15, 35))
+        cv2.fillConvexPoly(lum, box, base_grey + tone, lineType=cv2.LINE_AA)
     for _ in range(int((h / p) / 5)):
         zc = float(rng.uniform(*road.z_range))
         xc = float(road.centre(zc) + rng.uniform(left / p, right / p))
@@ -277,7 +277,7 @@ def render_texture(
     planes = [np.where(on_road, lum * tint, verge_lum + g) for tint, g in zip((1.02, 1.0, 0.97), green)]
 
     # --- paint -------------------------------------------------------------------------------------
-    alpha = np.zeros((h, w), np.float32)
+    alpha: np.ndarray = np.zeros((h, w), np.float32)
     colour = [np.zeros((h, w), np.float32) for _ in range(3)]
     z_fine = np.arange(road.z_range[0], road.z_range[1], 0.25)
     for mark in road.marks:
@@ -315,7 +315,7 @@ def render_texture(
 
     # --- static shadows ------------------------------------------------------------------------------
     if shadows > 0:
-        shade = np.zeros((h, w), np.float32)
+        shade: np.ndarray = np.zeros((h, w), np.float32)
         for _ in range(shadows):
             zc = float(rng.uniform(*road.z_range))
             side = rng.choice([left / p - shoulder / p - 1.5, right / p + shoulder / p + 1.5])
@@ -339,7 +339,7 @@ def render_texture(
         bare = [cv2.multiply(pl, light) for pl in bare]
 
     if cast:  # sharp shadows of the sun: a penumbra of ~5 cm
-        sharp = np.zeros((h, w), np.float32)
+        sharp: np.ndarray = np.zeros((h, w), np.float32)
         for poly in cast:
             pix = np.round((np.c_[poly, np.ones(len(poly))] @ tex_from_ground.T)[:, :2] * 16).astype(np.int32)
             cv2.fillPoly(sharp, [pix], 1.0, lineType=cv2.LINE_AA, shift=4)

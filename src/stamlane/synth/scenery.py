@@ -22,8 +22,9 @@ world and the dashcam world of format 7 draw what they drew, byte for byte (``te
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -32,6 +33,10 @@ from stamlane.align.camera import Camera, Pose
 from stamlane.synth.dashcam import Roadside, Surface
 from stamlane.synth.road import Road
 from stamlane.synth.vehicles import Vehicle
+
+if TYPE_CHECKING:
+    from stamlane.synth.road import Road
+    from stamlane.synth.vehicles import Vehicle
 
 __all__ = [
     "SUN_ELEVATION_DEG",
@@ -69,7 +74,8 @@ class Sun:
     def displacement(self) -> np.ndarray:
         """Ground displacement ``(X, Z)`` of a shadow per metre of height: away from the sun, ``1 / tan(elevation)``
         long (`stamlane.synth.vehicles.shadow_polygons` takes it as ``sun``)."""
-        return -np.array([np.sin(self.azimuth), np.cos(self.azimuth)]) / np.tan(self.elevation)
+        shift: np.ndarray = -np.array([np.sin(self.azimuth), np.cos(self.azimuth)]) / np.tan(self.elevation)
+        return shift
 
 
 @dataclass(frozen=True)
@@ -361,7 +367,7 @@ def _draw_box(
     pose: Pose,
     corners: np.ndarray,
     colour: tuple[float, ...],
-    faces: dict[str, tuple[float, ...]] | None = None,
+    faces: Mapping[str, tuple[float, ...]] | None = None,
     only: tuple[str, ...] = tuple(_FACES),
 ) -> list[str]:
     """Draw a box's faces that face the camera (``faces``: a colour per face name instead of the shaded ``colour``;

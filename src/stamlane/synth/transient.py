@@ -42,7 +42,8 @@ def _noise(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
     for cells, weight in ((4, 0.5), (16, 0.3), (64, 0.2)):
         grid = rng.standard_normal((max(2, height * cells // width), cells)).astype(np.float32)
         total += weight * cv2.resize(grid, (width, height), interpolation=cv2.INTER_CUBIC)
-    return np.clip(total / 1.5, -1.0, 1.0)
+    noise: np.ndarray = np.clip(total / 1.5, -1.0, 1.0)
+    return noise
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,7 @@ class KeyOccluder:
             assert self.veil is not None
             bright = np.clip(frame.astype(np.float32) * self.gain + self.offset, 0, 255)
             veil = self.veil[..., None]
-            return np.clip(bright * (1 - veil) + 255.0 * veil, 0, 255).astype(np.uint8)
+            flashed: np.ndarray = np.clip(bright * (1 - veil) + 255.0 * veil, 0, 255).astype(np.uint8)
+            return flashed
         assert self.colour is not None and self.mask is not None
         return np.where(self.mask[..., None] > 0, self.colour, frame)

@@ -116,6 +116,7 @@ def sample_vehicles(
             dur = float(rng.uniform(1.0, 2.5))
             start = float(rng.uniform(-0.5 * dur, duration - 0.3 * dur))
             lateral_speed = (lane_centres[target] - lane_centres[lane]) / dur
+        blue, green, red = (int(c) for c in rng.integers(20, 230, 3))
         v = Vehicle(
             z0,
             offset0,
@@ -126,7 +127,7 @@ def sample_vehicles(
             width,
             length,
             height,
-            tuple(int(c) for c in rng.integers(20, 230, 3)),
+            (blue, green, red),
         )
         clash = any(
             abs(o.offset0 - v.offset0) < 2.5 and abs(o.z0 - v.z0) < max(o.length, v.length) + 3 for o in vehicles
