@@ -160,10 +160,10 @@ def test_weights_and_predictions_are_the_same_with_and_without_the_store(
         record = experiment.runner.train(row, 0, recipe.training(row), experiment.settings())
         preds = []
         for source in ("real", "key", "real"):  # the second real pass reads what the first kept
-            pred = experiment.runner.predict(f"{row.name}-s0", Path(record["run"]), "test", source)
+            pred = experiment.runner.predict(f"{row.name}-s0", record.run, "test", source)
             lines = (pred / "predictions.json").read_text().splitlines()
             preds.append([{k: v for k, v in json.loads(line).items() if k != "run_time"} for line in lines])
-        weights = torch.load(Path(record["run"]) / "checkpoints" / "last.ckpt", weights_only=True)["state_dict"]
+        weights = torch.load(record.last_ckpt, weights_only=True)["state_dict"]
         results.append((weights, preds))
     (plain, plain_preds), *stored = results
     for weights, preds in stored:

@@ -213,7 +213,9 @@ def test_options_are_data_and_give_back_the_flags_of_before() -> None:
         "--data.root=/d",
         "--trainer.callbacks+=X",
     ]
-    for bad in (["x"], ["--a"], ["--a=1", "--a=2"]):
+    # given twice: the last value holds, read last, as on a command line (the runner's extra after a recipe's own)
+    assert list(overrides_of(["--a=1", "--b=2", "--a=3"]).items()) == [("b", "2"), ("a", "3")]
+    for bad in (["x"], ["--a"], ["--c+=1", "--c+=2"]):
         with pytest.raises(RunError):
             overrides_of(bad)
     spec = RunSpec((Path("a.yaml"), Path("b.yaml")), {"x": 1}, base={"y": 2})

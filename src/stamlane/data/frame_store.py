@@ -18,8 +18,6 @@ finds it filled. Training samples are augmented afresh every time and never stor
 from __future__ import annotations
 
 import hashlib
-import os
-import stat
 import threading
 from collections import OrderedDict
 from collections.abc import Hashable
@@ -30,7 +28,7 @@ import numpy as np
 
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import to_network
-from stamlane.safety.images import MAX_IMAGE_BYTES
+from stamlane.safety.images import read_image_file
 
 __all__ = ["DEFAULT_MEMORY_MB", "FRAME_STORE", "FrameStore", "StoredSlots", "file_identity"]
 
@@ -43,19 +41,11 @@ def file_identity(path: Path) -> str | None:
     """The digest of a file's bytes (BLAKE2b, 128 bits), or None when it is not a regular file of at most
     `stamlane.safety.images.MAX_IMAGE_BYTES` that can be read (the image reader then says why)."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO opens without waiting for a writer
+        data = read_image_file(path)
     except OSError:
         return None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_IMAGE_BYTES:
-            return None
-        with os.fdopen(os.dup(fd), "rb") as f:
-            data = f.read(MAX_IMAGE_BYTES + 1)
-    except OSError:
+    if data is None:
         return None
-    finally:
-        os.close(fd)
     return hashlib.blake2b(data, digest_size=16).hexdigest()
 
 

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 from stamlane_eval.io import MAX_IMAGE_SIDE
 
-__all__ = ["MAX_IMAGE_BYTES", "MAX_IMAGE_PIXELS", "declared_size", "open_video", "read_image"]
+__all__ = ["MAX_IMAGE_BYTES", "MAX_IMAGE_PIXELS", "declared_size", "open_video", "read_image", "read_image_file"]
 
 MAX_IMAGE_PIXELS = 1 << 26
 """Most pixels in one frame (67 Mpx, twice 8K UHD): 192 MiB decoded as BGR."""
@@ -125,12 +125,12 @@ def declared_size(data: bytes) -> tuple[int, int] | None:
     return None
 
 
-def read_image(path: str | os.PathLike[str]) -> np.ndarray | None:
-    """The image as BGR uint8 ``(H, W, 3)``, or ``None`` when it is missing, truncated, not an image, not a regular
-    file, or larger than `MAX_IMAGE_PIXELS` / ``MAX_IMAGE_SIDE`` / `MAX_IMAGE_BYTES`."""
-    path = Path(path)
+def read_image_file(path: str | os.PathLike[str]) -> bytes | None:
+    """The bytes of an image file: None when it cannot be opened, is not a regular file or holds more than
+    `MAX_IMAGE_BYTES`. Opened without blocking, so a FIFO opens without waiting for a writer; an error of the read
+    itself is raised (`OSError`)."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO opens without waiting for a writer
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError:
         return None
     try:
@@ -138,9 +138,18 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray | None:
         if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_IMAGE_BYTES:
             return None
         with os.fdopen(os.dup(fd), "rb") as f:
-            data = f.read(MAX_IMAGE_BYTES + 1)
+            return f.read(MAX_IMAGE_BYTES + 1)
     finally:
         os.close(fd)
+
+
+def read_image(path: str | os.PathLike[str]) -> np.ndarray | None:
+    """The image as BGR uint8 ``(H, W, 3)``, or ``None`` when it is missing, truncated, not an image, not a regular
+    file, or larger than `MAX_IMAGE_PIXELS` / ``MAX_IMAGE_SIDE`` / `MAX_IMAGE_BYTES`."""
+    path = Path(path)
+    data = read_image_file(path)
+    if data is None:
+        return None
     suffix = path.suffix.lower()
     if suffix in (".jpg", ".jpeg") and not data.rstrip(b"\x00").endswith(_JPEG_END):
         return None

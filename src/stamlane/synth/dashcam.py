@@ -238,11 +238,26 @@ class Roadside:
         zs: tuple[float, ...],
         colour: tuple[float, ...],
     ) -> None:
-        world = np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64)
-        poly = camera.project_polygon(pose, world)
-        if poly is not None and np.isfinite(poly).all() and np.abs(poly).max() < 1e5:
-            pts = np.round(poly * 16).astype(np.int32)
-            cv2.fillPoly(frame, [pts], tuple(float(c) for c in colour), lineType=cv2.LINE_AA, shift=4)
+        fill_world_polygon(frame, camera, pose, np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64), colour)
+
+
+def fill_world_polygon(
+    frame: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    world: np.ndarray,
+    colour: tuple[float, ...],
+    mask: np.ndarray | None = None,
+) -> None:
+    """Fill the world polygon ``world`` (N, 3) as the camera at ``pose`` sees it into ``frame`` (anti-aliased, 1/16 px),
+    and 255 into ``mask`` when given; nothing when it does not project (behind the camera, or far off the image)."""
+    poly = camera.project_polygon(pose, world)
+    if poly is None or not np.isfinite(poly).all() or np.abs(poly).max() >= 1e5:
+        return
+    pts = np.round(poly * 16).astype(np.int32)
+    cv2.fillPoly(frame, [pts], tuple(float(c) for c in colour), lineType=cv2.LINE_AA, shift=4)
+    if mask is not None:
+        cv2.fillPoly(mask, [pts], 255, shift=4)
 
 
 @dataclass(frozen=True)

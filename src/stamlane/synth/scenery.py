@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from stamlane.align.camera import Camera, Pose
-from stamlane.synth.dashcam import Roadside, Surface
+from stamlane.synth.dashcam import Roadside, Surface, fill_world_polygon
 from stamlane.synth.road import Road
 from stamlane.synth.vehicles import Vehicle
 
@@ -272,24 +272,8 @@ def _quad(
     mask: np.ndarray | None = None,
 ) -> None:
     """Fill the world quad ``(x, y)`` at depths ``zs`` into ``frame`` (and 255 into ``mask``)."""
-    _poly(frame, camera, pose, np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64), colour, mask)
-
-
-def _poly(
-    frame: np.ndarray,
-    camera: Camera,
-    pose: Pose,
-    world: np.ndarray,
-    colour: tuple[float, ...],
-    mask: np.ndarray | None = None,
-) -> None:
-    poly = camera.project_polygon(pose, world)
-    if poly is None or not np.isfinite(poly).all() or np.abs(poly).max() > 1e5:
-        return
-    pts = np.round(poly * 16).astype(np.int32)
-    cv2.fillPoly(frame, [pts], tuple(float(c) for c in colour), lineType=cv2.LINE_AA, shift=4)
-    if mask is not None:
-        cv2.fillPoly(mask, [pts], 255, shift=4)
+    world = np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64)
+    fill_world_polygon(frame, camera, pose, world, colour, mask)
 
 
 # ------------------------------------------------------------------------------------------- vehicle bodies
@@ -376,7 +360,7 @@ def _draw_box(
     names = [name for name in _visible_faces(corners, cam) if name in only]
     for name in names:
         col = (faces or {}).get(name) or tuple(c * _SHADE[name] for c in colour)
-        _poly(frame, camera, pose, corners[list(_FACES[name])], col, mask)
+        fill_world_polygon(frame, camera, pose, corners[list(_FACES[name])], col, mask)
     return names
 
 
@@ -401,7 +385,7 @@ def _panel(
             bl + a[0] * across + b[1] * up,
         ]
     )
-    _poly(frame, camera, pose, quad, colour)
+    fill_world_polygon(frame, camera, pose, quad, colour)
 
 
 def draw_bodies(

@@ -89,10 +89,12 @@ def flags_of(overrides: Mapping[str, Any]) -> list[str]:
 
 def overrides_of(args: Sequence[str]) -> dict[str, Any]:
     """Options typed on a command line (``--key=value``, ``--key value``, ``--config PATH``) as data, values kept as
-    the strings typed (`flags_of` gives them back).
+    the strings typed (`flags_of` gives them back). An option given twice holds its last value, as on a command line
+    (it moves to the end, where the command line would read it last).
 
     Raises:
-        RunError: an argument that is not an option, an option without a value, or one given twice.
+        RunError: an argument that is not an option, an option without a value, or an appending option
+            (``--key+=``) given twice (a mapping keeps one value a key: the first would be lost).
     """
     out: dict[str, Any] = {}
     i = 0
@@ -110,9 +112,10 @@ def overrides_of(args: Sequence[str]) -> dict[str, Any]:
             raise RunError(f"option {arg} has no value")
         if key in ("config", "c"):
             out["config"] = [*out.get("config", []), value]
-        elif key in out:
-            raise RunError(f"option --{key} given twice")
+        elif key in out and key.endswith("+"):
+            raise RunError(f"option --{key} given twice; put both values in one list")
         else:
+            out.pop(key, None)
             out[key] = value
     return out
 
