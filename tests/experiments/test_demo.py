@@ -39,8 +39,6 @@ QUICK_EXTRA = "--trainer.log_every_n_steps=1"
 """The ``stamlane fit`` argument the module's quick demo gives every run after ``--`` (a call on its folder without
 it has other settings)."""
 
-pytestmark = pytest.mark.xdist_group("demo")  # `pytest -n N`: the module's quick demo is made once, on one worker
-
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:

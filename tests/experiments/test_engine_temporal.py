@@ -31,7 +31,6 @@ SHRINK = (
 
 
 ROW = Row.paper_row("f2_mixed_cs_features")
-pytestmark = pytest.mark.xdist_group("engine_temporal")  # `pytest -n N`: the module's run is made once
 
 
 @pytest.fixture(scope="module")
