@@ -458,11 +458,20 @@ def test_stream_device(stream_inputs: dict[str, Path], capsys: pytest.CaptureFix
     fps=st.sampled_from(["inf", "nan", "0", "20", "1e12"]),
     clips=st.sampled_from([1, 0, -1]),
     out=st.sampled_from(["fresh", "existing-set", "under-a-file", "a-file", "a-fifo", "foreign-folder"]),
+    world=st.sampled_from(["classic", "dashcam2", "nowhere"]),
 )
-@example(size="64x48", frames=2, fps="20", clips=1, out="fresh")  # the run that succeeds
-@example(size="64x48", frames=2, fps="20", clips=1, out="foreign-folder")  # would succeed but for the folder
+@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="classic")  # the run that succeeds
+@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="dashcam2")  # the newest world succeeds too
+@example(size="64x48", frames=2, fps="20", clips=1, out="foreign-folder", world="classic")  # but for the folder
 def test_synth(
-    tiny_set: Path, capsys: pytest.CaptureFixture[str], size: str, frames: int, fps: str, clips: int, out: str
+    tiny_set: Path,
+    capsys: pytest.CaptureFixture[str],
+    size: str,
+    frames: int,
+    fps: str,
+    clips: int,
+    out: str,
+    world: str,
 ) -> None:
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
@@ -479,10 +488,10 @@ def test_synth(
             (tmp / "frames" / "0.jpg").write_bytes(b"frame")
             (tmp / "frames" / "test_label.json").write_text("{}\n")
         argv = ["synth", "--out", str(target), "--size", size, "--frames", str(frames), f"--fps={fps}"]
-        argv += ["--clips", str(clips), "--challenging-clips", "0", "--quiet"]
+        argv += ["--clips", str(clips), "--challenging-clips", "0", "--quiet", "--world", world]
         code = _contract(capsys, argv, [tiny_set, tmp / "frames"])
-        assert code == 2 or out not in ("foreign-folder", "existing-set")
-        if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh"):
+        assert code == 2 or (out not in ("foreign-folder", "existing-set") and world != "nowhere")
+        if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh") and world != "nowhere":
             assert code == 0 and (target / "train.json").is_file()  # what is valid is done
 
 
@@ -643,6 +652,8 @@ HOSTILE_CONFIGS = {
     "data:\n  synth: {size: [100000, 100000]}\n": "sides in 1..16384",
     "data:\n  num_frames: 1\n  clip: {num_frames: 2}\n": "give one of them",
     "data:\n  loader: [1, 2]\n": "must be a mapping",
+    "data:\n  loader: {memory_mb: -1}\n": "memory_mb must be >= 0",
+    "data:\n  loader: {memory_mb: many}\n": "memory_mb",
     "data:\n  clip: {num_frames: 4, image_size: [16384, 16384]}\n": "over the budget",
     "data: !!python/object/apply:os.system ['echo pwned']\n": "python/object",
 }
