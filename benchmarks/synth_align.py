@@ -11,7 +11,8 @@ width) are taken to the history frame by the truth and back by the estimate; mea
 (the metric of ``benchmarks/align.py``). Success: ``ok`` and error < ``--success-px`` (2 px). Failure
 reasons are counted. Times are per clip window of 4 frames, one thread.
 
-    python benchmarks/synth_align.py [--clips 20] [--strides 1 2 3] [--set fps=10 ppm=16] [--out FILE.json]
+    python benchmarks/synth_align.py [--clips 20] [--strides 1 2 3] [--set fps=10 ppm=16 world=dashcam2]
+        [--preset standard|fast] [--out FILE.json]
 """
 
 from __future__ import annotations
@@ -21,14 +22,14 @@ import collections
 import json
 import sys
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from stamlane.align import AlignConfig, estimate_clip
-from stamlane.align.homography import default_horizon_row, ground_corners
+from stamlane.align.homography import ALIGN_PRESETS, align_preset, default_horizon_row, ground_corners
 from stamlane.synth.generator import FACTORS, SynthConfig, generate_clip
 
 
@@ -55,6 +56,8 @@ def parse_overrides(items: list[str]) -> dict:
         default = getattr(SynthConfig, name)
         if isinstance(default, tuple):
             out[name] = tuple(type(default[0])(float(v)) for v in value.split(","))
+        elif isinstance(default, str):  # world=dashcam2
+            out[name] = value
         else:
             out[name] = type(default)(float(value))
     return out
@@ -87,14 +90,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--align-set", nargs="*", default=[], help="AlignConfig overrides, e.g. max_models=1 min_working_width=0"
     )
+    p.add_argument("--preset", choices=tuple(ALIGN_PRESETS), default="standard", help="the AlignConfig overridden")
     p.add_argument("--no-jpeg", action="store_true")
     p.add_argument("--dump", type=Path, default=None, help="write the frames of the first clip here (PNG)")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     cv2.setNumThreads(1)
     overrides = parse_overrides(args.set)
-    align_cfg = AlignConfig(
-        **{k: type(getattr(AlignConfig, k))(float(v)) for k, v in (item.split("=") for item in args.align_set)}
+    align_cfg = replace(
+        align_preset(args.preset),
+        **{k: type(getattr(AlignConfig, k))(float(v)) for k, v in (item.split("=") for item in args.align_set)},
     )
     cfg = SynthConfig.with_factor(args.factor, **overrides) if args.factor else SynthConfig(**overrides)
     code = 3 if args.factor else 0

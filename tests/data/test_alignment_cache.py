@@ -4,6 +4,7 @@ seed) reads the first one's estimates from the data root's cache and gets the sa
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 import torch
 
 from stamlane.align.cache import PAIR_CACHE_DIR
+from stamlane.align.homography import ALIGN_PRESETS
 from stamlane.data import TuSimpleClips
 from stamlane.data.alignment import ClipAligner
 from stamlane.data.options import ClipOptions
@@ -62,3 +64,18 @@ def test_without_the_cache_nothing_is_written(tmp_path: Path, root: Path) -> Non
     assert mats.shape == (3, 3, 3) and oks[-1] and aligner.pair_cache is None
     assert not list(tmp_path.iterdir())
     assert ClipAligner("none", tmp_path).pair_cache is None and ClipAligner("true", tmp_path).pair_cache is None
+
+
+def test_the_fast_preset_is_cached_apart(root: Path) -> None:
+    standard = TuSimpleClips(root, "test.json", clip=CLIP)
+    expected, _ = standard.aligner(standard.entries[0].frame_paths, standard.read_frames(standard.entries[0]))
+    fast = TuSimpleClips(root, "test.json", clip=replace(CLIP, align_preset="fast"))
+    assert fast.aligner.config == ALIGN_PRESETS["fast"] != standard.aligner.config
+    got, oks = fast.aligner(fast.entries[0].frame_paths, fast.read_frames(fast.entries[0]))
+    assert fast.aligner.pair_cache.misses > 0 and all(oks)  # estimated with its settings, not read from standard's
+    assert not np.array_equal(got, expected)  # its accuracy: benchmarks/align.py, benchmarks/synth_align.py
+
+
+def test_an_unknown_preset_is_refused_in_one_line() -> None:
+    with pytest.raises(ValueError, match=r"align preset must be one of \('standard', 'fast'\), got 'quick'"):
+        replace(CLIP, align_preset="quick")

@@ -98,10 +98,21 @@ def test_bf16_is_the_models_unless_given(checkpoint: Path, frames_dir: Path) -> 
         assert load_predictor(build_parser().parse_args([*argv, "--bf16", flag])).bf16 is bf16
 
 
+def test_the_alignment_preset_is_the_checkpoints_unless_given(checkpoint: Path, frames_dir: Path) -> None:
+    from stamlane.align.homography import ALIGN_PRESETS
+    from stamlane.stream.cli import build_parser, load_predictor
+
+    argv = [str(frames_dir), "--ckpt", str(checkpoint)]
+    assert load_predictor(build_parser().parse_args(argv)).align_config == ALIGN_PRESETS["standard"]
+    fast = load_predictor(build_parser().parse_args([*argv, "--align-preset", "fast"]))
+    assert fast.align_config == ALIGN_PRESETS["fast"]
+
+
 @pytest.mark.parametrize(
     ("argv", "match"),
     [
         (["missing.mp4", "--ckpt", "x.ckpt"], "does not exist"),
+        (["{frames}", "--ckpt", "x.ckpt", "--align-preset", "quick"], "--align-preset: invalid choice: 'quick'"),
         (["{frames}"], "--ckpt CKPT or --config CFG"),
         (["{frames}", "--ckpt", "nowhere.ckpt"], "checkpoint nowhere.ckpt does not exist"),
         (["{empty}", "--ckpt", "x.ckpt"], "holds no image"),

@@ -62,6 +62,7 @@ def test_the_onnx_carries_the_checkpoints_preprocessing_and_decoding(exported: t
         "source": "fly",
         "warp": "image",
         "strategy": "chain",
+        "preset": "standard",
         "horizon_row": 40,
     }
     assert "ORB" in meta["alignment"]["by"]

@@ -5,9 +5,11 @@ from). numpy/OpenCV only (no torch), so data loading and the ``stamlane align`` 
 
 from stamlane.align.features import FeatureConfig, Features, detect_plain_orb, detect_spread_features
 from stamlane.align.homography import (
+    ALIGN_PRESETS,
     DEFAULT_HORIZON_FRACTION,
     AlignConfig,
     Alignment,
+    align_preset,
     check_plausible,
     default_horizon_row,
     estimate_homography,
@@ -15,12 +17,14 @@ from stamlane.align.homography import (
 from stamlane.align.warp import align_clip, chain_alignments, estimate_clip, warp_to_key
 
 __all__ = [
+    "ALIGN_PRESETS",
     "DEFAULT_HORIZON_FRACTION",
     "AlignConfig",
     "Alignment",
     "FeatureConfig",
     "Features",
     "align_clip",
+    "align_preset",
     "chain_alignments",
     "check_plausible",
     "default_horizon_row",

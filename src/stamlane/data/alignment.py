@@ -60,6 +60,8 @@ class ClipAligner:
         cache_dir: the alignment cache (mode ``"cache"``).
         horizon_row: first ground row for on-the-fly estimation (None: ``stamlane.align``'s default).
         strategy: ``"chain"`` or ``"direct"``, for on-the-fly estimation.
+        preset: the `stamlane.align.homography.ALIGN_PRESETS` settings of on-the-fly estimation (``"standard"``
+            or ``"fast"``); part of every frame pair's cache key.
         pair_cache: keep and read the on-the-fly frame-pair estimates in the data root's cache (see the module
             docstring); False: this object's memo only.
     """
@@ -76,7 +78,9 @@ class ClipAligner:
         horizon_row: int | None = None,
         strategy: str = "chain",
         pair_cache: bool = True,
+        preset: str = "standard",
     ) -> None:
+        from stamlane.align.homography import align_preset
         if mode not in ALIGN_MODES:
             raise ValueError(f"align must be one of {ALIGN_MODES}, got {mode!r}")
         if mode == "cache" and cache_dir is None:
@@ -85,6 +89,8 @@ class ClipAligner:
             raise ValueError(f"align strategy must be one of {ALIGN_STRATEGIES}, got {strategy!r}")
         self.mode = mode
         self.strategy = strategy
+        self.preset = preset
+        self.config = align_preset(preset)
         self.root = Path(root)
         self.cache_dir = Path(cache_dir) if cache_dir is not None else None
         self.horizon_row = horizon_row
@@ -161,7 +167,12 @@ class ClipAligner:
         if len(self._pairs) > self.MEMO_PAIRS:
             self._pairs.clear()
         return estimate_clip_cached(
-            frames, self.pair_cache, self._pairs, horizon_row=self.horizon_row, strategy=self.strategy
+            frames,
+            self.pair_cache,
+            self._pairs,
+            horizon_row=self.horizon_row,
+            config=self.config,
+            strategy=self.strategy,
         )[:-1]  # no warping
 
     def _cached(self, key_path: str, hist_path: str) -> Alignment | None:

@@ -155,7 +155,9 @@ class ClipDataset(Dataset[dict[str, Any]]):
         self.on_error = on_error
         self.frame_lookup = frame_lookup
         self.require_labels = require_labels
-        self.aligner = ClipAligner(clip.align, self.root, clip.cache_dir, clip.horizon_row, clip.align_strategy)
+        self.aligner = ClipAligner(
+            clip.align, self.root, clip.cache_dir, clip.horizon_row, clip.align_strategy, preset=clip.align_preset
+        )
         self.frame_store: FrameStore | None = None
         """Where evaluation samples' frames are kept decoded and resized (`stamlane.data.frame_store`); None: none."""
         self._listing: dict[Path, list[str]] = {}

@@ -155,7 +155,14 @@ class _StoredClip:
             unread: np.ndarray = aligner(self.entry.frame_paths, None)[0]
             return unread
         store = self.dataset.frame_store
-        settings = (aligner.mode, aligner.strategy, aligner.horizon_row, str(aligner.root), str(aligner.cache_dir))
+        settings = (
+            aligner.mode,
+            aligner.strategy,
+            aligner.preset,
+            aligner.horizon_row,
+            aligner.root,
+            aligner.cache_dir,
+        )
         key = ("align", settings, aligner.pair_cache is not None, self.ids)
         mats: np.ndarray | None = store.get(key)
         if mats is None:

@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
+from stamlane.align.homography import ALIGN_PRESETS, align_preset
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
@@ -77,6 +78,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--horizon-row", type=int, help="first ground row in original pixels, for the alignment")
     parser.add_argument("--no-align", action="store_true", help="fuse unaligned history features")
+    parser.add_argument(
+        "--align-preset",
+        choices=tuple(ALIGN_PRESETS),
+        help="the ORB settings of the alignment (default: the checkpoint's data.clip.align_preset, else standard; "
+        "fast: 1.5x faster estimates, docs/alignment.md)",
+    )
     parser.add_argument("--max-frames", type=int, help="stop after this many frames")
     parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")
     parser.add_argument("--fps", type=float, help="frame rate of overlay.mp4 (default: the video's, else 10)")
@@ -235,6 +242,7 @@ def load_predictor(args: argparse.Namespace) -> Any:
         raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
     check_clip(num_frames, list(image_size), "the streamed clip")  # the network's or the flags' size, one budget
     horizon_row = args.horizon_row if args.horizon_row is not None else getattr(clip, "horizon_row", None)
+    overrides["align_config"] = align_preset(args.align_preset or getattr(clip, "align_preset", "standard"))
     overrides["crop_top"] = trained_crop_top(module, clip)
     if args.h_samples is not None:  # the lanes sampled at the benchmark's rows, as `stamlane predict` does
         overrides["y_samples"] = check_h_samples(args.h_samples)

@@ -135,6 +135,7 @@ def _alignment(clip: ClipOptions | None) -> dict[str, Any] | None:
         "source": clip.align,
         "warp": clip.warp,
         "strategy": clip.align_strategy,
+        "preset": clip.align_preset,
         "horizon_row": clip.horizon_row,
     }
 
