@@ -151,5 +151,9 @@ def test_stamlane_synth_writes_the_dashcam_world_and_records_it(tmp_path, capsys
     assert info["config"]["world"] == "dashcam" and info["config"]["randomise"] is False
     bad = tmp_path / "bad"
     assert synth_main(["--out", str(bad), *small, "--randomise"]) == 2
-    assert capsys.readouterr().err.strip().endswith("--randomise is an option of --world dashcam2 or --world dashcam")
+    assert (
+        capsys.readouterr()
+        .err.strip()
+        .endswith("--randomise is an option of the dashcam worlds (--world dashcam, dashcam2, dashcam3)")
+    )
     assert not bad.exists()

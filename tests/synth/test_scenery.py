@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -15,7 +16,7 @@ from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dashcam import Roadside, Surface
 from stamlane.synth.road import render_texture, sample_road
-from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, draw_bodies
+from stamlane.synth.scenery import VERGE_KINDS, BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
 from stamlane.synth.vehicles import Vehicle
 
 DASHCAM2 = SynthConfig(width=320, height=180, num_frames=3, world="dashcam2", occluder_prob=1.0)
@@ -36,6 +37,43 @@ def test_the_format_7_dashcam_world_draws_what_it_drew_before_dashcam2():
     assert labels == "d73aaad7df6b97a73643a155acbb5bb99e175cb796bb0a0e9df8c93d25a15a31"
     means = [[float(f[..., k].mean()) for k in range(3)] for f in clip.frames]
     assert np.allclose(means, [[116.9, 101.8, 82.6], [122.0, 106.2, 86.3]], atol=0.3)
+
+
+def test_the_dashcam2_world_draws_what_it_drew_before_dashcam3():
+    # per-frame colour means of a dashcam2 clip, measured before the dashcam3 world was added
+    clip = generate_clip(
+        SynthConfig(width=160, height=90, num_frames=2, world="dashcam2", occluder_prob=1.0), np.random.default_rng(3)
+    )
+    means = [[float(f[..., k].mean()) for k in range(3)] for f in clip.frames]
+    assert np.allclose(means, [[131.84, 116.09, 95.48], [120.41, 106.25, 87.43]], atol=0.05)
+
+
+def test_a_verge_lies_beyond_the_shoulders_brighter_than_the_asphalt_and_leaves_the_road_alone():
+    rng = np.random.default_rng(1)
+    road, _ = sample_road(rng, (-2.0, 60.0), 16.0, curved_prob=0.0, worn_prob=0.0)
+    dirt = Verge(("dirt", "gravel"), ((110.0, 135.0, 155.0), (160.0, 165.0, 170.0)), (0.2, 0.0), seed=4)
+    plain = render_texture(road, np.random.default_rng(2), shadows=0)
+    verged = render_texture(road, np.random.default_rng(2), shadows=0, verge=dirt)
+    tex = road.texture_from_ground()
+    at = lambda x, z: tuple(np.round(tex @ np.array([x, z, 1.0]))[:2].astype(int))  # noqa: E731
+    left, right = min(m.offset for m in road.marks), max(m.offset for m in road.marks)
+    for z in (5.0, 20.0, 40.0):
+        col, row = at(0.0, z)  # the road: untouched
+        assert np.array_equal(verged[row, col], plain[row, col])
+        for x, colour in ((left - 3.5, dirt.colours[0]), (right + 3.5, dirt.colours[1])):  # beyond any shoulder
+            col, row = at(x, z)
+            patch = verged[row - 2 : row + 3, col - 2 : col + 3].reshape(-1, 3).mean(axis=0)
+            assert np.abs(patch - np.array(colour)).max() < 25, (x, z, patch)
+            assert patch.mean() > plain[row - 2 : row + 3, col - 2 : col + 3].mean() + 20  # brighter than grass
+    kinds = {k for s in range(40) for k in Verge.sample(np.random.default_rng(s)).kinds}
+    assert kinds == set(VERGE_KINDS)
+
+
+def test_a_dashcam3_clip_is_the_dashcam2_clip_with_other_verges():
+    a = generate_clip(replace(DASHCAM2, world="dashcam3"), np.random.default_rng(2))
+    b = generate_clip(DASHCAM2, np.random.default_rng(2))
+    assert a.labels == b.labels and a.h_samples == b.h_samples  # the same road, camera and drive
+    assert not all(np.array_equal(x, y) for x, y in zip(a.frames, b.frames))
 
 
 def test_a_dashcam2_clip_is_a_function_of_its_generator_and_not_the_dashcam_clip():

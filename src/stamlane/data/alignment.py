@@ -81,6 +81,7 @@ class ClipAligner:
         preset: str = "standard",
     ) -> None:
         from stamlane.align.homography import align_preset
+
         if mode not in ALIGN_MODES:
             raise ValueError(f"align must be one of {ALIGN_MODES}, got {mode!r}")
         if mode == "cache" and cache_dir is None:

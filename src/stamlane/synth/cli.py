@@ -91,7 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="classic",
         help="classic: the world of formats 1-6 (default); dashcam: format 7's camera, markings, surfaces, barriers, "
         "skies and sensor effects; dashcam2: the dashcam world plus sun shadows, curbs, poles, surface repairs and "
-        "vehicles with bodies (docs/data.md)",
+        "vehicles with bodies; dashcam3: dashcam2 with dirt, dry grass or gravel verges (docs/data.md)",
     )
     p.add_argument("--randomise", action="store_true", help="dashcam worlds: a random colour cast per clip")
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
@@ -160,7 +160,10 @@ def _synth(args: argparse.Namespace) -> int:
         return 2
     check_workers(args.workers, "--workers", minimum=1)
     if args.randomise and not args.world.startswith("dashcam"):
-        print("stamlane synth: --randomise is an option of --world dashcam2 or --world dashcam", file=sys.stderr)
+        print(
+            "stamlane synth: --randomise is an option of the dashcam worlds (--world dashcam, dashcam2, dashcam3)",
+            file=sys.stderr,
+        )
         return 2
     cfg = SynthConfig(
         height=args.size[0],

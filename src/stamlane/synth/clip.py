@@ -35,7 +35,7 @@ from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
-from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, draw_bodies
+from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
 from stamlane.synth.transient import KeyOccluder
 from stamlane.synth.vehicles import SUN, Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
@@ -175,7 +175,7 @@ def generate_clip(
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
     """
-    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world in ("dashcam", "dashcam2") else None
+    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world.startswith("dashcam") else None
     if world is not None:  # the clip's own camera: its labels' rows and homographies follow from it
         cfg = replace(cfg, horizon=world.horizon, hfov_deg=world.hfov_deg, cam_height=world.cam_height)
     camera = cfg.camera()
@@ -201,11 +201,14 @@ def generate_clip(
         offsets = [m.offset for m in road.marks]
         surface = Surface.sample(rng, road.z_range, max(np.abs(offsets)))
         roadside = Roadside.sample(rng, min(offsets), max(offsets))
-    if world is not None and cfg.world == "dashcam2":  # its draws after the dashcam world's
+    verge = None
+    if world is not None and cfg.world in ("dashcam2", "dashcam3"):  # its draws after the dashcam world's
         sun = Sun.sample(rng, world.clear_sky)
         assert roadside is not None and isinstance(surface, Surface)  # both drawn just above for every dashcam world
         scenery = Scenery.sample(rng, sun, roadside, min(offsets), max(offsets), road.z_range)
         surface = RepairedSurface.sample(rng, surface, road.z_range, offsets)
+        if cfg.world == "dashcam3":  # its one draw after dashcam2's (the verge's texture has a seed of its own)
+            verge = Verge.sample(rng)
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
     textures = render_texture(
         road,
@@ -216,6 +219,7 @@ def generate_clip(
         surface=surface,
         cast=scenery.shadows(road.centre, road.z_range) if scenery is not None else None,
         cast_depth=scenery.sun.depth if scenery is not None else 0.0,
+        verge=verge,
     )
     texture, bare = textures if isinstance(textures, tuple) else (textures, None)  # a pair with paint_contrast
     vehicles: list[Vehicle] = []

@@ -33,10 +33,10 @@ __all__ = [
     "clip_kinds",
 ]
 
-WORLDS = ("classic", "dashcam", "dashcam2")
-"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, the dashcam world of format 7, or the dashcam2
+WORLDS = ("classic", "dashcam", "dashcam2", "dashcam3")
+"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, the dashcam world of format 7, the dashcam2
 world (the dashcam world plus the sun's shadows, curbs, poles, surface repairs and vehicles with bodies,
-`stamlane.synth.scenery`)."""
+`stamlane.synth.scenery`), or the dashcam3 world (dashcam2 with verges of grass, dirt, dry grass or gravel)."""
 KEY_OCCLUDERS = ("spray", "blobs", "flash")
 """The kinds of transient occluder of the last frames (``SynthConfig.key_occluder``; drawn by
 `stamlane.synth.transient.KeyOccluder`)."""
@@ -239,7 +239,9 @@ class SynthConfig:
     with joints, seams and a shoulder of another shade, concrete barriers and guard rails, clear or overcast skies,
     sensor effects (blur, noise, exposure, vignetting, JPEG); "dashcam2" (`stamlane.synth.scenery`): the dashcam world
     plus a sun whose direction and height cast every shadow (vehicles, barrier, rail, poles), curbs, poles, long
-    repair strips, sealed joints and cracks, and vehicles with wheels, body, cabin, glass and lights."""
+    repair strips, sealed joints and cracks, and vehicles with wheels, body, cabin, glass and lights; "dashcam3": the
+    dashcam2 world with the ground beyond each shoulder drawn as green grass, dirt, dry grass or gravel (most of them
+    brighter than the asphalt, with a long ragged edge: `stamlane.synth.scenery.Verge`)."""
     randomise: bool = False
     """Domain randomisation in the dashcam worlds: a random colour cast per clip."""
 
@@ -271,7 +273,9 @@ class SynthConfig:
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
         if self.randomise and not self.world.startswith("dashcam"):
-            raise ValueError("randomise is an option of the dashcam worlds: set world='dashcam' or 'dashcam2' too")
+            raise ValueError(
+                "randomise is an option of the dashcam worlds: set world='dashcam', 'dashcam2' or 'dashcam3'"
+            )
         if not 1 <= self.key_occluder_frames <= self.num_frames:
             raise ValueError(f"key_occluder_frames must be in [1, num_frames], got {self.key_occluder_frames}")
 

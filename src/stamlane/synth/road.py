@@ -18,7 +18,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from stamlane.synth.dashcam import DashcamWorld, Surface
-    from stamlane.synth.scenery import RepairedSurface
+    from stamlane.synth.scenery import RepairedSurface, Verge
 
 __all__ = ["LaneMark", "Road", "render_texture", "sample_road"]
 
@@ -199,6 +199,7 @@ def render_texture(
     surface: Surface | RepairedSurface | None = None,
     cast: list[np.ndarray] | None = None,
     cast_depth: float = 0.0,
+    verge: Verge | None = None,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Render the top-down texture of a road.
 
@@ -215,6 +216,8 @@ def render_texture(
         cast: ground polygons ``(N, 2)`` metres ``(X, Z)`` of sharp sun shadows (the dashcam2 world's barrier, rail
             and poles, `stamlane.synth.scenery.Scenery.shadows`), darkening the ground and its paint by
             ``cast_depth``; None: none (no draws either way).
+        verge: the ground beyond the shoulders (the dashcam3 world, `stamlane.synth.scenery.Verge`), drawn from its
+            own seed; None: the classic green verge.
 
     Returns:
         BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``;
@@ -275,6 +278,9 @@ def render_texture(
     green = np.array([60, 110, 90], np.float32) * float(rng.uniform(0.7, 1.1))
     verge_lum = cv2.addWeighted(low, 12.0, grain, 2.0, 0.0)
     planes = [np.where(on_road, lum * tint, verge_lum + g) for tint, g in zip((1.02, 1.0, 0.97), green)]
+    if verge is not None:
+        ground, beyond = verge.planes(rel, zs, p, (left - shoulder, right + shoulder))
+        planes = [np.where(beyond, v, pl) for v, pl in zip(ground, planes)]
 
     # --- paint -------------------------------------------------------------------------------------
     alpha: np.ndarray = np.zeros((h, w), np.float32)

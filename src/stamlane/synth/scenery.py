@@ -40,10 +40,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SUN_ELEVATION_DEG",
+    "VERGE_KINDS",
     "BodyStyle",
     "RepairedSurface",
     "Scenery",
     "Sun",
+    "Verge",
     "draw_bodies",
 ]
 
@@ -76,6 +78,83 @@ class Sun:
         long (`stamlane.synth.vehicles.shadow_polygons` takes it as ``sun``)."""
         shift: np.ndarray = -np.array([np.sin(self.azimuth), np.cos(self.azimuth)]) / np.tan(self.elevation)
         return shift
+
+
+VERGE_KINDS = ("grass", "dirt", "dry grass", "gravel")
+"""What lies beside the shoulder in the dashcam3 world, per side: the classic green verge, or bare ground brighter
+than the asphalt, whose long straight edge a detector draws as a lane (the real highway of docs/results/real-roads/)."""
+
+
+@dataclass(frozen=True)
+class Verge:
+    """The ground beyond each shoulder (the dashcam3 world): per side a kind of `VERGE_KINDS`, its BGR colour, how far
+    its edge wanders (metres) and the seed of its own texture, drawn once so that the clip's other draws stay where
+    they were.
+
+    Attributes:
+        kinds: ``(left, right)`` kinds.
+        colours: ``(left, right)`` BGR colours, 0-255.
+        ragged: ``(left, right)`` metres the edge wanders about a straight line.
+        seed: the seed of the verge's own noise (grain, stones, the edge's wander).
+    """
+
+    kinds: tuple[str, str]
+    colours: tuple[tuple[float, float, float], tuple[float, float, float]]
+    ragged: tuple[float, float]
+    seed: int
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator) -> Verge:
+        kinds = tuple(str(VERGE_KINDS[int(rng.choice(4, p=[0.25, 0.3, 0.3, 0.15]))]) for _ in range(2))
+        colours = tuple(_verge_colour(kind, rng) for kind in kinds)
+        ragged = (float(rng.uniform(0.0, 0.25)), float(rng.uniform(0.0, 0.25)))
+        return cls((kinds[0], kinds[1]), (colours[0], colours[1]), ragged, int(rng.integers(1 << 31)))
+
+    def planes(
+        self, rel: np.ndarray, zs: np.ndarray, ppm: float, edges: tuple[float, float]
+    ) -> tuple[list[np.ndarray], np.ndarray]:
+        """The verge's B, G, R planes (float32, the texture's shape) and where it lies (bool): beyond ``edges``
+        (the asphalt's left and right edges, texels from the road centre), its edge wandering up to `ragged` metres
+        into the shoulder.
+
+        Args:
+            rel: texels from the road centre per texel (``(H, W)`` or broadcastable).
+            zs: metres ahead per texture row.
+            ppm: texels per metre.
+        """
+        noise = np.random.default_rng(self.seed)
+        h, w = len(zs), rel.shape[1]
+        wander = np.cumsum(noise.normal(0.0, 1.0, (2, h)), axis=1)
+        wander = wander / np.maximum(np.abs(wander).max(axis=1, keepdims=True), 1e-6)
+        # the edge eats 0 to `ragged` metres into the shoulder, so that no strip of the classic verge shows
+        left = edges[0] + self.ragged[0] * ppm * (wander[0][:, None] + 1.0) / 2.0
+        right = edges[1] - self.ragged[1] * ppm * (wander[1][:, None] + 1.0) / 2.0
+        on_left, on_right = rel < left, rel > right
+        low = cv2.resize(noise.normal(0, 1, (max(h // 32, 2), max(w // 32, 2))).astype(np.float32), (w, h))
+        grain = noise.normal(0, 1, (h, w)).astype(np.float32)
+        stones = (noise.random((h, w)) < 0.01).astype(np.float32) * noise.choice([-40.0, 40.0], (h, w))
+        shade = 10.0 * low + 7.0 * grain + stones.astype(np.float32)
+        planes = []
+        for k in range(3):
+            plane = np.where(on_left, self.colours[0][k], self.colours[1][k]).astype(np.float32)
+            planes.append(plane + shade)
+        mask: np.ndarray = on_left | on_right
+        return planes, mask
+
+
+def _verge_colour(kind: str, rng: np.random.Generator) -> tuple[float, float, float]:
+    """A BGR colour of a verge ``kind``: green grass darker than asphalt; dirt, dry grass and gravel brighter."""
+    if kind == "grass":
+        g = float(rng.uniform(90, 130))
+        return (g * 0.55, g, g * 0.8)
+    if kind == "dirt":
+        v = float(rng.uniform(130, 190))
+        return (v * 0.72, v * 0.88, v)
+    if kind == "dry grass":
+        v = float(rng.uniform(150, 205))
+        return (v * 0.62, v * 0.9, v)
+    v = float(rng.uniform(135, 185))
+    return (v * 0.95, v * 0.97, v)
 
 
 @dataclass(frozen=True)
