@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from stamlane.training.hardware import native_bf16, resolve_bf16
+from stamlane.training.hardware import kernels_capped, native_bf16, resolve_bf16
 
 
 def test_explicit_values_stay_and_auto_asks_the_machine() -> None:
@@ -22,7 +22,19 @@ def test_native_bf16_agrees_with_the_cpu_flags() -> None:
     if not cpuinfo.is_file() or "flags" not in cpuinfo.read_text():
         pytest.skip("no /proc/cpuinfo flags on this machine (not Linux x86)")
     flags = set(next(line for line in cpuinfo.read_text().splitlines() if line.startswith("flags")).split())
-    assert native_bf16("cpu") == bool({"avx512_bf16", "amx_bf16"} & flags)
+    assert native_bf16("cpu") == (bool({"avx512_bf16", "amx_bf16"} & flags) and not kernels_capped())
+
+
+@pytest.mark.parametrize(
+    ("isa", "capped"),
+    [("AVX2", True), ("avx512_core", True), ("AVX512_CORE_BF16", False), ("AMX", False), ("ALL", False)],
+)
+def test_kernels_capped_below_bfloat16_are_not_native(monkeypatch: pytest.MonkeyPatch, isa: str, capped: bool) -> None:
+    monkeypatch.delenv("ATEN_CPU_CAPABILITY", raising=False)
+    monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", isa)
+    assert kernels_capped() is capped
+    if capped:
+        assert native_bf16("cpu") is False
 
 
 def test_the_module_resolves_auto() -> None:

@@ -7,12 +7,13 @@ without them (AVX2-only laptops and many cloud cores), where oneDNN emulates it.
 
 from __future__ import annotations
 
+import os
 import platform
 from pathlib import Path
 
 import torch
 
-__all__ = ["cpu_name", "native_bf16", "resolve_bf16"]
+__all__ = ["cpu_name", "kernels_capped", "native_bf16", "resolve_bf16"]
 
 
 def native_bf16(device_type: str = "cpu") -> bool:
@@ -24,7 +25,17 @@ def native_bf16(device_type: str = "cpu") -> bool:
         return False
     cpu = torch.cpu
     checks = ("_is_amx_tile_supported", "_is_avx512_bf16_supported")  # private, but what torch itself uses
-    return any(bool(getattr(cpu, name, lambda: False)()) for name in checks)
+    return any(bool(getattr(cpu, name, lambda: False)()) for name in checks) and not kernels_capped()
+
+
+def kernels_capped() -> bool:
+    """Whether this process's kernels were capped below the CPU's bfloat16 instructions, which are then emulated:
+    ``ATEN_CPU_CAPABILITY`` below ``avx512`` or ``ONEDNN_MAX_CPU_ISA`` below ``AVX512_CORE_BF16`` (how an AVX2-only
+    machine is imitated on a newer one: docs/training.md)."""
+    if os.environ.get("ATEN_CPU_CAPABILITY") and torch.backends.cpu.get_cpu_capability() != "AVX512":
+        return True
+    isa = os.environ.get("ONEDNN_MAX_CPU_ISA", "ALL").upper()
+    return isa != "ALL" and not any(tag in isa for tag in ("BF16", "AMX", "AVX10", "FP16"))
 
 
 def resolve_bf16(value: bool | str, device_type: str = "cpu") -> bool:
