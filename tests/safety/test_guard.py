@@ -197,3 +197,21 @@ def test_is_inside_resolves_dots_and_links(tmp_path: Path) -> None:
     assert not is_inside(top / ".." / "rootx", top)  # a sibling whose name starts like the root
     assert not is_inside(top / "out" / "f.jpg", top)  # a link that leads out
     assert not is_inside(tmp_path, top)
+
+
+def test_two_threads_never_share_a_temporary_name(tmp_path: Path) -> None:
+    import threading
+
+    names: list[Path] = []
+    both = threading.Barrier(2)  # alive at once: their ids differ
+
+    def name() -> None:
+        both.wait()
+        names.append(temporary_name(tmp_path / "entry.json"))
+
+    workers = [threading.Thread(target=name) for _ in range(2)]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    assert len(set(names)) == 2 and all(n.suffix == ".json" and n.name.startswith(".entry.json.") for n in names)

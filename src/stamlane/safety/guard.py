@@ -22,6 +22,7 @@ import errno
 import hashlib
 import os
 import stat
+import threading
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -65,10 +66,11 @@ def is_inside(path: PathLike, top: PathLike) -> bool:
 
 
 def temporary_name(path: PathLike) -> Path:
-    """The name `atomic_path` writes ``path`` under before renaming it: hidden, beside it, this process's id, the
-    same suffix (image and video writers pick their format by it)."""
+    """The name `atomic_path` writes ``path`` under before renaming it: hidden, beside it, this process's and this
+    thread's ids (two threads writing one entry of a cache never share a temporary file), the same suffix (image and
+    video writers pick their format by it)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
+    return path.with_name(f".{path.name}.{os.getpid()}-{threading.get_native_id()}.tmp{path.suffix}")
 
 
 def _existing_ancestor(path: Path) -> Path:
