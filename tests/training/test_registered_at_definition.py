@@ -32,7 +32,8 @@ def test_a_run_with_the_history_monitor_opens_from_its_checkpoint(
     run = tmp_path / "run"
     assert main(["fit", *tiny_args(root, run, "--trainer.max_steps=2", f"--trainer.callbacks+={MONITOR}")]) == 0
     last = next(run.rglob("last.ckpt"))
-    assert main(["validate", f"--ckpt_path={last}", f"--data.root={root}", "--trainer.logger=false"]) == 0
+    assert main(["test", f"--ckpt_path={last}", f"--data.root={root}", "--trainer.logger", "false"]) == 0
+    assert not (run / "config.yaml").exists()  # no logger, no log folder: no config.yaml in the trainer's root
     out = tmp_path / "predictions"
     assert main(["predict", f"--ckpt_path={last}", f"--data.root={root}", f"--predictions.output_dir={out}"]) == 0
     assert any(out.rglob("*.json"))

@@ -175,7 +175,13 @@ class StamLaneCLI(LightningCLI):
     _parse_ckpt_path = keep_command_line_hparams
 
     def instantiate_trainer(self, **kwargs: Any) -> Trainer:
-        if self.subcommand == "predict":  # its files go to its output folder: no config.yaml where it is run
+        logged = self.subcommand is not None and self.config[self.subcommand]["trainer"].get("logger") not in (
+            None,
+            False,
+        )
+        if self.subcommand == "predict" or (self.subcommand != "fit" and not logged):
+            # predict's files go to its output folder, and a validate or test without a logger has no log folder:
+            # no config.yaml in the folder it is run from
             self.save_config_callback = None
         trainer = super().instantiate_trainer(**kwargs)
         callbacks_of(trainer).insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
