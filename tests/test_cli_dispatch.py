@@ -59,20 +59,17 @@ def test_versions_come_from_the_package_metadata(capsys):
     ],
 )
 def test_what_is_missing_is_said_before_torch_is_imported(argv, message):
-    """A missing file or argument is answered in well under a second: torch and Lightning are never imported."""
+    """A missing file or argument is answered before torch and Lightning are imported (what makes it fast; the time
+    itself is not asserted: a shared machine's load would make that test flaky)."""
     import subprocess
     import sys
-    import time
 
     code = (
         "import sys; from stamlane.cli import main; rc = main(sys.argv[1:]);"
         "assert 'torch' not in sys.modules and 'lightning' not in sys.modules; sys.exit(rc)"
     )
-    began = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60)
-    took = time.perf_counter() - began
     assert proc.returncode == 2 and message in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
-    assert took < 1.0, took
 
 
 def test_help_is_not_taken_for_a_missing_argument():
