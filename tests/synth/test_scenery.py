@@ -16,16 +16,7 @@ from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dashcam import Roadside, Surface
 from stamlane.synth.road import render_texture, sample_road
-from stamlane.synth.scenery import (
-    VERGE_KINDS,
-    BodyStyle,
-    DotsBesideSeams,
-    RepairedSurface,
-    Scenery,
-    Sun,
-    Verge,
-    draw_bodies,
-)
+from stamlane.synth.scenery import VERGE_KINDS, BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
 from stamlane.synth.vehicles import Vehicle
 
 DASHCAM2 = SynthConfig(width=320, height=180, num_frames=3, world="dashcam2", occluder_prob=1.0)
@@ -76,28 +67,6 @@ def test_a_verge_lies_beyond_the_shoulders_brighter_than_the_asphalt_and_leaves_
             assert patch.mean() > plain[row - 2 : row + 3, col - 2 : col + 3].mean() + 20  # brighter than grass
     kinds = {k for s in range(40) for k in Verge.sample(np.random.default_rng(s)).kinds}
     assert kinds == set(VERGE_KINDS)
-
-
-def test_a_californian_freeway_has_dots_only_beside_joints_the_whole_way():
-    rng = np.random.default_rng(1)
-    road, _ = sample_road(rng, (-2.0, 60.0), 16.0, curved_prob=0.0, worn_prob=0.0)
-    surface = RepairedSurface(Surface.sample(np.random.default_rng(0), road.z_range, 8.0))
-    dashed = [i for i, m in enumerate(road.marks) if m.dashed]
-    assert dashed
-    freeway = DotsBesideSeams({i: 0.3 for i in dashed})
-    dotted, seamed = freeway.apply(road, surface)
-    assert [m.dots == "only" for m in dotted.marks] == [m.dashed for m in road.marks]
-    assert [m.offset for m in dotted.marks] == [m.offset for m in road.marks]  # the lanes, and so the labels, stay
-    assert seamed.joints == [(road.marks[i].offset + 0.3, -2.0, 62.0) for i in dashed]
-    texture = render_texture(dotted, np.random.default_rng(2), shadows=0, surface=seamed)
-    tex = dotted.texture_from_ground()
-    at = lambda x, z: tuple(np.round(tex @ np.array([x, z, 1.0]))[:2].astype(int))  # noqa: E731
-    for z in (3.0, 17.3, 41.9):  # dark all along, wherever the dashes and gaps are
-        col, row = at(road.marks[dashed[0]].offset + 0.3, z)
-        assert texture[row, col].mean() < 0.75 * texture[row, col + 6].mean()
-    chosen = [DotsBesideSeams.sample(np.random.default_rng(s), road) for s in range(200)]
-    assert 0.25 < np.mean([c is not None for c in chosen]) < 0.45  # DOTS_BESIDE_SEAMS_PROB
-    assert all(0.12 <= abs(side) <= 0.45 for c in chosen if c is not None for side in c.seams.values())
 
 
 def test_a_dashcam3_clip_is_the_dashcam2_clip_with_other_verges():

@@ -35,7 +35,7 @@ from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
-from stamlane.synth.scenery import BodyStyle, DotsBesideSeams, RepairedSurface, Scenery, Sun, Verge, draw_bodies
+from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
 from stamlane.synth.transient import KeyOccluder
 from stamlane.synth.vehicles import SUN, Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 
@@ -206,13 +206,9 @@ def generate_clip(
         sun = Sun.sample(rng, world.clear_sky)
         assert roadside is not None and isinstance(surface, Surface)  # both drawn just above for every dashcam world
         scenery = Scenery.sample(rng, sun, roadside, min(offsets), max(offsets), road.z_range)
-        repaired = RepairedSurface.sample(rng, surface, road.z_range, offsets)
-        if cfg.world == "dashcam3":  # its draws after dashcam2's (the verge's texture has a seed of its own)
+        surface = RepairedSurface.sample(rng, surface, road.z_range, offsets)
+        if cfg.world == "dashcam3":  # its one draw after dashcam2's (the verge's texture has a seed of its own)
             verge = Verge.sample(rng)
-            californian = DotsBesideSeams.sample(rng, road)
-            if californian is not None:
-                road, repaired = californian.apply(road, repaired)
-        surface = repaired
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
     textures = render_texture(
         road,

@@ -241,8 +241,7 @@ class SynthConfig:
     plus a sun whose direction and height cast every shadow (vehicles, barrier, rail, poles), curbs, poles, long
     repair strips, sealed joints and cracks, and vehicles with wheels, body, cabin, glass and lights; "dashcam3": the
     dashcam2 world with the ground beyond each shoulder drawn as green grass, dirt, dry grass or gravel (most of them
-    brighter than the asphalt, with a long ragged edge: `stamlane.synth.scenery.Verge`), and in a clip of three lane
-    lines of raised pavement markers only, each beside a dark joint (`stamlane.synth.scenery.DotsBesideSeams`)."""
+    brighter than the asphalt, with a long ragged edge: `stamlane.synth.scenery.Verge`)."""
     randomise: bool = False
     """Domain randomisation in the dashcam worlds: a random colour cast per clip."""
 

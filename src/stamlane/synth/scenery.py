@@ -15,10 +15,6 @@ this world keeps all of it and adds, per clip:
   cars, a cab and a cargo box on a chassis for trucks, tail lights, number plate and bumper at the rear, headlights
   and grille at the front, seen from behind and from the side.
 
-The dashcam3 world (``SynthConfig(world="dashcam3")``) is dashcam2 with two more distractors, drawn after
-dashcam2's draws: verges of grass, dirt, dry grass or gravel beyond the shoulders (`Verge`), and, in a clip of three,
-lane lines of raised pavement markers only, each beside a dark sealed joint running the whole way (`DotsBesideSeams`).
-
 Every draw comes from the clip's generator in this world only (after the dashcam world's own draws), so the classic
 world and the dashcam world of format 7 draw what they drew, byte for byte (``tests/synth/test_scenery.py``).
 """
@@ -27,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import cv2
@@ -43,11 +39,9 @@ if TYPE_CHECKING:
     from stamlane.synth.vehicles import Vehicle
 
 __all__ = [
-    "DOTS_BESIDE_SEAMS_PROB",
     "SUN_ELEVATION_DEG",
     "VERGE_KINDS",
     "BodyStyle",
-    "DotsBesideSeams",
     "RepairedSurface",
     "Scenery",
     "Sun",
@@ -146,39 +140,6 @@ class Verge:
             planes.append(plane + shade)
         mask: np.ndarray = on_left | on_right
         return planes, mask
-
-
-DOTS_BESIDE_SEAMS_PROB = 0.35
-"""Chance that a dashcam3 clip is a concrete freeway as in California: lane lines of raised pavement markers only,
-each beside a dark sealed joint running the whole way (`DotsBesideSeams`)."""
-
-
-@dataclass(frozen=True)
-class DotsBesideSeams:
-    """The dashcam3 world's freeway whose dashed lane lines are raised pavement markers only (no paint), each with
-    the road's sealed longitudinal joint beside it, dark and continuous: the real labelled frames' lines, which the
-    models fine-tuned on dashcam2 followed along the joint instead of the dots (20-65 px off at 1280x720).
-
-    Attributes:
-        seams: per mark, the joint's lateral offset from it (metres, either side), for the dashed marks only.
-    """
-
-    seams: dict[int, float]
-
-    @classmethod
-    def sample(cls, rng: np.random.Generator, road: Road) -> DotsBesideSeams | None:
-        """None for most clips (`DOTS_BESIDE_SEAMS_PROB`); two draws from ``rng`` per dashed mark otherwise."""
-        if rng.random() >= DOTS_BESIDE_SEAMS_PROB:
-            return None
-        dashed = [i for i, mark in enumerate(road.marks) if mark.dashed]
-        return cls({i: float(rng.choice([-1, 1]) * rng.uniform(0.12, 0.45)) for i in dashed})
-
-    def apply(self, road: Road, surface: RepairedSurface) -> tuple[Road, RepairedSurface]:
-        """``road`` with its dashed marks made of dots only, ``surface`` with a joint beside each for the whole road."""
-        marks = [replace(m, dots="only") if i in self.seams else m for i, m in enumerate(road.marks)]
-        z0, z1 = road.z_range
-        joints = [(road.marks[i].offset + side, z0, z1 - z0) for i, side in self.seams.items()]
-        return replace(road, marks=marks), replace(surface, joints=[*surface.joints, *joints])
 
 
 def _verge_colour(kind: str, rng: np.random.Generator) -> tuple[float, float, float]:
