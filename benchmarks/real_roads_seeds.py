@@ -1,0 +1,136 @@
+"""The real-road check over seeds: `benchmarks/real_roads.py` results of several fine-tunes per recipe, side by side.
+
+    python benchmarks/real_roads_seeds.py DIR [--groups NAME ...] [--boot 10000]
+
+``DIR`` holds ``<group>-s<seed>.json`` files written by ``benchmarks/real_roads.py`` (one per checkpoint, named after
+it) and, optionally, ``synthetic-test.json`` (``{"<group>-s<seed>": synthetic test F1 in %}``). Per group: the real
+frames' TuSimple F1, FP and FN (lane.py's), the video's frames with more than 4 lanes, with crossing lanes, and the
+mean lanes per frame, as mean ± std over seeds, each seed on its own row. Per pair of groups: the difference of
+the real frames' F1, with a 95 % paired bootstrap interval over the labelled images (each image's FP and FN
+averaged over the group's seeds first, then the images resampled; F1 as lane.py's, the harmonic mean of 1 - FP and
+1 - FN). With six labelled images, an interval that excludes 0 is a strong difference, one that does not may still
+be a real one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
+COLUMNS = ("real-frame F1", "FP", "FN", "video frames > 4 lanes", "crossing frames", "mean lanes", "synthetic test F1")
+
+
+def f1(fp: float, fn: float) -> float:
+    """lane.py's F1 from its FP and FN rates."""
+    precision, recall = 1 - fp, 1 - fn
+    return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
+
+
+def read(folder: Path) -> dict[str, dict[int, dict]]:
+    """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given)."""
+    synthetic_file = folder / "synthetic-test.json"
+    synthetic = json.loads(synthetic_file.read_text()) if synthetic_file.is_file() else {}
+    groups: dict[str, dict[int, dict]] = {}
+    for path in sorted(folder.glob("*.json")):
+        match = SEEDED.match(path.stem)
+        if match is None:
+            continue
+        result = json.loads(path.read_text())
+        result["synthetic"] = synthetic.get(path.stem, float("nan"))
+        groups.setdefault(match["group"], {})[int(match["seed"])] = result
+    return groups
+
+
+def numbers(result: dict) -> list[float]:
+    """One seed's row: the `COLUMNS`."""
+    frames, video = result["labelled_frames"], result["video"]
+    return [
+        100 * frames["f1"],
+        100 * frames["fp"],
+        100 * frames["fn"],
+        video["frames_over_max"],
+        video["frames_with_crossing"],
+        video["mean_lanes"],
+        result["synthetic"],
+    ]
+
+
+def table(groups: dict[str, dict[int, dict]]) -> str:
+    """Markdown: per group its mean ± std over seeds, then each seed."""
+    digits = (1, 1, 1, 0, 0, 2, 1)
+    lines = ["| fine-tune | seeds | " + " | ".join(COLUMNS) + " |", "|---" * (len(COLUMNS) + 2) + "|"]
+    for name, seeds in groups.items():
+        rows = np.array([numbers(seeds[s]) for s in sorted(seeds)], float)
+        with warnings.catch_warnings():  # a column without a value (no synthetic test given) stays empty: "–"
+            warnings.simplefilter("ignore", RuntimeWarning)
+            means = np.nanmean(rows, axis=0)
+            spread = np.nanstd(rows, axis=0, ddof=1) if len(rows) > 1 else np.zeros(len(COLUMNS))
+        cells = ["–" if np.isnan(m) else f"{m:.{d}f} ± {s:.{d}f}" for m, s, d in zip(means, spread, digits)]
+        lines.append(f"| **{name}** | {len(rows)} | " + " | ".join(cells) + " |")
+        for seed, row in zip(sorted(seeds), rows):
+            cells = ["–" if np.isnan(v) else f"{v:.{d}f}" for v, d in zip(row, digits)]
+            lines.append(f"| {name}-s{seed} | 1 | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def per_image(seeds: dict[int, dict]) -> np.ndarray:
+    """``(images, 2)``: each labelled image's FP and FN rates, averaged over the seeds."""
+    rates = [[(i["fp"], i["fn"]) for i in seeds[s]["labelled_frames"]["per_image"]] for s in sorted(seeds)]
+    mean: np.ndarray = np.array(rates, float).mean(axis=0)
+    return mean
+
+
+def differences(groups: dict[str, dict[int, dict]], boot: int, seed: int = 0) -> list[str]:
+    """Per pair of groups: the real frames' F1 difference with its paired bootstrap interval over the images."""
+    rng = np.random.default_rng(seed)
+    images = {name: per_image(seeds) for name, seeds in groups.items()}
+    names, out = list(images), []
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            x, y = images[a], images[b]
+            n = len(x)
+            draws = [_difference(x, y, rng.integers(0, n, n)) for _ in range(boot)]
+            low, high = np.percentile(draws, [2.5, 97.5])
+            whole = _difference(x, y, np.arange(n))
+            out.append(f"- {a} − {b}: {whole:+.1f} [{low:+.1f}, {high:+.1f}] ({n} images resampled)")
+    return out
+
+
+def _difference(x: np.ndarray, y: np.ndarray, images: np.ndarray) -> float:
+    """F1 points of ``x`` minus ``y`` (per-image FP and FN rates) on the ``images`` drawn."""
+    return 100 * (f1(*x[images].mean(axis=0)) - f1(*y[images].mean(axis=0)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", type=Path)
+    parser.add_argument("--groups", nargs="+", help="the groups to show, in this order (default: every group)")
+    parser.add_argument("--boot", type=int, default=10000, help="bootstrap draws")
+    args = parser.parse_args(argv)
+    groups = read(args.folder)
+    if args.groups:
+        missing = [g for g in args.groups if g not in groups]
+        if missing:
+            print(
+                f"real_roads_seeds: no <group>-s<seed>.json for {', '.join(missing)} in {args.folder}", file=sys.stderr
+            )
+            return 2
+        groups = {g: groups[g] for g in args.groups}
+    if not groups:
+        print(f"real_roads_seeds: no <group>-s<seed>.json in {args.folder}", file=sys.stderr)
+        return 2
+    print(table(groups))
+    print()
+    print("\n".join(differences(groups, args.boot)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

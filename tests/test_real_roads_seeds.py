@@ -1,0 +1,55 @@
+"""``benchmarks/real_roads_seeds.py``: the real-road check over seeds, on results written by hand."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_real_roads_seeds", REPO / "benchmarks" / "real_roads_seeds.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_real_roads_seeds"] = module
+    spec.loader.exec_module(module)
+    yield module
+    sys.modules.pop("bench_real_roads_seeds", None)
+
+
+def _result(rates: list[tuple[float, float]], over: int) -> dict:
+    fp, fn = (sum(r[k] for r in rates) / len(rates) for k in (0, 1))
+    per_image = [{"fp": a, "fn": b} for a, b in rates]
+    frames = {"f1": 2 * (1 - fp) * (1 - fn) / ((1 - fp) + (1 - fn)), "fp": fp, "fn": fn, "per_image": per_image}
+    return {"labelled_frames": frames, "video": {"frames_over_max": over, "frames_with_crossing": 0, "mean_lanes": 4.0}}
+
+
+def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_path: Path, capsys) -> None:
+    good = [(0.0, 0.0), (0.25, 0.25), (0.0, 0.5)]
+    bad = [(0.5, 0.5), (0.5, 0.75), (0.25, 0.5)]
+    for seed, over in ((0, 10), (1, 20)):
+        (tmp_path / f"good-s{seed}.json").write_text(json.dumps(_result(good, over)))
+        (tmp_path / f"bad-s{seed}.json").write_text(json.dumps(_result(bad, over + 1)))
+    (tmp_path / "synthetic-test.json").write_text(json.dumps({"good-s0": 97.0, "good-s1": 98.0}))
+    (tmp_path / "summary.json").write_text("{}")  # not a seeded result: left alone
+    assert bench.main([str(tmp_path), "--groups", "good", "bad", "--boot", "200"]) == 0
+    out = capsys.readouterr().out
+    good_f1 = 100 * bench.f1(0.25 / 3, 0.75 / 3)
+    assert f"| **good** | 2 | {good_f1:.1f} ± 0.0 |" in out
+    assert "| 15 ± 7 |" in out and "97.5 ± 0.7 |" in out  # frames over 4 lanes; the synthetic test where given
+    difference = good_f1 - 100 * bench.f1(1.25 / 3, 1.75 / 3)
+    line = next(row for row in out.splitlines() if row.startswith("- good − bad"))
+    low, high = (float(v) for v in line.split("[")[1].split("]")[0].split(", "))
+    assert f"{difference:+.1f}" in line and low <= difference <= high and low > 0  # better on every image
+
+
+def test_a_missing_group_is_one_line_and_status_2(bench, tmp_path: Path, capsys) -> None:
+    assert bench.main([str(tmp_path)]) == 2
+    assert bench.main([str(tmp_path), "--groups", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("real_roads_seeds: no <group>-s<seed>.json") for line in err)
