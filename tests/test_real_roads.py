@@ -3,26 +3,22 @@ of a shipped model on two real labelled frames and the first frames of the real 
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from tests.benchmark_modules import benchmark_module
+
 REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_real_roads", REPO / "benchmarks" / "real_roads.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_real_roads"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("bench_real_roads", None)
+    with benchmark_module("real_roads") as module:
+        yield module
 
 
 ROWS = np.arange(100.0, 200.0, 10.0)

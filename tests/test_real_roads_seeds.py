@@ -2,24 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.benchmark_modules import benchmark_module
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_real_roads_seeds", REPO / "benchmarks" / "real_roads_seeds.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_real_roads_seeds"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("bench_real_roads_seeds", None)
+    with benchmark_module("real_roads_seeds") as module:
+        yield module
 
 
 def _result(rates: list[tuple[float, float]], over: int) -> dict:
