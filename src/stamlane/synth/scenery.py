@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SUN_ELEVATION_DEG",
+    "VERGE_CHANCES",
     "VERGE_KINDS",
     "BodyStyle",
     "RepairedSurface",
@@ -81,8 +82,11 @@ class Sun:
 
 
 VERGE_KINDS = ("grass", "dirt", "dry grass", "gravel")
-"""What lies beside the shoulder in the dashcam3 world, per side: the classic green verge, or bare ground brighter
-than the asphalt, whose long straight edge a detector draws as a lane (the real highway of docs/results/real-roads/)."""
+"""What lies beside the shoulder in the dashcam3 world, per side (chances `VERGE_CHANCES`): the classic green verge, or
+bare ground brighter than the asphalt, whose long straight edge a detector draws as a lane (the real highway of
+docs/results/real-roads/)."""
+VERGE_CHANCES = (0.25, 0.3, 0.3, 0.15)
+"""The chance of each of `VERGE_KINDS` on a side."""
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,8 @@ class Verge:
     Attributes:
         kinds: ``(left, right)`` kinds.
         colours: ``(left, right)`` BGR colours, 0-255.
-        ragged: ``(left, right)`` metres the edge wanders about a straight line.
+        ragged: ``(left, right)``: the edge wanders between the asphalt's edge and this many metres into the
+            shoulder.
         seed: the seed of the verge's own noise (grain, stones, the edge's wander).
     """
 
@@ -105,7 +110,7 @@ class Verge:
 
     @classmethod
     def sample(cls, rng: np.random.Generator) -> Verge:
-        kinds = tuple(str(VERGE_KINDS[int(rng.choice(4, p=[0.25, 0.3, 0.3, 0.15]))]) for _ in range(2))
+        kinds = tuple(VERGE_KINDS[int(rng.choice(len(VERGE_KINDS), p=VERGE_CHANCES))] for _ in range(2))
         colours = tuple(_verge_colour(kind, rng) for kind in kinds)
         ragged = (float(rng.uniform(0.0, 0.25)), float(rng.uniform(0.0, 0.25)))
         return cls((kinds[0], kinds[1]), (colours[0], colours[1]), ragged, int(rng.integers(1 << 31)))
@@ -132,8 +137,8 @@ class Verge:
         on_left, on_right = rel < left, rel > right
         low = cv2.resize(noise.normal(0, 1, (max(h // 32, 2), max(w // 32, 2))).astype(np.float32), (w, h))
         grain = noise.normal(0, 1, (h, w)).astype(np.float32)
-        stones = (noise.random((h, w)) < 0.01).astype(np.float32) * noise.choice([-40.0, 40.0], (h, w))
-        shade = 10.0 * low + 7.0 * grain + stones.astype(np.float32)
+        stones = (noise.random((h, w)) < 0.01) * noise.choice([-40.0, 40.0], (h, w))  # 1 % of texels, bright or dark
+        shade = (10.0 * low + 7.0 * grain + stones).astype(np.float32)
         planes = []
         for k in range(3):
             plane = np.where(on_left, self.colours[0][k], self.colours[1][k]).astype(np.float32)
