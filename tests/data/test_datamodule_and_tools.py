@@ -71,6 +71,15 @@ def test_default_root_generates_the_synthetic_set_when_missing(tmp_path: Path, m
         warnings.simplefilter("error")  # same settings: found silently
         ClipDataModule(synth=TINY_SYNTH).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before
+    # a set recorded before a setting was added (label_lanes) had its default: found silently too
+    info_path = tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json"
+    info = json.loads(info_path.read_text())
+    del info["config"]["label_lanes"]
+    info_path.write_text(json.dumps(info))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ClipDataModule(synth=TINY_SYNTH).prepare_data()
+    before = info_path.stat().st_mtime_ns
     with pytest.warns(UserWarning, match="other settings"):  # another size: kept, with a warning
         ClipDataModule(synth=replace(TINY_SYNTH, size=(64, 128))).prepare_data()
     assert (tmp_path / DEFAULT_SYNTHETIC_ROOT / "dataset.json").stat().st_mtime_ns == before

@@ -28,6 +28,7 @@ from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
 from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.probes import FOLDER_HISTORIES, HISTORIES
+from stamlane.synth.config import SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT, FORMAT_VERSION
 from stamlane.training.lightning_compat import plain_hyperparameters
@@ -174,9 +175,12 @@ class ClipDataModule(LightningDataModule):
         if info_path.is_file():
             info = json.loads(info_path.read_text())
             wanted = json.loads(json.dumps(asdict(self.synth.config())))
+            recorded = info.get("config")
+            if isinstance(recorded, dict):  # a setting added since the set was made had its default (label_lanes)
+                recorded = json.loads(json.dumps(asdict(SynthConfig()))) | recorded
             if (
                 info.get("format_version") != FORMAT_VERSION
-                or info.get("config") != wanted
+                or recorded != wanted
                 or info.get("splits") != self.synth.splits().as_dict()
                 or info.get("seed") != self.synth.seed
             ):

@@ -13,7 +13,7 @@ from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
 from stamlane.safety.owner import claim, mark
-from stamlane.synth.config import FACTORS, WORLDS, SynthConfig
+from stamlane.synth.config import FACTORS, LABEL_LANES, WORLDS, SynthConfig
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP, SplitCounts
 from stamlane.synth.tusimple_layout import LAYOUTS
@@ -94,6 +94,13 @@ def build_parser() -> argparse.ArgumentParser:
         "vehicles with bodies; dashcam3: dashcam2 with dirt, dry grass or gravel verges (docs/data.md)",
     )
     p.add_argument("--randomise", action="store_true", help="dashcam worlds: a random colour cast per clip")
+    p.add_argument(
+        "--label-lanes",
+        choices=LABEL_LANES,
+        default="all",
+        help="all: label every mark in view (default); adjacent: TuSimple's convention, the marks of the ego lane and "
+        "of the lanes beside it",
+    )
     p.add_argument("--workers", type=int, default=1, help="processes rendering clips in parallel")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -172,13 +179,14 @@ def _synth(args: argparse.Namespace) -> int:
         fps=args.fps,
         world=args.world,
         randomise=args.randomise,
+        label_lanes=args.label_lanes,
     )
     settings = {"train_key_step": args.train_key_step, "eval_key_step": args.eval_key_step, "seed": args.seed}
     settings |= {"layout": args.layout}
     if args.demo:  # the demo's set, as ``data.synth``'s defaults make it (stamlane.data.options.SynthOptions)
         counts = DEMO_SPLITS
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
-        cfg = SynthConfig(world=args.world, randomise=args.randomise)
+        cfg = SynthConfig(world=args.world, randomise=args.randomise, label_lanes=args.label_lanes)
     start = time.perf_counter()
     mark(args.out, SYNTH_OWNER)
     info = generate_dataset(args.out, counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)

@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from stamlane.align.camera import Camera, Pose
-from stamlane.synth.config import SynthConfig
+from stamlane.synth.config import ADJACENT_LANE_WIDTHS, SynthConfig
 from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
@@ -127,11 +127,16 @@ def _ego_poses(cfg: SynthConfig, rng: np.random.Generator, road: Road, ego_lane:
 def _lane_labels(
     cfg: SynthConfig, camera: Camera, road: Road, pose: Pose, image_from_ground: np.ndarray, h_samples: list[int]
 ) -> list[list[int]]:
-    """TuSimple lanes (x per h_sample, -2 = absent) of every mark visible in a frame, left to right."""
+    """TuSimple lanes (x per h_sample, -2 = absent) of every mark visible in a frame, left to right; with
+    ``cfg.label_lanes == "adjacent"`` only of the marks within `ADJACENT_LANE_WIDTHS` lane widths beside the camera."""
     rows = np.asarray(h_samples, dtype=np.float64)
     z = pose.z + np.arange(1.0, cfg.label_range, 0.25)
+    marks = road.marks
+    if cfg.label_lanes == "adjacent":  # beside the camera, level with it (road.centre(pose.z) + offset - pose.x)
+        beside = float(road.centre(pose.z)) - pose.x
+        marks = [m for m in marks if abs(beside + m.offset) < ADJACENT_LANE_WIDTHS * road.lane_width]
     lanes = []
-    for mark in road.marks:
+    for mark in marks:
         g = road.mark_points(mark, z)
         hom = np.c_[g, np.ones(len(g))] @ image_from_ground.T
         front = hom[:, 2] > 1e-6

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
 __all__ = [
     "FACTORS",
     "KEY_OCCLUDERS",
+    "LABEL_LANES",
     "REVEAL",
     "REVEAL_MOTION",
     "REVEAL_TRAFFIC",
@@ -37,6 +38,14 @@ WORLDS = ("classic", "dashcam", "dashcam2", "dashcam3")
 """What ``SynthConfig.world`` takes: the classic world of formats 1-6, the dashcam world of format 7, the dashcam2
 world (the dashcam world plus the sun's shadows, curbs, poles, surface repairs and vehicles with bodies,
 `stamlane.synth.scenery`), or the dashcam3 world (dashcam2 with verges of grass, dirt, dry grass or gravel)."""
+LABEL_LANES = ("all", "adjacent")
+"""Which lane marks a frame's labels hold (``SynthConfig.label_lanes``): "all", every mark of the road in view (the
+set as every format has made it); "adjacent", TuSimple's convention, the marks of the ego lane and of the lanes beside
+it: those within two lane widths of the camera, four on a lane's centre (`ADJACENT_LANE_WIDTHS`)."""
+ADJACENT_LANE_WIDTHS = 2.0
+"""``label_lanes="adjacent"`` labels a mark when it lies less than this many lane widths beside the camera, level
+with it: the ego lane's two marks and the outer marks of the lanes to either side (at ±0.5 and ±1.5 widths from a
+lane's centre), never the marks of the lanes beyond them (±2.5)."""
 KEY_OCCLUDERS = ("spray", "blobs", "flash")
 """The kinds of transient occluder of the last frames (``SynthConfig.key_occluder``; drawn by
 `stamlane.synth.transient.KeyOccluder`)."""
@@ -244,6 +253,10 @@ class SynthConfig:
     brighter than the asphalt, with a long ragged edge: `stamlane.synth.scenery.Verge`)."""
     randomise: bool = False
     """Domain randomisation in the dashcam worlds: a random colour cast per clip."""
+    label_lanes: str = "all"
+    """Which marks the labels hold (`LABEL_LANES`): "all" of them, or the "adjacent" ones of TuSimple's convention
+    (the real frames of docs/results/real-roads/ label four marks of a five-lane highway). The frames do not depend
+    on it."""
 
     @classmethod
     def with_factor(cls, factor: str, **overrides: object) -> SynthConfig:
@@ -272,6 +285,8 @@ class SynthConfig:
             raise ValueError(f"key_occluder must be one of {KEY_OCCLUDERS} or empty, got {self.key_occluder!r}")
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
+        if self.label_lanes not in LABEL_LANES:
+            raise ValueError(f"label_lanes must be one of {LABEL_LANES}, got {self.label_lanes!r}")
         if self.randomise and not self.world.startswith("dashcam"):
             raise ValueError(
                 "randomise is an option of the dashcam worlds: set world='dashcam', 'dashcam2' or 'dashcam3'"
