@@ -232,7 +232,7 @@ def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict | None
         **summarise(rows),
     }
     tmp = args.out / f"{name}.json.tmp"
-    tmp.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
+    tmp.write_text(json.dumps(finite({"summary": summary, "rows": rows}), indent=1, allow_nan=False))
     tmp.replace(args.out / f"{name}.json")
     val = ", ".join(f"step {v['step']}: loss {v['loss']:.3g} F1 {v['tusimple_f1']:.3f}" for v in summary["val"])
     print(
@@ -242,6 +242,18 @@ def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict | None
         flush=True,
     )
     return summary
+
+
+def finite(value: object) -> object:
+    """``value`` with every non-finite float (a diverged run's loss) as None: JSON has no Infinity or NaN, and
+    ``summary["diverged"]`` says what happened."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [finite(v) for v in value]
+    return value
 
 
 def combine(out: Path, info: dict) -> None:
@@ -261,7 +273,7 @@ def combine(out: Path, info: dict) -> None:
         writer.writerows(rows)
     tmp.replace(out / "curve.csv")
     tmp = out / "paper-learns.json.tmp"
-    tmp.write_text(json.dumps({**info, "runs": runs}, indent=2))
+    tmp.write_text(json.dumps(finite({**info, "runs": runs}), indent=2, allow_nan=False))
     tmp.replace(out / "paper-learns.json")
     title = (
         f"configs/tusimple_stam4.yaml from scratch (width 1.0, 4 frames, SGD lr 0.05), batch {info['batch']}, "

@@ -71,6 +71,20 @@ def test_a_diverging_run_is_told_from_one_whose_loss_falls(tmp_path: Path):
     assert paper_learns.summarise(paper_learns.curve_rows("c", val_blown))["diverged"]
     nan = paper_learns.read_metrics(_metrics(tmp_path / "d.csv", [8, float("nan"), 5], {}))
     assert paper_learns.summarise(paper_learns.curve_rows("d", nan))["diverged"]
+    # written as JSON: a non-finite loss is null (JSON has no NaN or Infinity), the summary says it diverged
+    rows = paper_learns.curve_rows("d", nan)
+    record = {"summary": paper_learns.summarise(rows), "rows": rows}
+    record = json.loads(json.dumps(paper_learns.finite(record), allow_nan=False))
+    assert record["summary"]["diverged"] and [r["train_loss"] for r in record["rows"]] == [8.0, None, 5.0]
+
+
+def test_the_committed_curve_record_is_strict_json():
+    text = (REPO / "docs" / "results" / "paper-learns" / "paper-learns.json").read_text()
+
+    def refuse(name: str) -> None:
+        raise ValueError(f"{name} is not JSON")
+
+    assert json.loads(text, parse_constant=refuse)["runs"]
 
 
 def test_quick_mode_trains_and_writes_the_curve(tmp_path: Path, capsys: pytest.CaptureFixture):
