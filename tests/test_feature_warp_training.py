@@ -216,7 +216,7 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
     assert (unaligned[0] - clip_out[0]).abs().max() > 1e-2  # the comparison sees the alignment
 
 
-def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path) -> None:
+def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Encoder and decoder must fit; another fusion module starts afresh (paper rows from the demo's stage 1)."""
     trained = _module()
     with torch.no_grad():
@@ -232,6 +232,11 @@ def test_init_weights_starts_fit_from_a_checkpoint(tmp_path: Path) -> None:
         assert torch.equal(a, b), name
     with pytest.raises(ValueError, match=r"init_weights: checkpoint .*missing\.ckpt does not exist"):
         _module(init_weights=str(tmp_path / "missing.ckpt")).setup("fit")
+    # a shipped model's name, as a config file or a RunSpec gives it: its file is read (and this smaller network
+    # does not fit it), where no file of that name is here
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"init_weights: 'single-synthetic' does not fit this network"):
+        _module(init_weights="single-synthetic").setup("fit")
     # another fusion (no STAM parameters): encoder and decoder loaded, the fusion keeps its own initialisation
     other = _module(fusion=SimpleAdd, init_weights=str(path))
     other.setup("fit")

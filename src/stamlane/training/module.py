@@ -48,6 +48,7 @@ from stamlane.training.hardware import resolve_bf16
 from stamlane.training.lightning_compat import drop_hyperparameters
 from stamlane.training.losses import LaneLoss
 from stamlane.types import NET_HOMOGRAPHIES, nameable
+from stamlane.weights import resolve
 
 __all__ = ["PolyLR", "StamLaneModule", "paper_sgd"]
 
@@ -132,7 +133,8 @@ class StamLaneModule(LightningModule):
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.
-        init_weights: a checkpoint of this module (same network) whose weights start ``fit``: fine-tuning, e.g.
+        init_weights: a checkpoint of this module (same network), or a shipped model's name where no file of that
+            name is here (`stamlane.weights.resolve`), whose weights start ``fit``: fine-tuning, e.g.
             an image-space model with ``warp="feature"`` data for the streaming predictor. Only the weights
             (optimizer, schedule and step start afresh); read at the start of ``fit``, so a resumed run
             (``--ckpt_path``) keeps its own weights, and loading or testing the result never needs the file.
@@ -224,7 +226,8 @@ class StamLaneModule(LightningModule):
             rank_zero_info(f"encoder: ImageNet weights from {self.net.encoder.weights}")
         if stage == "fit" and self.init_weights:
             try:
-                state = read_checkpoint(self.init_weights)["state_dict"]
+                # a shipped model's name from a config file or a RunSpec too, not only from the command line
+                state = read_checkpoint(resolve(self.init_weights))["state_dict"]
             except CheckpointError as err:
                 raise CheckpointError(f"init_weights: {err}") from None
             own = self.state_dict()
