@@ -71,8 +71,12 @@ def table(groups: dict[str, dict[int, dict]]) -> str:
         with warnings.catch_warnings():  # a column without a value (no synthetic test given) stays empty: "–"
             warnings.simplefilter("ignore", RuntimeWarning)
             means = np.nanmean(rows, axis=0)
-            spread = np.nanstd(rows, axis=0, ddof=1) if len(rows) > 1 else np.zeros(len(COLUMNS))
-        cells = ["–" if np.isnan(m) else f"{m:.{d}f} ± {s:.{d}f}" for m, s, d in zip(means, spread, digits)]
+            spread = np.nanstd(rows, axis=0, ddof=1) if len(rows) > 1 else np.full(len(COLUMNS), np.nan)
+        # one seed has no spread: its number alone, never "± 0"
+        cells = [
+            "–" if np.isnan(m) else f"{m:.{d}f}" if np.isnan(s) else f"{m:.{d}f} ± {s:.{d}f}"
+            for m, s, d in zip(means, spread, digits)
+        ]
         lines.append(f"| **{name}** | {len(rows)} | " + " | ".join(cells) + " |")
         for seed, row in zip(sorted(seeds), rows):
             cells = ["–" if np.isnan(v) else f"{v:.{d}f}" for v, d in zip(row, digits)]

@@ -31,6 +31,7 @@ def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_pat
     for seed, over in ((0, 10), (1, 20)):
         (tmp_path / f"good-s{seed}.json").write_text(json.dumps(_result(good, over)))
         (tmp_path / f"bad-s{seed}.json").write_text(json.dumps(_result(bad, over + 1)))
+    (tmp_path / "lone-s3.json").write_text(json.dumps(_result(bad, 5)))  # a group of one seed
     (tmp_path / "synthetic-test.json").write_text(json.dumps({"good-s0": 97.0, "good-s1": 98.0}))
     (tmp_path / "summary.json").write_text("{}")  # not a seeded result: left alone
     assert bench.main([str(tmp_path), "--groups", "good", "bad", "--boot", "200"]) == 0
@@ -38,6 +39,9 @@ def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_pat
     good_f1 = 100 * bench.f1(0.25 / 3, 0.75 / 3)
     assert f"| **good** | 2 | {good_f1:.1f} ± 0.0 |" in out
     assert "| 15 ± 7 |" in out and "97.5 ± 0.7 |" in out  # frames over 4 lanes; the synthetic test where given
+    assert bench.main([str(tmp_path), "--groups", "lone", "--boot", "200"]) == 0
+    lone = capsys.readouterr().out
+    assert "| **lone** | 1 | " in lone and "±" not in lone  # one seed: its numbers, no spread
     difference = good_f1 - 100 * bench.f1(1.25 / 3, 1.75 / 3)
     line = next(row for row in out.splitlines() if row.startswith("- good − bad"))
     low, high = (float(v) for v in line.split("[")[1].split("]")[0].split(", "))
