@@ -93,7 +93,10 @@ FLOORS: dict[str, tuple[str, ...]] = {
         "stamlane.training.lightning_compat",
     ),
     "predict": ("stamlane.safety", "stamlane.types"),
-    "training": ("stamlane.models", "stamlane.data", "stamlane.predict", "stamlane.safety", "stamlane.types"),
+    "training": (
+        *("stamlane.models", "stamlane.data", "stamlane.predict", "stamlane.safety", "stamlane.types"),
+        "stamlane.weights",  # a leaf: a shipped model's name as init_weights
+    ),
     "stream": (
         *("stamlane.align", "stamlane.models", "stamlane.data", "stamlane.predict", "stamlane.training"),
         *("stamlane.safety", "stamlane.types", "stamlane.weights"),
