@@ -47,6 +47,12 @@ SHIPPED = (
         "0ce20c1eac25ddbae25770e70a0233700fe5dd0528037d0932a5c06152be89f0",
         "the demo's single-frame baseline (the same recipe, seed 0, float32)",
     ),
+    ShippedModel(
+        "single-dashcam",
+        "single-dashcam.ckpt",
+        "b268641d237cbd178a71f110844506f198ff403ec3e820d76f6621a29c463134",
+        "single-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels; seed 0, bfloat16)",
+    ),
 )
 """The models shipped, in the order ``stamlane --help`` lists them (docs/models.md has their cards)."""
 DEFAULT = SHIPPED[0].name
