@@ -255,7 +255,7 @@ class SynthConfig:
     """Domain randomisation in the dashcam worlds: a random colour cast per clip."""
     label_lanes: str = "all"
     """Which marks the labels hold (`LABEL_LANES`): "all" of them, or the "adjacent" ones of TuSimple's convention
-    (the real frames of docs/results/real-roads/ label four marks of a five-lane highway). The frames do not depend
+    (the real frames of docs/results/real-roads/ label four marks of a highway with more). The frames do not depend
     on it."""
 
     @classmethod
