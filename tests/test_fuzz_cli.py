@@ -463,10 +463,11 @@ def test_stream_device(stream_inputs: dict[str, Path], capsys: pytest.CaptureFix
     clips=st.sampled_from([1, 0, -1]),
     out=st.sampled_from(["fresh", "existing-set", "under-a-file", "a-file", "a-fifo", "foreign-folder"]),
     world=st.sampled_from(["classic", "dashcam2", "dashcam3", "nowhere"]),
+    labels=st.sampled_from(["all", "adjacent", "nearest", ""]),
 )
-@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="classic")  # the run that succeeds
-@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="dashcam3")  # the newest world succeeds too
-@example(size="64x48", frames=2, fps="20", clips=1, out="foreign-folder", world="classic")  # but for the folder
+@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="classic", labels="all")  # the run that succeeds
+@example(size="64x48", frames=2, fps="20", clips=1, out="fresh", world="dashcam3", labels="adjacent")  # the newest too
+@example(size="64x48", frames=2, fps="20", clips=1, out="foreign-folder", world="classic", labels="all")  # not there
 def test_synth(
     tiny_set: Path,
     capsys: pytest.CaptureFixture[str],
@@ -476,6 +477,7 @@ def test_synth(
     clips: int,
     out: str,
     world: str,
+    labels: str,
 ) -> None:
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
@@ -492,10 +494,21 @@ def test_synth(
             (tmp / "frames" / "0.jpg").write_bytes(b"frame")
             (tmp / "frames" / "test_label.json").write_text("{}\n")
         argv = ["synth", "--out", str(target), "--size", size, "--frames", str(frames), f"--fps={fps}"]
-        argv += ["--clips", str(clips), "--challenging-clips", "0", "--quiet", "--world", world]
+        argv += [
+            "--clips",
+            str(clips),
+            "--challenging-clips",
+            "0",
+            "--quiet",
+            "--world",
+            world,
+            "--label-lanes",
+            labels,
+        ]
         code = _contract(capsys, argv, [tiny_set, tmp / "frames"])
-        assert code == 2 or (out not in ("foreign-folder", "existing-set") and world != "nowhere")
-        if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh") and world != "nowhere":
+        valid = world != "nowhere" and labels in ("all", "adjacent")
+        assert code == 2 or (out not in ("foreign-folder", "existing-set") and valid)
+        if (size, frames, fps, clips, out) == ("64x48", 2, "20", 1, "fresh") and valid:
             assert code == 0 and (target / "train.json").is_file()  # what is valid is done
 
 
