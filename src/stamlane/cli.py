@@ -189,19 +189,19 @@ def _shipped_names() -> str:
 
 
 def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
-    """``rest`` with a shipped model's name given to ``--ckpt_path`` or ``--model.init_weights`` replaced by its file
-    (`stamlane.weights`; a file or folder of that name here wins, as the user typed the name), and ``stamlane predict
+    """``rest`` with a shipped model's name given to ``--ckpt_path`` replaced by its file (`stamlane.weights`; a file
+    or folder of that name here wins, as the user typed the name; ``model.init_weights`` is resolved where it is
+    read, `StamLaneModule.setup`, wherever it was written), and ``stamlane predict
     --source X`` given no checkpoint, no config and no model option run with the default shipped model (said in one
     line on stderr): its file, whatever lies here under its name, since nobody typed that name."""
     from stamlane.weights import DEFAULT, resolve, shipped_path
 
     out = []
     for i, arg in enumerate(rest):
-        for option in ("--ckpt_path", "--model.init_weights"):  # fit's start weights may be a shipped model too
-            if arg.startswith(option + "="):
-                arg = option + "=" + resolve(arg.split("=", 1)[1])
-            elif i and rest[i - 1] == option:
-                arg = resolve(arg)
+        if arg.startswith("--ckpt_path="):
+            arg = "--ckpt_path=" + resolve(arg.split("=", 1)[1])
+        elif i and rest[i - 1] == "--ckpt_path":
+            arg = resolve(arg)
         out.append(arg)
     given = _option(out, "--ckpt_path") is not None or any(
         a in ("--config", "-c") or a.startswith(("--config=", "-c=", "--model.")) for a in out
