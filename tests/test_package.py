@@ -31,7 +31,10 @@ def test_the_wheel_carries_the_configs_and_finds_them_from_an_empty_folder(tmp_p
     assert len(configs) > 30 and "configs/paper/tables.yaml" in configs
     assert [c for c in configs if f"stamlane/{c}" not in names] == []  # every config, at its place
     assert "stamlane/configs/__init__.py" in names
-    shipped = {f"stamlane/weights/{name}.ckpt" for name in ("stam4-synthetic", "single-synthetic", "single-dashcam")}
+    shipped = {
+        f"stamlane/weights/{name}.ckpt"
+        for name in ("stam4-synthetic", "single-synthetic", "single-dashcam", "stam4-dashcam")
+    }
     assert shipped <= names
 
     site = tmp_path / "site"  # the wheel alone, in front of the test environment's dependencies

@@ -44,7 +44,7 @@ def test_a_name_means_the_shipped_file_unless_a_file_of_that_name_is_here(tmp_pa
     assert resolve("runs/last.ckpt") == "runs/last.ckpt" and resolve("last") == "last"
     (tmp_path / DEFAULT).write_bytes(b"mine")
     assert resolve(DEFAULT) == DEFAULT  # a file of yours always wins
-    with pytest.raises(KeyError, match="shipped: stam4-synthetic, single-synthetic, single-dashcam"):
+    with pytest.raises(KeyError, match="shipped: stam4-synthetic, single-synthetic, single-dashcam, stam4-dashcam"):
         shipped_path("stam5")
 
 
@@ -53,7 +53,10 @@ def test_the_help_lists_them_and_a_missing_checkpoint_names_them(capsys) -> None
     out = capsys.readouterr().out
     assert all(m.name in out for m in SHIPPED)
     assert main(["predict", "--ckpt_path", "stam5-synthetic"]) == 2
-    assert "or a shipped model's name (stam4-synthetic, single-synthetic, single-dashcam)" in capsys.readouterr().err
+    assert (
+        "or a shipped model's name (stam4-synthetic, single-synthetic, single-dashcam, stam4-dashcam)"
+        in capsys.readouterr().err
+    )
 
 
 @pytest.mark.usefixtures("plain_argv")

@@ -53,6 +53,12 @@ SHIPPED = (
         "b268641d237cbd178a71f110844506f198ff403ec3e820d76f6621a29c463134",
         "single-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels; seed 0, bfloat16)",
     ),
+    ShippedModel(
+        "stam4-dashcam",
+        "stam4-dashcam.ckpt",
+        "236f16c60057ba978be21153032c8927221dc09371a65fd8292e88a5e002bd34",
+        "stam4-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels; seed 0, bfloat16)",
+    ),
 )
 """The models shipped, in the order ``stamlane --help`` lists them (docs/models.md has their cards)."""
 DEFAULT = SHIPPED[0].name
