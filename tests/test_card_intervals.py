@@ -55,3 +55,29 @@ def test_files_of_other_images_are_one_line_and_status_2(bench, tmp_path: Path, 
     assert err.startswith("card_intervals: error: ") and "\n" not in err
     assert bench.main([str(gt), str(perfect), "--names", "a", "b"]) == 2
     assert "2 names for 1 prediction files" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "hostile",
+    ["missing", "folder", "not json", "binary", "resamples 0", "resamples -5"],
+)
+def test_hostile_input_is_one_line_and_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, hostile: str) -> None:
+    gt, perfect, _ = _files(tmp_path)
+    pred, extra = str(perfect), []
+    if hostile == "missing":
+        pred = str(tmp_path / "nowhere.json")
+    elif hostile == "folder":
+        pred = str(tmp_path / "a")
+    elif hostile == "not json":
+        (tmp_path / "bad.json").write_text("{not json\n")
+        pred = str(tmp_path / "bad.json")
+    elif hostile == "binary":
+        (tmp_path / "bad.json").write_bytes(b"\x00\xff" * 64)
+        pred = str(tmp_path / "bad.json")
+    else:
+        extra = ["--resamples", hostile.split()[1]]
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert bench.main([str(gt), pred, *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("card_intervals: error: ") and "\n" not in err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
