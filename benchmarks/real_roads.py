@@ -12,7 +12,9 @@ precision, alignment on), on the real data beside the project (``../shared``, ne
    ``data/lanenet_frames.json`` (from the instance masks that come with them). Each frame is its own clip (the
    predictor is reset before it, so the frame is its own history, as ``stamlane predict`` starts a sequence),
    its lanes sampled at the label's ``h_samples`` and scored by lane.py's rules (`stamlane_eval.tusimple.evaluate`,
-   no time limit: this shared CPU is no benchmark machine): F1, accuracy, FP, FN, per image too.
+   no time limit: this shared CPU is no benchmark machine): F1, accuracy, FP, FN, per image too; and its ceiling,
+   the F1 of the labels themselves cut at the model's ``crop_top`` (`crop_ceiling`: a lane labelled far above the
+   crop cannot be matched, whatever the network draws).
 2. **Video**: ``data/real/solidWhiteRight.mp4`` (960x540, 221 frames, a California highway whose painted lines do
    not change), streamed frame by frame with history. Per frame, the lanes found; over the video, the histogram of
    lanes per frame, the frames with more than `MAX_LANES` lanes, the lane-count changes from one frame to the
@@ -146,19 +148,46 @@ def _scores(preds: list[dict], records: list[dict]) -> dict:
     return numbers | {"per_image": per_image}
 
 
+def crop_ceiling(records: list[dict], heights: list[int], crop_top: float) -> dict:
+    """What a model that sees only the rows below its crop can score at most on ``records``: lane.py's numbers of the
+    labels themselves, every point above row ``crop_top * height`` of its frame removed, the lanes that can no longer
+    be matched left out (drawing them would only add false positives).
+
+    lane.py matches a lane when `POINT_THRESH` of the h_samples rows agree, and counts a row the label draws but the
+    prediction leaves empty as a miss: a lane labelled far above the crop (a horizon higher in the frame than in the
+    training clips, an uphill road) is out of reach whatever the network does."""
+    from stamlane_eval.tusimple import POINT_THRESH, evaluate
+
+    reachable, out_of_reach = [], 0
+    for record, height in zip(records, heights, strict=True):
+        top, rows, keep = crop_top * height, record["h_samples"], []
+        for xs in filter(lambda xs: max(xs) >= 0, record["lanes"]):
+            cut = [x if y >= top else -2 for x, y in zip(xs, rows, strict=True)]
+            lost = sum(x >= 0 > c for x, c in zip(xs, cut, strict=True))  # rows drawn by the label, lost to the crop
+            if 1 - lost / len(rows) >= POINT_THRESH:
+                keep.append(cut)
+            else:
+                out_of_reach += 1
+        reachable.append({"raw_file": record["raw_file"], "lanes": keep, "run_time": 0})
+    f1 = evaluate(reachable, records, time_limit=False).f1
+    return {"crop_top": crop_top, "f1": f1, "lanes_out_of_reach": out_of_reach}
+
+
 def score_frames(
     predictor: Any, records: list[dict], root: Path, configs: dict[str, Any]
 ) -> dict[str, tuple[dict, list[list[np.ndarray]]]]:
-    """Per decoding: lane.py's numbers of the predictor on the labelled frames, each frame its own clip; and the lanes
-    found."""
+    """Per decoding: lane.py's numbers of the predictor on the labelled frames, each frame its own clip, with the
+    `crop_ceiling` of its crop; and the lanes found."""
     from stamlane_eval.tusimple import lanes_to_xs
 
     preds: dict[str, list] = {name: [] for name in configs}
     found: dict[str, list] = {name: [] for name in configs}
+    heights = []
     for record in records:
         image = cv2.imread(str(root / record["raw_file"]))
         if image is None:
             raise RealRoadsError(f"cannot read {root / record['raw_file']}")
+        heights.append(image.shape[0])
         predictor.reset()
         start = time.perf_counter()
         lanes = lanes_of(predictor, image, configs, list(record["h_samples"]))
@@ -167,7 +196,8 @@ def score_frames(
             found[name].append(these)
             xs = lanes_to_xs(these, record["h_samples"])
             preds[name].append({"raw_file": record["raw_file"], "lanes": xs, "run_time": ms})
-    return {name: (_scores(preds[name], records), found[name]) for name in configs}
+    ceiling = crop_ceiling(records, heights, predictor.transform.crop_top)
+    return {name: (_scores(preds[name], records) | {"crop_ceiling": ceiling}, found[name]) for name in configs}
 
 
 def score_synthetic(predictor: Any, root: Path, labels: str, configs: dict[str, Any]) -> dict[str, dict]:
@@ -408,9 +438,9 @@ def table(results: list[dict]) -> str:
     lines = [
         "| checkpoint | "
         + ("decoding | synthetic val F1 | " if val else "")
-        + "TuSimple F1 | accuracy | FP | FN | video: lanes per frame (frames) | > 4 lanes | count changes "
-        "| jitter px (median) | crossing frames |",
-        "|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
+        + "TuSimple F1 | its ceiling (crop) | accuracy | FP | FN | video: lanes per frame (frames) | > 4 lanes "
+        "| count changes | jitter px (median) | crossing frames |",
+        "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
     ]
     for r in results:
         f, v = r["labelled_frames"], r["video"]
@@ -422,7 +452,8 @@ def table(results: list[dict]) -> str:
                 f"{r.get('decoding', 'model')} | {100 * s['f1']:.1f} | " if s else f"{r.get('decoding', 'model')} | | "
             )
         lines.append(
-            f"| {Path(r['checkpoint']).name} | {extra}{100 * f['f1']:.1f} | {100 * f['accuracy']:.1f} "
+            f"| {Path(r['checkpoint']).name} | {extra}{100 * f['f1']:.1f} | {100 * f['crop_ceiling']['f1']:.1f} "
+            f"| {100 * f['accuracy']:.1f} "
             f"| {100 * f['fp']:.1f} | {100 * f['fn']:.1f} | {hist} | {v['frames_over_max']} | {v['count_changes']} "
             f"| {v['jitter_px']:.1f} ({v['jitter_px_median']:.1f}) | {v['frames_with_crossing']} |"
         )

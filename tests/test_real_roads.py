@@ -53,6 +53,26 @@ def test_crossings_counts_pairs_whose_order_changes(bench):
     assert bench.crossings([_lane(100, 300), _lane(300, 100), _lane(500, 450)], ROWS) == 1
 
 
+def test_the_crop_ceiling_is_the_score_of_the_labels_cut_at_the_first_row_the_network_sees(bench):
+    rows = list(range(100, 710, 10))  # 61 rows
+    low = [600 - (y - 300) if y >= 300 else -2 for y in rows]  # drawn from row 300: all of it below the crop
+    high = [100 + y for y in rows]  # drawn from row 100: 19 of its 61 rows above row 288, 69 % left: out of reach
+    edge = [100 + y if y >= 200 else -2 for y in rows]  # from row 200: 9 rows lost, 85.2 % left: still matched
+    records = [{"raw_file": "a.jpg", "h_samples": rows, "lanes": [low, high, edge]}]
+    out = bench.crop_ceiling(records, [720], 0.4)
+    assert out["lanes_out_of_reach"] == 1
+    assert out["f1"] == pytest.approx(2 * 1.0 * (2 / 3) / (1.0 + 2 / 3))  # two of three lanes, no false positive
+    assert bench.crop_ceiling(records, [720], 0.1) == {"crop_top": 0.1, "f1": 1.0, "lanes_out_of_reach": 0}
+
+
+def test_the_real_frames_put_three_lanes_out_of_reach_of_the_shipped_crop(bench, shared_dir: Path):
+    records, root = bench.read_labels(shared_dir)
+    heights = [cv2.imread(str(root / r["raw_file"])).shape[0] for r in records]
+    # frame 2 climbs a hill: its horizon is at row 200 of 720, ten rows of its lanes above the shipped models' crop
+    out = bench.crop_ceiling(records, heights, 0.4)
+    assert out["lanes_out_of_reach"] == 3 and round(100 * out["f1"], 1) == 93.3
+
+
 def test_the_check_scores_a_shipped_model_on_real_frames_and_video(bench, shared_dir: Path, tmp_path: Path):
     out = tmp_path / "real"
     argv = ["--ckpt", "single-synthetic", "--shared", str(shared_dir), "--frames", "2", "--video-frames", "5"]
@@ -61,6 +81,7 @@ def test_the_check_scores_a_shipped_model_on_real_frames_and_video(bench, shared
     frames, video = result["labelled_frames"], result["video"]
     assert frames["images"] == 2 and len(frames["per_image"]) == 2
     assert 0.0 <= frames["f1"] <= 1.0 and 0.0 <= frames["fp"] <= 1.0
+    assert frames["crop_ceiling"] == {"crop_top": 0.4, "f1": 1.0, "lanes_out_of_reach": 0}  # frames 0 and 1
     assert video["frames"] == 5 and sum(video["lanes_per_frame"].values()) == 5
     assert video["size"] == "960x540" and video["count_changes"] <= 4
     strip = cv2.imread(str(out / "single-synthetic-strip.jpg"))
