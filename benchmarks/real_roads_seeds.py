@@ -92,14 +92,15 @@ def per_image(seeds: dict[int, dict]) -> np.ndarray:
 
 
 def differences(groups: dict[str, dict[int, dict]], boot: int, seed: int = 0) -> list[str]:
-    """Per pair of groups: the real frames' F1 difference with its paired bootstrap interval over the images."""
-    rng = np.random.default_rng(seed)
+    """Per pair of groups: the real frames' F1 difference with its paired bootstrap interval over the images. Every
+    pair draws the same resamples (a generator of its own, seeded by ``seed``): a pair's interval does not depend on
+    which other groups are shown."""
     images = {name: per_image(seeds) for name, seeds in groups.items()}
     names, out = list(images), []
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             x, y = images[a], images[b]
-            n = len(x)
+            n, rng = len(x), np.random.default_rng(seed)
             draws = [_difference(x, y, rng.integers(0, n, n)) for _ in range(boot)]
             low, high = np.percentile(draws, [2.5, 97.5])
             whole = _difference(x, y, np.arange(n))

@@ -46,6 +46,8 @@ def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_pat
     line = next(row for row in out.splitlines() if row.startswith("- good − bad"))
     low, high = (float(v) for v in line.split("[")[1].split("]")[0].split(", "))
     assert f"{difference:+.1f}" in line and low <= difference <= high and low > 0  # better on every image
+    assert bench.main([str(tmp_path), "--groups", "lone", "good", "bad", "--boot", "200"]) == 0
+    assert line in capsys.readouterr().out.splitlines()  # a pair's interval whatever else is shown
 
 
 def test_a_missing_group_is_one_line_and_status_2(bench, tmp_path: Path, capsys) -> None:
