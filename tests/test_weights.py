@@ -51,7 +51,7 @@ def test_a_name_means_the_shipped_file_unless_a_file_of_that_name_is_here(tmp_pa
 def test_the_help_lists_them_and_a_missing_checkpoint_names_them(capsys) -> None:
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
-    assert all(m.name in out for m in SHIPPED)
+    assert all(m.name in out for m in SHIPPED) and f"predict --source runs {DEFAULT};" in out
     assert main(["predict", "--ckpt_path", "stam5-synthetic"]) == 2
     assert (
         "or a shipped model's name (stam4-synthetic, single-synthetic, single-dashcam, stam4-dashcam)"
@@ -65,7 +65,10 @@ def test_predict_on_a_folder_with_no_checkpoint_runs_the_default_model(tiny_synt
     (clip,) = (root / "clips").iterdir()
     out = tmp_path / "pred"
     assert main(["predict", "--source", str(clip), "--predictions.output_dir", str(out)]) == 0
-    assert f"running the shipped {DEFAULT}" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert (
+        DEFAULT == "stam4-dashcam" and f"running the shipped {DEFAULT} (the 4-frame STAM model for real roads" in said
+    )
     assert len(list((out / "lines").rglob("*.lines.txt"))) == 4  # one per frame, each with its own history
 
 

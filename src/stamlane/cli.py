@@ -93,10 +93,14 @@ def _help() -> str:
         "",
     ]
     lines += [f"  {name:<{width}}  {text}" for name, text in SUMMARIES.items()]
-    from stamlane.weights import SHIPPED
+    from stamlane.weights import DEFAULT, SHIPPED
 
-    lines += ["", "Shipped weights (--ckpt_path NAME, stream --ckpt NAME; docs/models.md):"]
-    lines += [f"  {m.name:<{width}}  {m.summary}" for m in SHIPPED]
+    lines += [
+        "",
+        f"Shipped weights (--ckpt_path NAME, stream --ckpt NAME; predict --source runs {DEFAULT}; docs/models.md):",
+    ]
+    named = max(len(m.name) for m in SHIPPED)
+    lines += [f"  {m.name:<{named}}  {m.summary}" for m in SHIPPED]
     lines += [
         "",
         "stamlane COMMAND --help gives the command's options; evaluators: stamlane-eval --help.",
@@ -194,7 +198,7 @@ def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
     read, `StamLaneModule.setup`, wherever it was written), and ``stamlane predict
     --source X`` given no checkpoint, no config and no model option run with the default shipped model (said in one
     line on stderr): its file, whatever lies here under its name, since nobody typed that name."""
-    from stamlane.weights import DEFAULT, resolve, shipped_path
+    from stamlane.weights import DEFAULT, SHIPPED, resolve, shipped_path
 
     out = []
     for i, arg in enumerate(rest):
@@ -208,8 +212,9 @@ def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
     )
     if command == "predict" and _option(out, "--source") is not None and not given and not _asks_help(out):
         print(
-            f"stamlane predict: no --ckpt_path given: running the shipped {DEFAULT} (trained on synthetic clips "
-            "only; what it can and cannot do: docs/models.md)",
+            f"stamlane predict: no --ckpt_path given: running the shipped {DEFAULT} ("
+            + next(m.summary for m in SHIPPED if m.name == DEFAULT)
+            + "; what it can and cannot do: docs/models.md)",
             file=sys.stderr,
         )
         out = ["--ckpt_path", str(shipped_path(DEFAULT)), *out]  # a name nobody typed: never a file of that name here

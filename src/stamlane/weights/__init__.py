@@ -56,13 +56,16 @@ SHIPPED = (
     ShippedModel(
         "stam4-dashcam",
         "stam4-dashcam.ckpt",
-        "236f16c60057ba978be21153032c8927221dc09371a65fd8292e88a5e002bd34",
-        "stam4-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels; seed 0, bfloat16)",
+        "5514bdc55c34dd489fa90987bb4e41a50549b621f4cb72a584e73d85370461e9",
+        "the 4-frame STAM model for real roads: single-dashcam fine-tuned on 4-frame clips of its data (seed 0, "
+        "bfloat16)",
     ),
 )
 """The models shipped, in the order ``stamlane --help`` lists them (docs/models.md has their cards)."""
-DEFAULT = SHIPPED[0].name
-"""What ``stamlane predict --source VIDEO`` runs when given no checkpoint and no config."""
+DEFAULT = "stam4-dashcam"
+"""What ``stamlane predict --source VIDEO`` runs when given no checkpoint and no config: a user's own video is a real
+road, and the 4-frame model fine-tuned for real roads draws its lines where the synthetic-only models draw extra,
+crossing ones (docs/models.md)."""
 
 
 def shipped_path(name: str) -> Path:
