@@ -13,6 +13,7 @@ import pytest
 from stamlane.cli import main
 from stamlane.safety.guard import GuardError
 from stamlane.safety.owner import OWNER_NAME, claim, mark, owner_of
+from stamlane.weights import DEFAULT
 
 A = {"command": "predict", "source": "/data/v/clip.mp4"}
 B = {"command": "predict", "source": "/data/f/clip"}
@@ -84,7 +85,7 @@ def test_predict_gives_a_second_source_of_the_same_name_its_own_folder(
 ) -> None:
     video, frames = two_clips
     monkeypatch.chdir(tmp_path)
-    top = tmp_path / "outputs" / "predict" / "stam4-synthetic"
+    top = tmp_path / "outputs" / "predict" / DEFAULT  # what predict --source runs with no model
     assert main(["predict", "--source", str(video), "--trainer.enable_progress_bar=false"]) == 0
     first = {p: p.read_bytes() for p in (top / "clip").rglob("*") if p.is_file()}
     assert (top / "clip" / "overlay.mp4") in first
