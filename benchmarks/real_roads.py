@@ -19,7 +19,10 @@ precision, alignment on), on the real data beside the project (``../shared``, ne
    not change), streamed frame by frame with history. Per frame, the lanes found; over the video, the histogram of
    lanes per frame, the frames with more than `MAX_LANES` lanes, the lane-count changes from one frame to the
    next, and the lateral jitter of the lanes matched between consecutive frames (`stability`); lane pairs that
-   cross each other (`crossings`: two lanes of one frame whose left-right order changes from row to row).
+   cross each other (`crossings`: two lanes of one frame whose left-right order changes from row to row). And
+   lane.py's numbers on the video's labelled frames (`VIDEO_LABELS`, ten frames labelled by a written rule,
+   ``benchmarks/video_labels.py``; `score_video_frames`): the one real-road F1 where a 4-frame model sees real
+   history.
 3. **Overlay strip** ``<name>-strip.jpg``: a few video frames with their lanes (top row) and the first labelled
    frames with their labels (yellow bands) under the predictions (bottom row), for a person to look at: what no
    number here says is whether a lane runs through a vehicle.
@@ -53,6 +56,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 FRAMES_LABELS = "data/lanenet_frames.json"  # under --shared; raw_file is relative to data/
 VIDEO = "data/real/solidWhiteRight.mp4"
+VIDEO_LABELS = REPO / "benchmarks" / "labels" / "solidWhiteRight.json"  # TuSimple records, 1280 x 720 pixels
+TUSIMPLE_WIDTH = 1280  # the labels' frame width: the video's lanes are scaled to it before lane.py scores them
 MAX_LANES = 4  # the issue's bound: a highway frame shows at most four lines worth drawing
 MATCH_PX = 0.05  # a lane matches the previous frame's nearest lane within this fraction of the frame width
 MIN_COMMON_ROWS = 3  # rows two lanes must share to be compared
@@ -340,6 +345,29 @@ def video_numbers(path: Path, images: list[np.ndarray], found: list[list], ms: l
     return numbers | {"lanes_per_frame_sequence": counts}
 
 
+def read_video_labels() -> list[dict]:
+    """The TuSimple records of the video's labelled frames (``raw_file`` ``<video>#<frame>``)."""
+    return [json.loads(line) for line in VIDEO_LABELS.read_text().splitlines() if line.strip()]
+
+
+def score_video_frames(found: list[list[np.ndarray]], records: list[dict], width: int) -> dict | None:
+    """lane.py's numbers of the lanes ``found`` in the video's frames on its labelled ones (``records``, in TuSimple's
+    1280 x 720: the lanes are scaled by ``TUSIMPLE_WIDTH / width`` first, so that lane.py's 20-px threshold means what
+    it means on TuSimple); None where the frames streamed end before the first labelled one."""
+    from stamlane_eval.tusimple import lanes_to_xs
+
+    scale = TUSIMPLE_WIDTH / width
+    frame = {r["raw_file"]: int(r["raw_file"].rpartition("#")[2]) for r in records}
+    scored = [r for r in records if frame[r["raw_file"]] < len(found)]
+    if not scored:
+        return None
+    preds = []
+    for record in scored:
+        lanes = [lane * scale for lane in found[frame[record["raw_file"]]]]
+        preds.append({"raw_file": record["raw_file"], "lanes": lanes_to_xs(lanes, record["h_samples"]), "run_time": 0})
+    return _scores(preds, scored) | {"labels": str(VIDEO_LABELS.relative_to(REPO))}
+
+
 # -------------------------------------------------------------------------------------------- the strip
 def strip(
     video: list[np.ndarray],
@@ -408,6 +436,7 @@ def check(
     synthetic = score_synthetic(predictor, val[0], val[1], configs) if val is not None else {}
     labelled_numbers = score_frames(predictor, records, root, configs)
     video_results, images = run_video(predictor, video, video_frames, configs)
+    video_records = read_video_labels()
     labelled = [cv2.imread(str(root / r["raw_file"])) for r in records[:cells]]
     gt = [_gt_lanes(r) for r in records[:cells]]
     out = []
@@ -415,6 +444,9 @@ def check(
         full = f"{Path(ckpt).stem}@{name}" if specs else Path(ckpt).stem
         frame_numbers, frame_lanes = labelled_numbers[name]
         video_numbers, video_lanes = video_results[name]
+        video_labelled = score_video_frames(video_lanes, video_records, images[0].shape[1])
+        if video_labelled is not None:
+            video_numbers = video_numbers | {"labelled_frames": video_labelled}
         picture = strip(images, video_lanes, labelled, frame_lanes[:cells], gt, cells, full)
         result = {
             "checkpoint": ckpt,
@@ -438,13 +470,14 @@ def table(results: list[dict]) -> str:
     lines = [
         "| checkpoint | "
         + ("decoding | synthetic val F1 | " if val else "")
-        + "TuSimple F1 | its ceiling (crop) | accuracy | FP | FN | video: lanes per frame (frames) | > 4 lanes "
-        "| count changes | jitter px (median) | crossing frames |",
-        "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
+        + "TuSimple F1 | its ceiling (crop) | accuracy | FP | FN | video: labelled F1 | lanes per frame (frames) "
+        "| > 4 lanes | count changes | jitter px (median) | crossing frames |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
     ]
     for r in results:
         f, v = r["labelled_frames"], r["video"]
         hist = ", ".join(f"{k}: {n}" for k, n in v["lanes_per_frame"].items())
+        video_f1 = f"{100 * v['labelled_frames']['f1']:.1f}" if "labelled_frames" in v else ""
         extra = ""
         if val:
             s = r.get("synthetic_val")
@@ -454,7 +487,8 @@ def table(results: list[dict]) -> str:
         lines.append(
             f"| {Path(r['checkpoint']).name} | {extra}{100 * f['f1']:.1f} | {100 * f['crop_ceiling']['f1']:.1f} "
             f"| {100 * f['accuracy']:.1f} "
-            f"| {100 * f['fp']:.1f} | {100 * f['fn']:.1f} | {hist} | {v['frames_over_max']} | {v['count_changes']} "
+            f"| {100 * f['fp']:.1f} | {100 * f['fn']:.1f} | {video_f1} | {hist} | {v['frames_over_max']} "
+            f"| {v['count_changes']} "
             f"| {v['jitter_px']:.1f} ({v['jitter_px_median']:.1f}) | {v['frames_with_crossing']} |"
         )
     return "\n".join(lines) + "\n"

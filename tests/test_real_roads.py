@@ -75,15 +75,16 @@ def test_the_real_frames_put_three_lanes_out_of_reach_of_the_shipped_crop(bench,
 
 def test_the_check_scores_a_shipped_model_on_real_frames_and_video(bench, shared_dir: Path, tmp_path: Path):
     out = tmp_path / "real"
-    argv = ["--ckpt", "single-synthetic", "--shared", str(shared_dir), "--frames", "2", "--video-frames", "5"]
+    argv = ["--ckpt", "single-synthetic", "--shared", str(shared_dir), "--frames", "2", "--video-frames", "12"]
     assert bench.main([*argv, "--strip", "2", "--out", str(out)]) == 0
     result = json.loads((out / "single-synthetic.json").read_text())
     frames, video = result["labelled_frames"], result["video"]
     assert frames["images"] == 2 and len(frames["per_image"]) == 2
     assert 0.0 <= frames["f1"] <= 1.0 and 0.0 <= frames["fp"] <= 1.0
     assert frames["crop_ceiling"] == {"crop_top": 0.4, "f1": 1.0, "lanes_out_of_reach": 0}  # frames 0 and 1
-    assert video["frames"] == 5 and sum(video["lanes_per_frame"].values()) == 5
-    assert video["size"] == "960x540" and video["count_changes"] <= 4
+    assert video["frames"] == 12 and sum(video["lanes_per_frame"].values()) == 12
+    assert video["size"] == "960x540" and video["count_changes"] <= 11
+    assert video["labelled_frames"]["images"] == 1  # frame 11, the first labelled one
     strip = cv2.imread(str(out / "single-synthetic-strip.jpg"))
     assert strip.shape == (2 * bench.STRIP_CELL[1], 2 * bench.STRIP_CELL[0], 3)
     assert "| single-synthetic |" in (out / "summary.md").read_text()
@@ -117,6 +118,27 @@ def test_decodings_share_one_network_pass_and_score_a_synthetic_validation_split
     assert bench.main([*argv, "--out", str(bad), "--decode", "x:degree=zero"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "degree" in err[0] and not bad.exists()
+
+
+def test_the_video_labels_score_lanes_in_the_videos_own_pixels(bench):
+    records = bench.read_video_labels()[:2]
+    scale = bench.TUSIMPLE_WIDTH / 960
+
+    def lanes(record: dict, shift: float) -> list[np.ndarray]:
+        rows = np.asarray(record["h_samples"], dtype=np.float64)
+        return [
+            np.stack([xs[xs >= 0] / scale + shift, rows[xs >= 0] / scale], 1) for xs in map(np.array, record["lanes"])
+        ]
+
+    frames = int(records[1]["raw_file"].rpartition("#")[2]) + 1
+    found = [[] for _ in range(frames)]
+    for record in records:
+        found[int(record["raw_file"].rpartition("#")[2])] = lanes(record, 0.0)
+    assert bench.score_video_frames(found, records, 960)["f1"] == 1.0  # the labels, back in the video's pixels
+    for record in records:  # lane.py's 20 px / cos(angle) at 1280 (~90 px for the steep far-left line): missed
+        found[int(record["raw_file"].rpartition("#")[2])] = lanes(record, 120.0)
+    assert bench.score_video_frames(found, records, 960)["f1"] == 0.0
+    assert bench.score_video_frames(found[:5], records, 960) is None  # streamed frames end before the first label
 
 
 def test_missing_data_is_one_line_and_writes_nothing(bench, tmp_path: Path, capsys: pytest.CaptureFixture):
