@@ -4,8 +4,9 @@
 
 ``DIR`` holds ``<group>-s<seed>.json`` files written by ``benchmarks/real_roads.py`` (one per checkpoint, named after
 it) and, optionally, ``synthetic-test.json`` (``{"<group>-s<seed>": synthetic test F1 in %}``). Per group: the real
-frames' TuSimple F1, FP and FN (lane.py's), the video's frames with more than 4 lanes, with crossing lanes, and the
-mean lanes per frame, as mean ± std over seeds, each seed on its own row. Per pair of groups: the difference of
+frames' TuSimple F1, FP and FN (lane.py's), the F1 on the video's labelled frames (files written before those labels
+existed leave it empty), the video's frames with more than 4 lanes, with crossing lanes, and the mean lanes per
+frame, as mean ± std over seeds, each seed on its own row. Per pair of groups: the difference of
 the real frames' F1, with a 95 % paired bootstrap interval over the labelled images (each image's FP and FN
 averaged over the group's seeds first, then the images resampled; F1 as lane.py's, the harmonic mean of 1 - FP and
 1 - FN). With six labelled images, an interval that excludes 0 is a strong difference, one that does not may still
@@ -24,7 +25,16 @@ from pathlib import Path
 import numpy as np
 
 SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
-COLUMNS = ("real-frame F1", "FP", "FN", "video frames > 4 lanes", "crossing frames", "mean lanes", "synthetic test F1")
+COLUMNS = (
+    "real-frame F1",
+    "FP",
+    "FN",
+    "video labelled F1",
+    "video frames > 4 lanes",
+    "crossing frames",
+    "mean lanes",
+    "synthetic test F1",
+)
 
 
 def f1(fp: float, fn: float) -> float:
@@ -55,6 +65,7 @@ def numbers(result: dict) -> list[float]:
         100 * frames["f1"],
         100 * frames["fp"],
         100 * frames["fn"],
+        100 * video["labelled_frames"]["f1"] if "labelled_frames" in video else float("nan"),  # older files: none
         video["frames_over_max"],
         video["frames_with_crossing"],
         video["mean_lanes"],
@@ -64,7 +75,7 @@ def numbers(result: dict) -> list[float]:
 
 def table(groups: dict[str, dict[int, dict]]) -> str:
     """Markdown: per group its mean ± std over seeds, then each seed."""
-    digits = (1, 1, 1, 0, 0, 2, 1)
+    digits = (1, 1, 1, 1, 0, 0, 2, 1)
     lines = ["| fine-tune | seeds | " + " | ".join(COLUMNS) + " |", "|---" * (len(COLUMNS) + 2) + "|"]
     for name, seeds in groups.items():
         rows = np.array([numbers(seeds[s]) for s in sorted(seeds)], float)

@@ -18,18 +18,21 @@ def bench():
         yield module
 
 
-def _result(rates: list[tuple[float, float]], over: int) -> dict:
+def _result(rates: list[tuple[float, float]], over: int, video_f1: float | None = None) -> dict:
     fp, fn = (sum(r[k] for r in rates) / len(rates) for k in (0, 1))
     per_image = [{"fp": a, "fn": b} for a, b in rates]
     frames = {"f1": 2 * (1 - fp) * (1 - fn) / ((1 - fp) + (1 - fn)), "fp": fp, "fn": fn, "per_image": per_image}
-    return {"labelled_frames": frames, "video": {"frames_over_max": over, "frames_with_crossing": 0, "mean_lanes": 4.0}}
+    video = {"frames_over_max": over, "frames_with_crossing": 0, "mean_lanes": 4.0}
+    if video_f1 is not None:  # files written before the video's labelled frames have none
+        video["labelled_frames"] = {"f1": video_f1}
+    return {"labelled_frames": frames, "video": video}
 
 
 def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_path: Path, capsys) -> None:
     good = [(0.0, 0.0), (0.25, 0.25), (0.0, 0.5)]
     bad = [(0.5, 0.5), (0.5, 0.75), (0.25, 0.5)]
     for seed, over in ((0, 10), (1, 20)):
-        (tmp_path / f"good-s{seed}.json").write_text(json.dumps(_result(good, over)))
+        (tmp_path / f"good-s{seed}.json").write_text(json.dumps(_result(good, over, 1.0 - seed / 10)))
         (tmp_path / f"bad-s{seed}.json").write_text(json.dumps(_result(bad, over + 1)))
     (tmp_path / "lone-s3.json").write_text(json.dumps(_result(bad, 5)))  # a group of one seed
     (tmp_path / "synthetic-test.json").write_text(json.dumps({"good-s0": 97.0, "good-s1": 98.0}))
@@ -38,6 +41,7 @@ def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_pat
     out = capsys.readouterr().out
     good_f1 = 100 * bench.f1(0.25 / 3, 0.75 / 3)
     assert f"| **good** | 2 | {good_f1:.1f} ± 0.0 |" in out
+    assert "| 95.0 ± 7.1 | 15 ± 7 |" in out and "| – | 16 ± 7 |" in out  # the video's labelled F1, where there is one
     assert "| 15 ± 7 |" in out and "97.5 ± 0.7 |" in out  # frames over 4 lanes; the synthetic test where given
     assert bench.main([str(tmp_path), "--groups", "lone", "--boot", "200"]) == 0
     lone = capsys.readouterr().out
