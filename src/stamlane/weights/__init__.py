@@ -50,13 +50,13 @@ SHIPPED = (
     ShippedModel(
         "single-dashcam",
         "single-dashcam.ckpt",
-        "b268641d237cbd178a71f110844506f198ff403ec3e820d76f6621a29c463134",
-        "single-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels; seed 0, bfloat16)",
+        "43802b415ec40200970cdef757a76d04db15bcc7d7d3fb7fbe89aa7067ff75bd",
+        "single-synthetic fine-tuned for real roads (dashcam3 world, TuSimple's labels and rows; seed 0, bfloat16)",
     ),
     ShippedModel(
         "stam4-dashcam",
         "stam4-dashcam.ckpt",
-        "5514bdc55c34dd489fa90987bb4e41a50549b621f4cb72a584e73d85370461e9",
+        "025275024723ac64427769cb6d7a010d9144aff24ed592a6ae5b3791047a7909",
         "the 4-frame STAM model for real roads: single-dashcam fine-tuned on 4-frame clips of its data (seed 0, "
         "bfloat16)",
     ),
