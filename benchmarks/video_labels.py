@@ -245,6 +245,8 @@ def main(argv: list[str] | None = None) -> int:
             raise VideoLabelsError(f"{path} does not exist (the real video lives in ../shared beside the project)")
         if min(args.frames) < 0:
             raise VideoLabelsError(f"--frames takes frame indices >= 0, got {min(args.frames)}")
+        if args.out.resolve() == path.resolve():
+            raise VideoLabelsError(f"--out {args.out} is the video itself: give the labels a file of their own")
         records, pictures = label_video(path, tuple(args.frames))
     except VideoLabelsError as err:
         print(f"video_labels: error: {err}", file=sys.stderr)

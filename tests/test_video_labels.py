@@ -88,3 +88,16 @@ def test_a_missing_video_is_one_line_and_writes_nothing(labels, tmp_path: Path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("video_labels: error:") and "solidWhiteRight.mp4" in err[0]
     assert not out.exists()
+
+
+def test_bad_frames_and_an_output_over_the_video_are_one_line_each(
+    labels, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    video = shared_dir / labels.VIDEO
+    before = video.stat().st_size
+    out = tmp_path / "labels.json"
+    for argv in (["--frames", "-1"], ["--frames", "5000"], ["--out", str(video)]):
+        assert labels.main(["--shared", str(shared_dir), "--out", str(out), *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("video_labels: error:")
+    assert not out.exists() and video.stat().st_size == before
