@@ -1,6 +1,6 @@
 """A model card's TuSimple F1 with its clip-bootstrap interval, and paired differences, from prediction files.
 
-    python benchmarks/card_intervals.py GT PRED [PRED ...] [--names A B ...] [--resamples N]
+    python benchmarks/card_intervals.py GT PRED [PRED ...] [--names A B ...] [--resamples N] [--iou 0.5]
 
 ``GT`` is a TuSimple label file (a split of a synthetic set, say ``reveal.json``); each ``PRED`` a
 ``predictions.json`` of ``stamlane predict`` on that split (another model, or the same one with a history probe,
@@ -9,6 +9,11 @@ times of a shared CPU say nothing about the model). Prints, per prediction file,
 and for every later file the difference ``first - later`` with its paired interval. The intervals resample whole
 clips (an image's clip is the folder of its ``raw_file``: the synthetic splits label several key frames per clip),
 by `stamlane_eval.stats`; they hold the weights fixed and say nothing about another training seed.
+
+``--iou T`` scores the CULane-style IoU F1 at threshold ``T`` instead (0.5 or 0.3), as the experiments score it
+(`stamlane.experiments.split_scores`): the labelled rows of each lane as its points, the line width scaled to the
+frame width (`stamlane.predict.image_score.iou_width`), the frame size from the set's ``dataset.json`` or its first
+frame (``--size WxH`` to give it).
 
 Exit status 2, with one line on stderr, where a file cannot be read or a prediction file does not hold the gt's
 images.
@@ -21,8 +26,17 @@ import sys
 from pathlib import Path, PurePosixPath
 
 import numpy as np
-from stamlane_eval.io import read_tusimple
-from stamlane_eval.stats import RESAMPLES, bootstrap, f1_of_rates, paired_bootstrap, tusimple_rates
+from stamlane_eval import culane
+from stamlane_eval.io import read_tusimple, tusimple_points
+from stamlane_eval.stats import (
+    RESAMPLES,
+    bootstrap,
+    culane_counts,
+    f1_of_counts,
+    f1_of_rates,
+    paired_bootstrap,
+    tusimple_rates,
+)
 from stamlane_eval.tusimple import evaluate
 
 
@@ -33,6 +47,38 @@ def rates_by_image(gt: list[dict], pred_file: Path) -> tuple[list[str], np.ndarr
     names = [record["raw_file"] for record in preds]
     order = np.argsort(names, kind="stable")
     return [names[i] for i in order], tusimple_rates(result.per_image)[order]
+
+
+def counts_by_image(
+    gt: list[dict], pred_file: Path, threshold: float, size: tuple[int, int]
+) -> tuple[list[str], np.ndarray]:
+    """The per-image ``(tp, fp, fn)`` lane counts of one prediction file at IoU ``threshold``, in ``raw_file`` order,
+    with those names; the images are checked as for the TuSimple F1 (`rates_by_image`: the gt's, once each)."""
+    from stamlane.predict.image_score import iou_width
+
+    names, _ = rates_by_image(gt, pred_file)
+    lanes = {record["raw_file"]: record["lanes"] for record in read_tusimple(pred_file)}
+    labels = {record["raw_file"]: record for record in gt}
+    result = culane.evaluate(
+        [tusimple_points(lanes[name], labels[name]["h_samples"]) for name in names],
+        [tusimple_points(labels[name]["lanes"], labels[name]["h_samples"]) for name in names],
+        (threshold,),
+        iou_width(size),
+        size,
+    )
+    return names, culane_counts(result.per_image, threshold)
+
+
+def frame_size(text: str | None, gt_path: Path) -> tuple[int, int]:
+    """``(H, W)`` from ``--size WxH``, else the set's (`stamlane.experiments.split_scores.image_size`)."""
+    if text is None:
+        from stamlane.experiments.split_scores import image_size
+
+        return image_size(gt_path.parent, gt_path.stem)
+    width, _, height = text.lower().partition("x")
+    if not (width.isdigit() and height.isdigit() and int(width) > 0 and int(height) > 0):
+        raise ValueError(f"--size must be WxH in pixels, e.g. 640x360, got {text!r}")
+    return int(height), int(width)
 
 
 def percent(low: float, high: float, sign: str = "") -> str:
@@ -46,9 +92,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("preds", type=Path, nargs="+", help="predictions.json files of that split")
     parser.add_argument("--names", nargs="+", help="a name per prediction file (default: its folder's name)")
     parser.add_argument("--resamples", type=int, default=RESAMPLES, help=f"bootstrap resamples (default {RESAMPLES})")
+    parser.add_argument("--iou", type=float, help="score the IoU F1 at this threshold (0.5, 0.3) instead")
+    parser.add_argument("--size", help="the frames' WxH for --iou (default: the set's dataset.json or first frame)")
     args = parser.parse_args(argv)
     if args.resamples < 100:  # stamlane_eval.stats' floor, checked before any file is read
         print(f"card_intervals: error: --resamples must be >= 100, got {args.resamples}", file=sys.stderr)
+        return 2
+    if args.iou is not None and not 0 <= args.iou < 1:
+        print(f"card_intervals: error: --iou must be in [0, 1), got {args.iou}", file=sys.stderr)
         return 2
     names = args.names or [path.parent.name for path in args.preds]
     if len(names) != len(args.preds):
@@ -56,19 +107,25 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         gt = read_tusimple(args.gt)
-        scored = [rates_by_image(gt, path) for path in args.preds]
+        if args.iou is None:
+            scored = [rates_by_image(gt, path) for path in args.preds]
+            metric, statistic = "TuSimple F1", f1_of_rates
+        else:
+            size = frame_size(args.size, args.gt)
+            scored = [counts_by_image(gt, path, args.iou, size) for path in args.preds]
+            metric, statistic = f"IoU F1 @{args.iou:g}", f1_of_counts
     except (OSError, ValueError) as err:  # the io and the evaluator raise ValueError subclasses
         print(f"card_intervals: error: {err}", file=sys.stderr)
         return 2
     images = scored[0][0]  # every file holds the gt's images once each (evaluate refuses any other), sorted alike
     clips = [str(PurePosixPath(name).parent) for name in images]
-    print(f"{args.gt.name}: {len(images)} images in {len(set(clips))} clips, TuSimple F1 in %, 95 % intervals")
+    print(f"{args.gt.name}: {len(images)} images in {len(set(clips))} clips, {metric} in %, 95 % intervals")
     rates = [r for _, r in scored]
     for name, values in zip(names, rates, strict=True):
-        one = bootstrap(values, f1_of_rates, groups=clips, resamples=args.resamples)
+        one = bootstrap(values, statistic, groups=clips, resamples=args.resamples)
         print(f"  {name}: {100 * one.value:.1f} {percent(one.low, one.high)}")
     for name, values in zip(names[1:], rates[1:], strict=True):
-        diff = paired_bootstrap(rates[0], values, f1_of_rates, groups=clips, resamples=args.resamples)
+        diff = paired_bootstrap(rates[0], values, statistic, groups=clips, resamples=args.resamples)
         print(f"  {names[0]} - {name}: {100 * diff.value:+.1f} {percent(diff.low, diff.high, '+')}")
     return 0
 

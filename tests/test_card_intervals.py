@@ -47,6 +47,22 @@ def test_scores_and_paired_difference_resample_clips(bench, tmp_path: Path, caps
     assert line.startswith(f"  all - some: {100 - some:+.1f} [+0.0, +")
 
 
+def test_iou_f1_counts_lanes_and_resamples_clips(bench, tmp_path: Path, capsys) -> None:
+    gt, perfect, half = _files(tmp_path)
+    args = [str(gt), str(perfect), str(half), "--names", "all", "some", "--resamples", "200", "--iou", "0.5"]
+    assert bench.main([*args, "--size", "640x360"]) == 0
+    out = capsys.readouterr().out
+    assert "gt.json: 8 images in 4 clips, IoU F1 @0.5 in %" in out
+    assert "  all: 100.0 [100.0, 100.0]" in out
+    some = 100 * 2 * 14 / (2 * 14 + 2)  # 16 lanes, 14 matched, 2 missed, none false
+    assert f"  some: {some:.1f} [" in out
+    assert f"  all - some: {100 - some:+.1f} [+0.0, +" in out
+    # without --size the frame size comes from the set: here no dataset.json and no frame, so one line, status 2
+    assert bench.main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("card_intervals: error: ") and "\n" not in err
+
+
 def test_files_of_other_images_are_one_line_and_status_2(bench, tmp_path: Path, capsys) -> None:
     gt, perfect, _ = _files(tmp_path)
     other = _write(tmp_path / "c" / "predictions.json", [{"raw_file": "clips/x/1.jpg", "lanes": [], "run_time": 1}])
@@ -59,7 +75,7 @@ def test_files_of_other_images_are_one_line_and_status_2(bench, tmp_path: Path, 
 
 @pytest.mark.parametrize(
     "hostile",
-    ["missing", "folder", "not json", "binary", "resamples 0", "resamples -5"],
+    ["missing", "folder", "not json", "binary", "resamples 0", "resamples -5", "iou 1.5", "size 640", "size 0x9"],
 )
 def test_hostile_input_is_one_line_and_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, hostile: str) -> None:
     gt, perfect, _ = _files(tmp_path)
@@ -74,8 +90,11 @@ def test_hostile_input_is_one_line_and_status_2_and_writes_nothing(bench, tmp_pa
     elif hostile == "binary":
         (tmp_path / "bad.json").write_bytes(b"\x00\xff" * 64)
         pred = str(tmp_path / "bad.json")
-    else:
+    elif hostile.startswith("resamples"):
         extra = ["--resamples", hostile.split()[1]]
+    else:
+        option, value = hostile.split()
+        extra = ["--iou", value] if option == "iou" else ["--iou", "0.5", "--size", value]
     before = sorted(p.name for p in tmp_path.rglob("*"))
     assert bench.main([str(gt), pred, *extra]) == 2
     err = capsys.readouterr().err.strip()
