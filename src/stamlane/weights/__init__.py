@@ -56,9 +56,9 @@ SHIPPED = (
     ShippedModel(
         "stam4-dashcam",
         "stam4-dashcam.ckpt",
-        "025275024723ac64427769cb6d7a010d9144aff24ed592a6ae5b3791047a7909",
-        "the 4-frame STAM model for real roads: single-dashcam fine-tuned on 4-frame clips of its data (seed 0, "
-        "bfloat16)",
+        "703c7db6a89220029b80e9cff1706ab90291f373ea1f3355493d175de65d8273",
+        "the 4-frame STAM model for real roads: single-dashcam's STAM trained on 4-frame clips of its data, the rest "
+        "nearly frozen (seed 0, bfloat16)",
     ),
 )
 """The models shipped, in the order ``stamlane --help`` lists them (docs/models.md has their cards)."""
