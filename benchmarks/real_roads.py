@@ -354,18 +354,25 @@ def score_video_frames(found: list[list[np.ndarray]], records: list[dict], width
     """lane.py's numbers of the lanes ``found`` in the video's frames on its labelled ones (``records``, in TuSimple's
     1280 x 720: the lanes are scaled by ``TUSIMPLE_WIDTH / width`` first, so that lane.py's 20-px threshold means what
     it means on TuSimple); None where the frames streamed end before the first labelled one."""
-    from stamlane_eval.tusimple import lanes_to_xs
-
-    scale = TUSIMPLE_WIDTH / width
-    frame = {r["raw_file"]: int(r["raw_file"].rpartition("#")[2]) for r in records}
-    scored = [r for r in records if frame[r["raw_file"]] < len(found)]
+    scored = [r for r in records if video_frame(r) < len(found)]
     if not scored:
         return None
-    preds = []
-    for record in scored:
-        lanes = [lane * scale for lane in found[frame[record["raw_file"]]]]
-        preds.append({"raw_file": record["raw_file"], "lanes": lanes_to_xs(lanes, record["h_samples"]), "run_time": 0})
+    preds = [video_prediction(record, found[video_frame(record)], width) for record in scored]
     return _scores(preds, scored) | {"labels": str(VIDEO_LABELS.relative_to(REPO))}
+
+
+def video_frame(record: dict) -> int:
+    """The frame index of a labelled video frame (``raw_file`` ``<video>#<frame>``)."""
+    return int(record["raw_file"].rpartition("#")[2])
+
+
+def video_prediction(record: dict, lanes: list[np.ndarray], width: int) -> dict:
+    """The lane.py prediction record of ``lanes`` (pixels of a frame ``width`` wide) for the labelled ``record``:
+    scaled to TuSimple's 1280 x 720 and sampled at its rows."""
+    from stamlane_eval.tusimple import lanes_to_xs
+
+    scaled = [lane * (TUSIMPLE_WIDTH / width) for lane in lanes]
+    return {"raw_file": record["raw_file"], "lanes": lanes_to_xs(scaled, record["h_samples"]), "run_time": 0}
 
 
 # -------------------------------------------------------------------------------------------- the strip
@@ -401,7 +408,8 @@ def strip(
     return np.concatenate([np.concatenate(row, axis=1) for row in rows], axis=0)
 
 
-def _gt_lanes(record: dict) -> list[np.ndarray]:
+def gt_lanes(record: dict) -> list[np.ndarray]:
+    """The labelled lanes of a TuSimple ``record`` as ``(N, 2)`` point arrays, lanes absent on every row left out."""
     ys = np.asarray(record["h_samples"], dtype=np.float64)
     out = []
     for xs in record["lanes"]:
@@ -438,7 +446,7 @@ def check(
     video_results, images = run_video(predictor, video, video_frames, configs)
     video_records = read_video_labels()
     labelled = [cv2.imread(str(root / r["raw_file"])) for r in records[:cells]]
-    gt = [_gt_lanes(r) for r in records[:cells]]
+    gt = [gt_lanes(r) for r in records[:cells]]
     out = []
     for name, config in configs.items():
         full = f"{Path(ckpt).stem}@{name}" if specs else Path(ckpt).stem

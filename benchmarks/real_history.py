@@ -1,0 +1,322 @@
+"""Real history on a real road: the video's labelled frames with their key frame spoiled, the history left clean.
+
+    python benchmarks/real_history.py [--ckpt NAME_OR_FILE ...] [--kinds none drop glare occluder blank] [--draws 3]
+                                      [--frames N] [--shared ../shared] [--out outputs/bench/real-history]
+
+The synthetic ``reveal`` split measures how much a 4-frame model reads its history where the key frame hides the
+road. This asks the same on a real road. For each labelled frame of the real video (`real_roads.VIDEO_LABELS`: ten
+frames, 22 apart), each kind of `stamlane.data.corruption` and each draw, the key frame is spoiled as training spoils
+it (`KeyFrameCorruption` on the whole 960x540 frame, seeded by frame, kind and draw: the same pixels for every
+checkpoint), and each checkpoint (default: the shipped ``stam4-dashcam`` and ``single-dashcam``) runs it twice:
+
+- ``history``: the predictor reset, the frame's ``num_frames - 1`` predecessors streamed clean, then the spoiled
+  frame; the history is pre-aligned onto it as ``stamlane stream`` aligns (ORB features of the spoiled frame: where
+  they fail, the predictor's own fallback);
+- ``copies``: the predictor reset and the spoiled frame alone, its history slots copies of it (how a stream starts).
+  A single-frame checkpoint runs once: both are the same.
+
+The kind ``none`` (the key frame clean) is the reference. lane.py's F1 per checkpoint, probe and kind, in TuSimple's
+1280x720 as `real_roads.score_video_frames` scores it, with a 95 % bootstrap interval over the ten frames (the draws
+of a frame resampled together); the history use (``history − copies``) and each checkpoint against the first, paired.
+``sheet.jpg``: the middle frame, a row per kind, the first checkpoint's lanes with its history and with copies, the labels as
+yellow bands under them.
+
+Exit status 2 with one line where the video or a checkpoint cannot be read or an option is out of range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import real_roads  # a benchmark script beside this one
+
+from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption
+
+KINDS = ("none", *CORRUPTIONS)
+SEEDED = re.compile(r"^(?P<recipe>.+)-s(?P<seed>\d+)$")  # a checkpoint of one seed of a recipe
+DEFAULT_CKPTS = ("stam4-dashcam", "single-dashcam")
+DEFAULT_DRAWS = 3
+SHEET_CELL = (480, 270)
+
+
+def spoil(image: np.ndarray, kind: str, seed: list[int]) -> np.ndarray:
+    """``image`` (BGR uint8) with its key-frame corruption ``kind`` (``none``: unchanged), as training draws it."""
+    if kind == "none":
+        return image
+    clip = np.ascontiguousarray((image[..., ::-1].astype(np.float32) / 255.0).transpose(2, 0, 1)[None])
+    KeyFrameCorruption(1.0, (kind,))(clip, np.random.default_rng(seed))
+    return np.ascontiguousarray((clip[0].transpose(1, 2, 0)[..., ::-1] * 255.0).round().astype(np.uint8))
+
+
+def read_frames(path: Path, wanted: set[int]) -> dict[int, np.ndarray]:
+    """The video's frames of index in ``wanted`` (BGR uint8)."""
+    from stamlane.stream.cli import StreamError, iter_frames
+
+    try:
+        frames, _, _ = iter_frames(path, max(wanted) + 1)
+        return {i: image for i, (_, image) in enumerate(frames) if i in wanted}
+    except StreamError as err:
+        raise real_roads.RealRoadsError(str(err)) from None
+
+
+def run_probe(predictor: Any, history: list[np.ndarray], key: np.ndarray) -> list[np.ndarray]:
+    """The key frame's lanes (original pixels) after a reset and the ``history`` frames streamed before it."""
+    config = {"model": predictor.postprocess}
+    predictor.reset()
+    for image in history:
+        predictor(image)
+    return real_roads.lanes_of(predictor, key, config, None)["model"]
+
+
+def scores(preds: list[dict], records: list[dict], resamples: int) -> dict:
+    """lane.py's numbers of ``preds`` and the F1's interval over frames (a record's frame: its ``frame`` key)."""
+    from stamlane_eval.stats import bootstrap, f1_of_rates, tusimple_rates
+    from stamlane_eval.tusimple import evaluate
+
+    result = evaluate(preds, records, time_limit=False)
+    rates = tusimple_rates(result.per_image)
+    one = bootstrap(rates, f1_of_rates, groups=[r["frame"] for r in preds], resamples=resamples)
+    return {"f1": one.value, "f1_low": one.low, "f1_high": one.high, "fp": result.fp, "fn": result.fn, "rates": rates}
+
+
+def paired(a: dict, b: dict, frames: list[int], resamples: int) -> dict:
+    """``a − b`` of two scorings of the same records, its 95 % interval over frames."""
+    from stamlane_eval.stats import f1_of_rates, paired_bootstrap
+
+    diff = paired_bootstrap(a["rates"], b["rates"], f1_of_rates, groups=frames, resamples=resamples)
+    return {"diff": diff.value, "low": diff.low, "high": diff.high}
+
+
+def run(
+    ckpts: list[str], video: Path, kinds: list[str], draws: int, resamples: int, frames: int | None = None
+) -> tuple[dict, dict[str, np.ndarray]]:
+    """Every checkpoint on every spoiled labelled frame (the first ``frames``): the numbers, and the first
+    checkpoint's sheet cells."""
+    records = real_roads.read_video_labels()[:frames]
+    label_frames = [real_roads.video_frame(r) for r in records]
+    predictors = [real_roads.load(ckpt) for ckpt in ckpts]
+    depth = max(p.num_frames for p in predictors) - 1
+    if min(label_frames) < depth:
+        raise real_roads.RealRoadsError(f"labelled frame {min(label_frames)} has fewer than {depth} predecessors")
+    images = read_frames(video, {f - k for f in label_frames for k in range(depth + 1)})
+    width = images[label_frames[0]].shape[1]
+    sheet_frame = label_frames[len(label_frames) // 2]  # the sheet's: mid-clip (frame 121 of the ten)
+    names = [Path(ckpt).stem for ckpt in ckpts]  # a file's name without its folder, as real_roads.py names it
+    if len(set(names)) < len(names):
+        raise real_roads.RealRoadsError(f"two checkpoints of one name among {' '.join(names)}")
+    probes = [(c, p, probe) for c, p in zip(names, predictors, strict=True) for probe in ("history", "copies")]
+    probes = [(c, p, probe) for c, p, probe in probes if p.num_frames > 1 or probe == "history"]
+    preds: dict[tuple[str, str, str], list[dict]] = {(c, probe, k): [] for c, _, probe in probes for k in kinds}
+    scored: dict[str, list[dict]] = {k: [] for k in kinds}
+    sheet: dict[str, np.ndarray] = {}
+    for record, frame in zip(records, label_frames, strict=True):
+        for kind in kinds:
+            for draw in range(draws if kind != "none" else 1):
+                key = spoil(images[frame], kind, [frame, KINDS.index(kind), draw])
+                name = f"{record['raw_file']}~{kind}~{draw}"
+                scored[kind].append(record | {"raw_file": name, "frame": frame})
+                for ckpt, predictor, probe in probes:
+                    history = [images[frame - k] for k in range(predictor.num_frames - 1, 0, -1)]
+                    lanes = run_probe(predictor, history if probe == "history" else [], key)
+                    pred = real_roads.video_prediction(record, lanes, width)
+                    preds[ckpt, probe, kind].append(pred | {"raw_file": name, "frame": frame})
+                    if ckpt == names[0] and frame == sheet_frame and draw == 0:
+                        truth = [lane * (width / real_roads.TUSIMPLE_WIDTH) for lane in real_roads.gt_lanes(record)]
+                        sheet[f"{kind}|{probe}"] = _cell(key, lanes, truth, f"{ckpt}, {probe}: {kind}")
+    out: dict[str, Any] = {"video": video.name, "labels": str(real_roads.VIDEO_LABELS.relative_to(real_roads.REPO))}
+    out |= {"frames": label_frames, "draws": draws, "kinds": kinds, "checkpoints": {}}
+    for ckpt, predictor, _ in probes:
+        out["checkpoints"].setdefault(ckpt, {"num_frames": predictor.num_frames, "kinds": {k: {} for k in kinds}})
+    results = {key: scores(value, scored[key[2]], resamples) for key, value in preds.items()}
+    for (ckpt, probe, kind), value in results.items():
+        frames = [r["frame"] for r in scored[kind]]
+        row = {k: v for k, v in value.items() if k != "rates"}
+        if probe == "copies":
+            row["history_use"] = paired(results[ckpt, "history", kind], value, frames, resamples)
+        elif ckpt != names[0]:
+            row[f"vs_{names[0]}"] = paired(results[names[0], "history", kind], value, frames, resamples)
+        out["checkpoints"][ckpt]["kinds"][kind][probe] = row
+    out["recipes"] = recipes(results, {k: [r["frame"] for r in v] for k, v in scored.items()}, names, resamples)
+    return out, sheet
+
+
+def recipe_groups(names: list[str]) -> dict[str, list[str]]:
+    """The checkpoints named ``<recipe>-s<seed>``, by recipe, where a recipe has two seeds or more."""
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        match = SEEDED.match(name)
+        if match:
+            groups.setdefault(match["recipe"], []).append(name)
+    return {recipe: members for recipe, members in groups.items() if len(members) > 1}
+
+
+def recipes(results: dict, frames: dict[str, list[int]], names: list[str], resamples: int) -> dict:
+    """Per recipe (`recipe_groups`) and kind: the F1 of each probe and the history use over seeds (mean, std, each
+    seed's), and the first recipe against each other one, seeds averaged per image, paired over frames."""
+    groups = recipe_groups(names)
+    first = next(iter(groups), None)
+    out: dict[str, Any] = {}
+    for recipe, members in groups.items():
+        entry: dict[str, Any] = {"seeds": members, "kinds": {}}
+        for kind, kind_frames in frames.items():
+            row = {}
+            for probe in ("history", "copies"):
+                if (members[0], probe, kind) in results:
+                    row[probe] = _over_seeds([results[m, probe, kind]["f1"] for m in members])
+            if "copies" in row:
+                row["history_use"] = _over_seeds(
+                    [results[m, "history", kind]["f1"] - results[m, "copies", kind]["f1"] for m in members]
+                )
+            if first is not None and recipe != first:
+                mine, theirs = (
+                    {"rates": np.mean([results[m, "history", kind]["rates"] for m in group], axis=0)}
+                    for group in (groups[first], members)
+                )
+                row[f"vs_{first}"] = paired(mine, theirs, kind_frames, resamples)
+            entry["kinds"][kind] = row
+        out[recipe] = entry
+    return out
+
+
+def _over_seeds(values: list[float]) -> dict:
+    return {"mean": float(np.mean(values)), "std": float(np.std(values, ddof=1)), "per_seed": values}
+
+
+def _cell(image: np.ndarray, lanes: list[np.ndarray], truth: list[np.ndarray], text: str) -> np.ndarray:
+    from stamlane.predict.overlay import draw_lanes
+
+    drawn = cv2.resize(draw_lanes(image, lanes, truth), SHEET_CELL, interpolation=cv2.INTER_AREA)
+    for colour, thick in (((0, 0, 0), 4), ((255, 255, 255), 1)):
+        cv2.putText(drawn, text, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, thick, cv2.LINE_AA)
+    return drawn
+
+
+def sheet_picture(cells: dict[str, np.ndarray], kinds: list[str]) -> np.ndarray | None:
+    """A row per kind: the lanes with the real history, then with copies (the first checkpoint's)."""
+    rows = []
+    for kind in kinds:
+        row = [cells[f"{kind}|{probe}"] for probe in ("history", "copies") if f"{kind}|{probe}" in cells]
+        if row:
+            rows.append(np.concatenate(row, axis=1))
+    return np.concatenate(rows, axis=0) if rows else None
+
+
+def table(out: dict) -> str:
+    """The numbers as a markdown table: F1 per kind, history use, against the first checkpoint."""
+
+    def pct(value: float, low: float, high: float, sign: str = "") -> str:
+        return f"{100 * value:{sign}.1f} [{100 * low:{sign}.1f}, {100 * high:{sign}.1f}]"
+
+    first = next(iter(out["checkpoints"]))
+    lines = [
+        f"| key frame | checkpoint | F1, real history | F1, copies | history use | {first} − it |",
+        "|---|---|---|---|---|---|",
+    ]
+    for kind in out["kinds"]:
+        for ckpt, entry in out["checkpoints"].items():
+            row = entry["kinds"][kind]
+            history, copies = row["history"], row.get("copies")
+            against = history.get(f"vs_{first}")
+            lines.append(
+                f"| {kind} | {ckpt} | {pct(history['f1'], history['f1_low'], history['f1_high'])} | "
+                + (f"{pct(copies['f1'], copies['f1_low'], copies['f1_high'])} | " if copies else "– | ")
+                + (f"{pct(**_d(copies['history_use']), sign='+')} | " if copies else "– | ")
+                + (f"{pct(**_d(against), sign='+')} |" if against else "– |")
+            )
+    if out.get("recipes"):
+        lines += ["", *recipe_table(out)]
+    return "\n".join(lines) + "\n"
+
+
+def recipe_table(out: dict) -> list[str]:
+    """The recipes over seeds: mean ± std per probe and the history use; the first recipe against each, paired."""
+    first = next(iter(out["recipes"]))
+
+    def spread(value: dict, sign: str = "") -> str:
+        return f"{100 * value['mean']:{sign}.1f} ± {100 * value['std']:.1f}"
+
+    lines = [
+        f"| key frame | recipe | seeds | F1, real history | F1, copies | history use | {first} − it |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for kind in out["kinds"]:
+        for recipe, entry in out["recipes"].items():
+            row = entry["kinds"][kind]
+            against = row.get(f"vs_{first}")
+            cells = [
+                spread(row["history"]),
+                spread(row["copies"]) if "copies" in row else "–",
+                spread(row["history_use"], "+") if "history_use" in row else "–",
+                f"{100 * against['diff']:+.1f} [{100 * against['low']:+.1f}, {100 * against['high']:+.1f}]"
+                if against
+                else "–",
+            ]
+            lines.append(f"| {kind} | {recipe} | {len(entry['seeds'])} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _d(diff: dict) -> dict:
+    return {"value": diff["diff"], "low": diff["low"], "high": diff["high"]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
+    parser.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"key-frame spoils, of {' '.join(KINDS)}")
+    parser.add_argument("--draws", type=int, default=DEFAULT_DRAWS, help="spoils drawn per frame and kind")
+    parser.add_argument("--frames", type=int, help="only the first N labelled frames")
+    parser.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (>= 100)")
+    parser.add_argument("--shared", type=Path, default=real_roads.REPO.parent / "shared", help="the folder of data/")
+    parser.add_argument("--out", type=Path, default=Path("outputs/bench/real-history"))
+    args = parser.parse_args(argv)
+    from stamlane.safety.guard import atomic_path, write_atomic
+    from stamlane.training.quiet import quiet_libraries
+
+    quiet_libraries()
+    unknown = [k for k in args.kinds if k not in KINDS]
+    problem = (
+        f"--kinds: {' '.join(unknown)} not of {' '.join(KINDS)}"
+        if unknown
+        else f"--draws must be >= 1, got {args.draws}"
+        if args.draws < 1
+        else f"--resamples must be >= 100, got {args.resamples}"
+        if args.resamples < 100
+        else f"--frames must be >= 1, got {args.frames}"
+        if args.frames is not None and args.frames < 1
+        else None
+    )
+    video = args.shared / real_roads.VIDEO
+    if problem is None and not video.is_file():
+        problem = f"{video} does not exist (the real video lives in ../shared beside the project)"
+    if problem is not None:
+        print(f"real_history: error: {problem}", file=sys.stderr)
+        return 2
+    try:
+        out, cells = run(args.ckpt, video, list(dict.fromkeys(args.kinds)), args.draws, args.resamples, args.frames)
+    except real_roads.RealRoadsError as err:
+        print(f"real_history: error: {err}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_atomic(args.out / "real-history.json", json.dumps(out, indent=1) + "\n")
+    summary = table(out)
+    write_atomic(args.out / "summary.md", summary)
+    picture = sheet_picture(cells, out["kinds"])
+    if picture is not None:
+        with atomic_path(args.out / "sheet.jpg") as tmp:
+            cv2.imwrite(str(tmp), picture, [cv2.IMWRITE_JPEG_QUALITY, real_roads.STRIP_QUALITY])
+    print(summary, end="")
+    print(f"wrote {args.out}/: real-history.json, summary.md" + (", sheet.jpg" if picture is not None else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

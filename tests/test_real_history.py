@@ -1,0 +1,109 @@
+"""``benchmarks/real_history.py``: the real video's labelled frames with their key frame spoiled, history clean."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.benchmark_modules import benchmark_module
+
+
+@pytest.fixture(scope="module")
+def bench():
+    with benchmark_module("real_history") as module:
+        yield module
+
+
+def _frame() -> np.ndarray:
+    rng = np.random.default_rng(3)
+    return rng.integers(0, 256, (90, 160, 3), dtype=np.uint8)
+
+
+def test_a_spoil_is_the_training_corruption_drawn_from_its_seed(bench):
+    image = _frame()
+    assert bench.spoil(image, "none", [11, 0, 0]) is image
+    blank = bench.spoil(image, "blank", [11, 4, 0])
+    assert np.array_equal(blank, bench.spoil(image, "blank", [11, 4, 0]))  # the same pixels for every checkpoint
+    assert not np.array_equal(blank, bench.spoil(image, "blank", [11, 4, 1]))  # another draw, another row
+    changed = np.flatnonzero((blank != image).any(axis=(1, 2)))
+    assert changed.size and np.array_equal(changed, np.arange(changed[0], 90))  # every row below one, none above
+    assert len(np.unique(blank[changed[0] :].reshape(-1, 3), axis=0)) == 1  # filled with one colour (the mean)
+    assert bench.spoil(image, "glare", [11, 2, 0]).mean() > image.mean()
+    assert image.dtype == blank.dtype == np.uint8 and blank.shape == image.shape
+
+
+def _records() -> tuple[list[dict], list[dict], list[dict]]:
+    """Two frames of two draws each, one lane: the labels, every lane found, and the second frame's lanes lost."""
+    h_samples = [400, 500, 600, 700]
+    lane = [300, 250, 200, 150]
+    records = [{"raw_file": f"v#{f}~k~{d}", "lanes": [lane], "h_samples": h_samples} for f in (1, 2) for d in (0, 1)]
+    found = [
+        {"raw_file": r["raw_file"], "lanes": [lane], "run_time": 0, "frame": i // 2} for i, r in enumerate(records)
+    ]
+    lost = [p | {"lanes": []} if p["frame"] == 1 else p for p in found]  # frame 2 lost in both its draws
+    return records, found, lost
+
+
+def _f1(fn: float) -> float:
+    return 2 * (1 - fn) / (2 - fn)  # the paper's F1 with no false positive
+
+
+def test_scores_and_paired_differences_resample_frames(bench):
+    records, found, lost = _records()
+    good, bad = bench.scores(found, records, 200), bench.scores(lost, records, 200)
+    assert good["f1"] == 1.0 and (good["f1_low"], good["f1_high"]) == (1.0, 1.0)
+    assert bad["fn"] == 0.5 and bad["f1"] == pytest.approx(_f1(0.5))
+    diff = bench.paired(good, bad, [p["frame"] for p in found], 200)
+    assert diff["diff"] == pytest.approx(1 - _f1(0.5)) and diff["low"] == 0.0  # a resample of frame 1 alone
+
+
+def test_recipes_pool_the_seeds_of_a_name_and_compare_seed_averages_paired(bench):
+    records, found, lost = _records()
+    runs = {"a-s0": (found, lost), "a-s1": (lost, lost), "b-s0": (lost, None), "b-s1": (lost, None), "c": (found, None)}
+    results = {}
+    for name, (history, copies) in runs.items():
+        results[name, "history", "k"] = bench.scores(history, records, 200)
+        if copies is not None:
+            results[name, "copies", "k"] = bench.scores(copies, records, 200)
+    out = bench.recipes(results, {"k": [p["frame"] for p in found]}, list(runs), 200)
+    assert list(out) == ["a", "b"] and out["a"]["seeds"] == ["a-s0", "a-s1"]  # "c" is no seed of a recipe
+    a, b = out["a"]["kinds"]["k"], out["b"]["kinds"]["k"]
+    assert a["history"]["per_seed"] == pytest.approx([1.0, _f1(0.5)])
+    assert a["history_use"]["per_seed"] == pytest.approx([1.0 - _f1(0.5), 0.0])
+    assert "copies" not in b and "vs_a" not in a
+    assert b["vs_a"]["diff"] == pytest.approx(_f1(0.25) - _f1(0.5))  # a's seeds averaged per image: FN 0.25
+
+
+def test_a_short_run_reads_history_where_the_key_frame_is_blank(bench, shared_dir: Path, tmp_path: Path):
+    out = tmp_path / "history"
+    argv = ["--ckpt", "stam4-dashcam", "single-dashcam", "--kinds", "none", "blank", "--draws", "1", "--frames", "2"]
+    assert bench.main([*argv, "--shared", str(shared_dir), "--out", str(out), "--resamples", "200"]) == 0
+    result = json.loads((out / "real-history.json").read_text())
+    assert result["frames"] == [11, 33] and result["kinds"] == ["none", "blank"]
+    stam4, single = result["checkpoints"]["stam4-dashcam"], result["checkpoints"]["single-dashcam"]
+    assert stam4["num_frames"] == 4 and single["num_frames"] == 1
+    assert set(stam4["kinds"]["blank"]) == {"history", "copies"} and set(single["kinds"]["blank"]) == {"history"}
+    assert stam4["kinds"]["none"]["history"]["f1"] == single["kinds"]["none"]["history"]["f1"] == 1.0
+    blank = stam4["kinds"]["blank"]
+    assert blank["copies"]["history_use"]["diff"] == pytest.approx(blank["history"]["f1"] - blank["copies"]["f1"])
+    assert single["kinds"]["blank"]["history"]["f1"] < blank["history"]["f1"]  # the near road is gone: history only
+    sheet = cv2.imread(str(out / "sheet.jpg"))  # frame 33: a row per kind, real history then copies
+    assert sheet.shape == (2 * bench.SHEET_CELL[1], 2 * bench.SHEET_CELL[0], 3)
+    assert "| blank | stam4-dashcam |" in (out / "summary.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--kinds", "snow"], ["--draws", "0"], ["--frames", "0"], ["--resamples", "5"], ["--shared", "nowhere"]],
+)
+def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, argv: list[str]) -> None:
+    out = tmp_path / "out"
+    argv = [a if a != "nowhere" else str(tmp_path / a) for a in argv]
+    assert bench.main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("real_history: error: ")
+    assert not out.exists()
