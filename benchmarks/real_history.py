@@ -210,62 +210,67 @@ def sheet_picture(cells: dict[str, np.ndarray], kinds: list[str]) -> np.ndarray 
     return np.concatenate(rows, axis=0) if rows else None
 
 
+def _interval(value: float, low: float, high: float, sign: str = "") -> str:
+    return f"{100 * value:{sign}.1f} [{100 * low:{sign}.1f}, {100 * high:{sign}.1f}]"
+
+
+def _difference(diff: dict | None) -> str:
+    return _interval(diff["diff"], diff["low"], diff["high"], "+") if diff else "–"
+
+
+def _spread(value: dict | None, sign: str = "") -> str:
+    return f"{100 * value['mean']:{sign}.1f} ± {100 * value['std']:.1f}" if value else "–"
+
+
+def _table(head: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + ["| " + " | ".join(r) + " |" for r in rows]
+
+
 def table(out: dict) -> str:
-    """The numbers as a markdown table: F1 per kind, history use, against the first checkpoint."""
-
-    def pct(value: float, low: float, high: float, sign: str = "") -> str:
-        return f"{100 * value:{sign}.1f} [{100 * low:{sign}.1f}, {100 * high:{sign}.1f}]"
-
+    """The numbers as markdown: per checkpoint, F1 per kind and probe with its interval, the history use and the
+    first checkpoint against it; then, where checkpoints are seeds of recipes, the same over seeds (`recipes`)."""
     first = next(iter(out["checkpoints"]))
-    lines = [
-        f"| key frame | checkpoint | F1, real history | F1, copies | history use | {first} − it |",
-        "|---|---|---|---|---|---|",
-    ]
+    rows = []
     for kind in out["kinds"]:
         for ckpt, entry in out["checkpoints"].items():
-            row = entry["kinds"][kind]
-            history, copies = row["history"], row.get("copies")
-            against = history.get(f"vs_{first}")
-            lines.append(
-                f"| {kind} | {ckpt} | {pct(history['f1'], history['f1_low'], history['f1_high'])} | "
-                + (f"{pct(copies['f1'], copies['f1_low'], copies['f1_high'])} | " if copies else "– | ")
-                + (f"{pct(**_d(copies['history_use']), sign='+')} | " if copies else "– | ")
-                + (f"{pct(**_d(against), sign='+')} |" if against else "– |")
+            history, copies = entry["kinds"][kind]["history"], entry["kinds"][kind].get("copies")
+            rows.append(
+                [
+                    kind,
+                    ckpt,
+                    _interval(history["f1"], history["f1_low"], history["f1_high"]),
+                    _interval(copies["f1"], copies["f1_low"], copies["f1_high"]) if copies else "–",
+                    _difference(copies["history_use"] if copies else None),
+                    _difference(history.get(f"vs_{first}")),
+                ]
             )
+    head = ["key frame", "checkpoint", "F1, real history", "F1, copies", "history use", f"{first} − it"]
+    lines = _table(head, rows)
     if out.get("recipes"):
         lines += ["", *recipe_table(out)]
     return "\n".join(lines) + "\n"
 
 
 def recipe_table(out: dict) -> list[str]:
-    """The recipes over seeds: mean ± std per probe and the history use; the first recipe against each, paired."""
+    """The recipes over seeds: mean ± std per probe and of the history use; the first recipe against each, paired."""
     first = next(iter(out["recipes"]))
-
-    def spread(value: dict, sign: str = "") -> str:
-        return f"{100 * value['mean']:{sign}.1f} ± {100 * value['std']:.1f}"
-
-    lines = [
-        f"| key frame | recipe | seeds | F1, real history | F1, copies | history use | {first} − it |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for kind in out["kinds"]:
         for recipe, entry in out["recipes"].items():
             row = entry["kinds"][kind]
-            against = row.get(f"vs_{first}")
-            cells = [
-                spread(row["history"]),
-                spread(row["copies"]) if "copies" in row else "–",
-                spread(row["history_use"], "+") if "history_use" in row else "–",
-                f"{100 * against['diff']:+.1f} [{100 * against['low']:+.1f}, {100 * against['high']:+.1f}]"
-                if against
-                else "–",
-            ]
-            lines.append(f"| {kind} | {recipe} | {len(entry['seeds'])} | " + " | ".join(cells) + " |")
-    return lines
-
-
-def _d(diff: dict) -> dict:
-    return {"value": diff["diff"], "low": diff["low"], "high": diff["high"]}
+            rows.append(
+                [
+                    kind,
+                    recipe,
+                    str(len(entry["seeds"])),
+                    _spread(row["history"]),
+                    _spread(row.get("copies")),
+                    _spread(row.get("history_use"), "+"),
+                    _difference(row.get(f"vs_{first}")),
+                ]
+            )
+    head = ["key frame", "recipe", "seeds", "F1, real history", "F1, copies", "history use", f"{first} − it"]
+    return _table(head, rows)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -107,3 +107,10 @@ def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("real_history: error: ")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("folder", ["real-history", "real-history/seeds"])
+def test_the_committed_tables_are_the_committed_numbers(bench, folder: str) -> None:
+    results = Path(__file__).resolve().parents[1] / "docs" / "results" / folder
+    out = json.loads((results / "real-history.json").read_text())
+    assert bench.table(out) == (results / "summary.md").read_text()
