@@ -18,8 +18,8 @@ checkpoint), and each checkpoint (default: the shipped ``stam4-dashcam`` and ``s
 The kind ``none`` (the key frame clean) is the reference. lane.py's F1 per checkpoint, probe and kind, in TuSimple's
 1280x720 as `real_roads.score_video_frames` scores it, with a 95 % bootstrap interval over the ten frames (the draws
 of a frame resampled together); the history use (``history − copies``) and each checkpoint against the first, paired.
-``sheet.jpg``: the middle frame, a row per kind, the first checkpoint's lanes with its history and with copies, the labels as
-yellow bands under them.
+``sheet.jpg``: the middle frame, a row per kind, the first checkpoint's lanes with its history and with copies, the
+labels as yellow bands under them.
 
 Exit status 2 with one line where the video or a checkpoint cannot be read or an option is out of range.
 """
@@ -96,25 +96,51 @@ def paired(a: dict, b: dict, frames: list[int], resamples: int) -> dict:
     return {"diff": diff.value, "low": diff.low, "high": diff.high}
 
 
+Probe = tuple[str, Any, str]  # (checkpoint name, its predictor, "history" or "copies")
+
+
 def run(
     ckpts: list[str], video: Path, kinds: list[str], draws: int, resamples: int, frames: int | None = None
 ) -> tuple[dict, dict[str, np.ndarray]]:
     """Every checkpoint on every spoiled labelled frame (the first ``frames``): the numbers, and the first
     checkpoint's sheet cells."""
     records = real_roads.read_video_labels()[:frames]
-    label_frames = [real_roads.video_frame(r) for r in records]
+    names = [Path(ckpt).stem for ckpt in ckpts]  # a file's name without its folder, as real_roads.py names it
+    if len(set(names)) < len(names):
+        raise real_roads.RealRoadsError(f"two checkpoints of one name among {' '.join(names)}")
     predictors = [real_roads.load(ckpt) for ckpt in ckpts]
-    depth = max(p.num_frames for p in predictors) - 1
+    probes = [(c, p, probe) for c, p in zip(names, predictors, strict=True) for probe in ("history", "copies")]
+    probes = [(c, p, probe) for c, p, probe in probes if p.num_frames > 1 or probe == "history"]
+    preds, scored, sheet = stream(probes, records, video, kinds, draws)
+    out: dict[str, Any] = {"video": video.name, "labels": str(real_roads.VIDEO_LABELS.relative_to(real_roads.REPO))}
+    out |= {"frames": [real_roads.video_frame(r) for r in records], "draws": draws, "kinds": kinds}
+    out["checkpoints"] = {c: {"num_frames": p.num_frames, "kinds": {k: {} for k in kinds}} for c, p, _ in probes}
+    results = {key: scores(value, scored[key[2]], resamples) for key, value in preds.items()}
+    for (ckpt, probe, kind), value in results.items():
+        frames_of = [r["frame"] for r in scored[kind]]
+        row = {k: v for k, v in value.items() if k != "rates"}
+        if probe == "copies":
+            row["history_use"] = paired(results[ckpt, "history", kind], value, frames_of, resamples)
+        elif ckpt != names[0]:
+            row[f"vs_{names[0]}"] = paired(results[names[0], "history", kind], value, frames_of, resamples)
+        out["checkpoints"][ckpt]["kinds"][kind][probe] = row
+    out["recipes"] = recipes(results, {k: [r["frame"] for r in v] for k, v in scored.items()}, names, resamples)
+    return out, sheet
+
+
+def stream(
+    probes: list[Probe], records: list[dict], video: Path, kinds: list[str], draws: int
+) -> tuple[dict[tuple[str, str, str], list[dict]], dict[str, list[dict]], dict[str, np.ndarray]]:
+    """Every probe on every spoiled labelled frame: lane.py's prediction records per (checkpoint, probe, kind), the
+    label records they answer per kind (``raw_file`` ``<video>#<frame>~<kind>~<draw>``, ``frame`` added), and the
+    sheet's cells (the first checkpoint on the middle frame, draw 0)."""
+    label_frames = [real_roads.video_frame(r) for r in records]
+    depth = max(predictor.num_frames for _, predictor, _ in probes) - 1
     if min(label_frames) < depth:
         raise real_roads.RealRoadsError(f"labelled frame {min(label_frames)} has fewer than {depth} predecessors")
     images = read_frames(video, {f - k for f in label_frames for k in range(depth + 1)})
     width = images[label_frames[0]].shape[1]
-    sheet_frame = label_frames[len(label_frames) // 2]  # the sheet's: mid-clip (frame 121 of the ten)
-    names = [Path(ckpt).stem for ckpt in ckpts]  # a file's name without its folder, as real_roads.py names it
-    if len(set(names)) < len(names):
-        raise real_roads.RealRoadsError(f"two checkpoints of one name among {' '.join(names)}")
-    probes = [(c, p, probe) for c, p in zip(names, predictors, strict=True) for probe in ("history", "copies")]
-    probes = [(c, p, probe) for c, p, probe in probes if p.num_frames > 1 or probe == "history"]
+    sheet_frame = label_frames[len(label_frames) // 2]  # mid-clip: frame 121 of the ten
     preds: dict[tuple[str, str, str], list[dict]] = {(c, probe, k): [] for c, _, probe in probes for k in kinds}
     scored: dict[str, list[dict]] = {k: [] for k in kinds}
     sheet: dict[str, np.ndarray] = {}
@@ -129,24 +155,10 @@ def run(
                     lanes = run_probe(predictor, history if probe == "history" else [], key)
                     pred = real_roads.video_prediction(record, lanes, width)
                     preds[ckpt, probe, kind].append(pred | {"raw_file": name, "frame": frame})
-                    if ckpt == names[0] and frame == sheet_frame and draw == 0:
+                    if ckpt == probes[0][0] and frame == sheet_frame and draw == 0:
                         truth = [lane * (width / real_roads.TUSIMPLE_WIDTH) for lane in real_roads.gt_lanes(record)]
                         sheet[f"{kind}|{probe}"] = _cell(key, lanes, truth, f"{ckpt}, {probe}: {kind}")
-    out: dict[str, Any] = {"video": video.name, "labels": str(real_roads.VIDEO_LABELS.relative_to(real_roads.REPO))}
-    out |= {"frames": label_frames, "draws": draws, "kinds": kinds, "checkpoints": {}}
-    for ckpt, predictor, _ in probes:
-        out["checkpoints"].setdefault(ckpt, {"num_frames": predictor.num_frames, "kinds": {k: {} for k in kinds}})
-    results = {key: scores(value, scored[key[2]], resamples) for key, value in preds.items()}
-    for (ckpt, probe, kind), value in results.items():
-        frames = [r["frame"] for r in scored[kind]]
-        row = {k: v for k, v in value.items() if k != "rates"}
-        if probe == "copies":
-            row["history_use"] = paired(results[ckpt, "history", kind], value, frames, resamples)
-        elif ckpt != names[0]:
-            row[f"vs_{names[0]}"] = paired(results[names[0], "history", kind], value, frames, resamples)
-        out["checkpoints"][ckpt]["kinds"][kind][probe] = row
-    out["recipes"] = recipes(results, {k: [r["frame"] for r in v] for k, v in scored.items()}, names, resamples)
-    return out, sheet
+    return preds, scored, sheet
 
 
 def recipe_groups(names: list[str]) -> dict[str, list[str]]:
