@@ -27,7 +27,8 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 from stamlane_eval import culane
-from stamlane_eval.io import read_tusimple, tusimple_points
+from stamlane_eval.cli_tools import parse_wxh
+from stamlane_eval.io import MAX_IMAGE_SIDE, read_tusimple, tusimple_points
 from stamlane_eval.stats import (
     RESAMPLES,
     bootstrap,
@@ -75,10 +76,10 @@ def frame_size(text: str | None, gt_path: Path) -> tuple[int, int]:
         from stamlane.experiments.split_scores import image_size
 
         return image_size(gt_path.parent, gt_path.stem)
-    width, _, height = text.lower().partition("x")
-    if not (width.isdigit() and height.isdigit() and int(width) > 0 and int(height) > 0):
-        raise ValueError(f"--size must be WxH in pixels, e.g. 640x360, got {text!r}")
-    return int(height), int(width)
+    try:
+        return parse_wxh(text, MAX_IMAGE_SIDE)
+    except argparse.ArgumentTypeError as err:
+        raise ValueError(f"--size: {err}") from None
 
 
 def percent(low: float, high: float, sign: str = "") -> str:
