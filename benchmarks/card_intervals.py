@@ -40,6 +40,8 @@ from stamlane_eval.stats import (
 )
 from stamlane_eval.tusimple import evaluate
 
+MAX_RESAMPLES = 20_000  # the bootstrap holds resamples x images weights (100 MB at 640 images)
+
 
 def rates_by_image(gt: list[dict], pred_file: Path) -> tuple[list[str], np.ndarray]:
     """The per-image ``(fp, fn)`` rates of one prediction file, in ``raw_file`` order, with those names."""
@@ -96,8 +98,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iou", type=float, help="score the IoU F1 at this threshold (0.5, 0.3) instead")
     parser.add_argument("--size", help="the frames' WxH for --iou (default: the set's dataset.json or first frame)")
     args = parser.parse_args(argv)
-    if args.resamples < 100:  # stamlane_eval.stats' floor, checked before any file is read
-        print(f"card_intervals: error: --resamples must be >= 100, got {args.resamples}", file=sys.stderr)
+    if not 100 <= args.resamples <= MAX_RESAMPLES:  # stamlane_eval.stats' floor; the ceiling bounds its weights
+        print(
+            f"card_intervals: error: --resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}", file=sys.stderr
+        )
         return 2
     if args.iou is not None and not 0 <= args.iou < 1:
         print(f"card_intervals: error: --iou must be in [0, 1), got {args.iou}", file=sys.stderr)

@@ -45,6 +45,8 @@ KINDS = ("none", *CORRUPTIONS)
 SEEDED = re.compile(r"^(?P<recipe>.+)-s(?P<seed>\d+)$")  # a checkpoint of one seed of a recipe
 DEFAULT_CKPTS = ("stam4-dashcam", "single-dashcam")
 DEFAULT_DRAWS = 3
+MAX_DRAWS = 20  # spoils per frame and kind: each is a network pass per probe
+MAX_RESAMPLES = 20_000  # the bootstrap holds resamples x images weights (130 images a kind at 3 draws)
 SHEET_CELL = (480, 270)
 
 
@@ -63,9 +65,12 @@ def read_frames(path: Path, wanted: set[int]) -> dict[int, np.ndarray]:
 
     try:
         frames, _, _ = iter_frames(path, max(wanted) + 1)
-        return {i: image for i, (_, image) in enumerate(frames) if i in wanted}
+        images = {i: image for i, (_, image) in enumerate(frames) if i in wanted}
     except StreamError as err:
         raise real_roads.RealRoadsError(str(err)) from None
+    if len(images) < len(wanted):
+        raise real_roads.RealRoadsError(f"{path} ends before frame {max(wanted)}, which its labels need")
+    return images
 
 
 def run_probe(predictor: Any, history: list[np.ndarray], key: np.ndarray) -> list[np.ndarray]:
@@ -289,13 +294,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
     parser.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"key-frame spoils, of {' '.join(KINDS)}")
-    parser.add_argument("--draws", type=int, default=DEFAULT_DRAWS, help="spoils drawn per frame and kind")
+    parser.add_argument("--draws", type=int, default=DEFAULT_DRAWS, help=f"spoils per frame and kind (1-{MAX_DRAWS})")
     parser.add_argument("--frames", type=int, help="only the first N labelled frames")
-    parser.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (>= 100)")
+    parser.add_argument("--resamples", type=int, default=2000, help=f"bootstrap resamples (100-{MAX_RESAMPLES})")
     parser.add_argument("--shared", type=Path, default=real_roads.REPO.parent / "shared", help="the folder of data/")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/real-history"))
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import atomic_path, write_atomic
+    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
@@ -303,10 +308,10 @@ def main(argv: list[str] | None = None) -> int:
     problem = (
         f"--kinds: {' '.join(unknown)} not of {' '.join(KINDS)}"
         if unknown
-        else f"--draws must be >= 1, got {args.draws}"
-        if args.draws < 1
-        else f"--resamples must be >= 100, got {args.resamples}"
-        if args.resamples < 100
+        else f"--draws must be in 1..{MAX_DRAWS}, got {args.draws}"
+        if not 1 <= args.draws <= MAX_DRAWS
+        else f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}"
+        if not 100 <= args.resamples <= MAX_RESAMPLES
         else f"--frames must be >= 1, got {args.frames}"
         if args.frames is not None and args.frames < 1
         else None
@@ -314,6 +319,12 @@ def main(argv: list[str] | None = None) -> int:
     video = args.shared / real_roads.VIDEO
     if problem is None and not video.is_file():
         problem = f"{video} does not exist (the real video lives in ../shared beside the project)"
+    if problem is None:
+        inputs = [real_roads.VIDEO_LABELS, *(Path(c) for c in args.ckpt if Path(c).exists())]
+        try:  # before any model runs: --out may be neither a file nor inside the data or an input
+            check_outputs(reads=inputs, folders=[args.out], protected=[args.shared, *inputs])
+        except GuardError as err:
+            problem = str(err)
     if problem is not None:
         print(f"real_history: error: {problem}", file=sys.stderr)
         return 2

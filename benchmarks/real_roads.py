@@ -410,14 +410,9 @@ def strip(
 
 def gt_lanes(record: dict) -> list[np.ndarray]:
     """The labelled lanes of a TuSimple ``record`` as ``(N, 2)`` point arrays, lanes absent on every row left out."""
-    ys = np.asarray(record["h_samples"], dtype=np.float64)
-    out = []
-    for xs in record["lanes"]:
-        xs = np.asarray(xs, dtype=np.float64)
-        keep = xs >= 0
-        if keep.any():
-            out.append(np.stack([xs[keep], ys[keep]], axis=1))
-    return out
+    from stamlane_eval.io import tusimple_points
+
+    return [lane for lane in tusimple_points(record["lanes"], record["h_samples"]) if len(lane)]
 
 
 # ----------------------------------------------------------------------------------------------- report
@@ -519,7 +514,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--val", type=Path, help="a synthetic set whose validation split scores each decoding too")
     parser.add_argument("--val-labels", default="val.json", help="its label file (default val.json)")
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import atomic_path, write_atomic
+    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
     from stamlane.training.quiet import quiet_libraries
     from stamlane.weights import SHIPPED
 
@@ -532,6 +527,10 @@ def main(argv: list[str] | None = None) -> int:
     results, pictures = [], []
     try:
         read_labels(args.shared)  # the data first: a missing folder is said before any model is loaded
+        try:  # --out may be neither a file nor inside the data beside the project
+            check_outputs(folders=[args.out], protected=[args.shared])
+        except GuardError as err:
+            raise RealRoadsError(str(err)) from None
         if not (args.shared / VIDEO).is_file():
             raise RealRoadsError(f"{args.shared / VIDEO} does not exist (the real video lives in ../shared)")
         from stamlane.predict.postprocess import PostprocessConfig

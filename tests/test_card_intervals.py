@@ -75,7 +75,18 @@ def test_files_of_other_images_are_one_line_and_status_2(bench, tmp_path: Path, 
 
 @pytest.mark.parametrize(
     "hostile",
-    ["missing", "folder", "not json", "binary", "resamples 0", "resamples -5", "iou 1.5", "size 640", "size 0x9"],
+    [
+        "missing",
+        "folder",
+        "not json",
+        "binary",
+        "resamples 0",
+        "resamples -5",
+        "resamples 1000000000",
+        "iou 1.5",
+        "size 640",
+        "size 0x9",
+    ],
 )
 def test_hostile_input_is_one_line_and_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, hostile: str) -> None:
     gt, perfect, _ = _files(tmp_path)

@@ -98,7 +98,15 @@ def test_a_short_run_reads_history_where_the_key_frame_is_blank(bench, shared_di
 
 @pytest.mark.parametrize(
     "argv",
-    [["--kinds", "snow"], ["--draws", "0"], ["--frames", "0"], ["--resamples", "5"], ["--shared", "nowhere"]],
+    [
+        ["--kinds", "snow"],
+        ["--draws", "0"],
+        ["--draws", "1000000"],
+        ["--frames", "0"],
+        ["--resamples", "5"],
+        ["--resamples", "1000000000"],
+        ["--shared", "nowhere"],
+    ],
 )
 def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, argv: list[str]) -> None:
     out = tmp_path / "out"
@@ -114,3 +122,37 @@ def test_the_committed_tables_are_the_committed_numbers(bench, folder: str) -> N
     results = Path(__file__).resolve().parents[1] / "docs" / "results" / folder
     out = json.loads((results / "real-history.json").read_text())
     assert bench.table(out) == (results / "summary.md").read_text()
+
+
+def _fake_shared(root: Path, frames: int) -> Path:
+    """A ``shared`` folder whose video has ``frames`` frames of noise (the labels need frame 209)."""
+    video = root / "data" / "real" / "solidWhiteRight.mp4"
+    video.parent.mkdir(parents=True)
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 25, (160, 90))
+    for _ in range(frames):
+        writer.write(_frame())
+    writer.release()
+    return root
+
+
+@pytest.mark.parametrize("where", ["a file", "inside the data"])
+def test_an_output_over_a_file_or_inside_the_data_is_refused_before_any_model_runs(
+    bench, tmp_path: Path, capsys, where: str
+) -> None:
+    shared = _fake_shared(tmp_path / "shared", 3)
+    out = tmp_path / "taken.txt" if where == "a file" else shared / "data" / "history"
+    if where == "a file":
+        out.write_text("mine\n")
+    before = sorted((str(p), p.stat().st_size) for p in tmp_path.rglob("*"))
+    assert bench.main(["--shared", str(shared), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("real_history: error: ")
+    assert sorted((str(p), p.stat().st_size) for p in tmp_path.rglob("*")) == before
+
+
+def test_a_video_shorter_than_its_labels_is_one_line(bench, tmp_path: Path, capsys) -> None:
+    shared = _fake_shared(tmp_path / "shared", 12)
+    out = tmp_path / "out"
+    assert bench.main(["--ckpt", "single-dashcam", "--shared", str(shared), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ends before frame" in err[0] and not out.exists()

@@ -150,6 +150,18 @@ def test_missing_data_is_one_line_and_writes_nothing(bench, tmp_path: Path, caps
     assert bench.main(["--frames", "0", "--out", str(out)]) == 2 and not out.exists()
 
 
+def test_an_output_over_a_file_or_inside_the_data_is_refused(
+    bench, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    taken = tmp_path / "taken.txt"
+    taken.write_text("mine\n")
+    for out in (taken, shared_dir / "data" / "real-roads"):
+        assert bench.main(["--ckpt", "single-synthetic", "--shared", str(shared_dir), "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("real_roads: error:")
+    assert taken.read_text() == "mine\n" and not (shared_dir / "data" / "real-roads").exists()
+
+
 def _tusimple_layout(root: Path, clips: int = 2, size: tuple[int, int] = (180, 320)) -> Path:
     """A tiny set in TuSimple's own layout (``clips/<date>/<id>/1..20.jpg``, ``label_data_<date>.json`` labelling
     frame 20): what a user with real data has, written here."""
