@@ -237,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=LABELS, help="the labels file (json lines)")
     parser.add_argument("--pictures", type=Path, help="write each frame's picture here, to be looked at")
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import atomic_path, write_atomic
+    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
 
     path = args.shared / VIDEO
     try:
@@ -245,8 +245,10 @@ def main(argv: list[str] | None = None) -> int:
             raise VideoLabelsError(f"{path} does not exist (the real video lives in ../shared beside the project)")
         if min(args.frames) < 0:
             raise VideoLabelsError(f"--frames takes frame indices >= 0, got {min(args.frames)}")
-        if args.out.resolve() == path.resolve():
-            raise VideoLabelsError(f"--out {args.out} is the video itself: give the labels a file of their own")
+        try:  # the labels and pictures may not land on the video or anywhere in the data beside the project
+            check_outputs(files=[args.out], folders=[args.pictures], protected=[args.shared])
+        except GuardError as err:
+            raise VideoLabelsError(str(err)) from None
         records, pictures = label_video(path, tuple(args.frames))
     except VideoLabelsError as err:
         print(f"video_labels: error: {err}", file=sys.stderr)
