@@ -16,6 +16,7 @@ from stamlane_eval.names import metric_name
 from stamlane.experiments.metrics import TUSIMPLE_F1
 from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.tables import REVEAL_SPLITS, headroom
+from stamlane.safety.guard import make_folder
 
 __all__ = [
     "NEUTRAL",
@@ -151,7 +152,7 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -190,7 +191,7 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
     ax.legend(fontsize=8)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
