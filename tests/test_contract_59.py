@@ -286,3 +286,59 @@ def test_a_class_a_stored_config_may_not_name_is_one_short_line(
     torch.save(content, ckpt)
     line = _refused(capsys, main(["validate", "--ckpt_path", str(ckpt)]), key, name, "registry")
     assert len(line) - len(str(ckpt)) < 200, line
+
+
+# ---------------------------------------------------------------------------------------------- show: name the file
+SHOW_LABELS = {
+    "nul-raw-file": ("tusimple", "nul.json", "holds a NUL byte"),
+    "long-raw-file": ("tusimple", "long.json", "over the file system's limit of 255"),
+    "long-raw-path": ("tusimple", "longpath.json", "over the file system's limit of 4096"),
+    "gzip-list": ("culane", "list.txt.gz", "not UTF-8"),
+    "nul-list": ("culane", "nul.txt", "holds a NUL byte"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SHOW_LABELS))
+def test_show_names_the_label_or_list_file(
+    inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str
+) -> None:
+    import gzip
+    import shutil
+
+    root = tmp_path / "set"
+    shutil.copytree(inputs["set"], root)
+    line = json.loads((root / "train.json").read_text().splitlines()[0])
+    for name, raw in (("nul", "clips/a\x00b/4.jpg"), ("long", "clips/" + "a" * 300 + "/4.jpg")):
+        (root / f"{name}.json").write_text(json.dumps(line | {"raw_file": raw}) + "\n")
+    (root / "longpath.json").write_text(json.dumps(line | {"raw_file": "/".join(["b" * 200] * 30)}) + "\n")
+    (root / "list.txt.gz").write_bytes(gzip.compress(b"clips/0000/4.jpg\n"))
+    (root / "nul.txt").write_bytes(b"clips/0000/4\x00.jpg\n")
+    fmt, name, says = SHOW_LABELS[case]
+    argv = ["show", "--root", str(root), "--labels", name, "--format", fmt, "--out", str(tmp_path / "g.png")]
+    line = _refused(capsys, main([*argv, "--num-frames", "2"]), name, says)
+    assert len(line) < 300 and not (tmp_path / "g.png").exists(), line
+
+
+# ---------------------------------------------------------------------------------------------- demo: name the run
+@pytest.mark.parametrize("case", ["dangling-checkpoint", "dots-in-run", "link-outside"])
+def test_a_refused_run_record_names_the_run(tmp_path: Path, case: str) -> None:
+    from stamlane.experiments.store import ExperimentError, RunStore
+
+    top, name = tmp_path / "out", "stam4-s0"
+    run = top / name / "run"
+    ckpt = run / "checkpoints" / "last.ckpt"
+    ckpt.parent.mkdir(parents=True)
+    record = {"data": "d", "run": str(run), "last_ckpt": str(ckpt), "frames": 4, "scores": {}, "labels": {}}
+    if case == "dangling-checkpoint":
+        ckpt.symlink_to(tmp_path / "gone.ckpt")
+    elif case == "dots-in-run":
+        record["run"] = str(top / name / ".." / ".." / "elsewhere")
+    done = top / name / "done.json"
+    if case == "link-outside":
+        (tmp_path / "theirs.json").write_text(json.dumps(record))
+        done.symlink_to(tmp_path / "theirs.json")
+    else:
+        done.write_text(json.dumps(record))
+    with pytest.raises(ExperimentError, match=f"^run {name}: ") as caught:
+        RunStore(top).finished(name, {"data": "d"})
+    assert len(str(caught.value).splitlines()) == 1
