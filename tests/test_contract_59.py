@@ -76,7 +76,7 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
     folder = tmp_path_factory.mktemp("inputs")
     root = folder / "set"
-    generate_dataset(root, SplitCounts(train=1), seed=1, config=SynthConfig(width=128, height=72, num_frames=4))
+    generate_dataset(root, SplitCounts(train=1, test=1), seed=1, config=SynthConfig(width=128, height=72, num_frames=4))
     frames = folder / "frames"
     frames.mkdir()
     for i in range(3):
@@ -342,3 +342,32 @@ def test_a_refused_run_record_names_the_run(tmp_path: Path, case: str) -> None:
     with pytest.raises(ExperimentError, match=f"^run {name}: ") as caught:
         RunStore(top).finished(name, {"data": "d"})
     assert len(str(caught.value).splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------------------------- stored choices
+def test_a_stored_config_does_not_choose_what_predict_reads(
+    inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A checkpoint whose config names ``source: /elsewhere`` (and a ``predictions.output_dir`` there): ``predict
+    --data.root ROOT`` predicts ROOT's split and writes where the command chooses, nothing read or written there."""
+    import shutil
+
+    import yaml
+
+    from stamlane.training.lightning_cli import CONFIG_KEY
+
+    elsewhere = tmp_path / "elsewhere"
+    shutil.copytree(inputs["frames"], elsewhere)
+    content = torch.load(SHIPPED, map_location="cpu", weights_only=True)
+    stored = yaml.safe_load(content[CONFIG_KEY])
+    stored["source"] = str(elsewhere)
+    stored["predictions"]["output_dir"] = str(elsewhere / "out")
+    content[CONFIG_KEY] = yaml.safe_dump(stored)
+    ckpt = tmp_path / "c.ckpt"
+    torch.save(content, ckpt)
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in elsewhere.iterdir())
+    assert main(["predict", "--ckpt_path", str(ckpt), "--data.root", str(inputs["set"])]) == 0
+    made = sorted(p.name for p in (tmp_path / "outputs" / "predict" / "c").iterdir())
+    assert made == ["set-test"], made  # the set's test split, as the docs say, not the stored source
+    assert sorted(p.name for p in elsewhere.iterdir()) == before

@@ -55,6 +55,7 @@ __all__ = [
     "MAX_VALUES",
     "OPTIMIZERS",
     "SCHEDULERS",
+    "STORED_CHOICES",
     "build_module",
     "check_data_hparams",
     "check_hparams",
@@ -265,6 +266,13 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
     return config
 
 
+STORED_CHOICES = ("source", "ckpt_path", "predictions.output_dir")
+"""Options of a stored run config that are dropped (set to null) when it is read back: what to predict on, which
+checkpoint to read and where to write are the user's to give (``--source``, ``--ckpt_path``,
+``--predictions.output_dir``), never a checkpoint's: a stored ``source: /elsewhere`` would make ``predict --data.root
+ROOT`` read another folder's frames and write there."""
+
+
 @contextmanager
 def safe_config_file(text: str, source: str | Path) -> Iterator[Path]:
     """A temporary copy of the checked run config (`check_run_config`), written from the checked data so that
@@ -272,6 +280,11 @@ def safe_config_file(text: str, source: str | Path) -> Iterator[Path]:
     import yaml
 
     config = check_run_config(text, source)
+    for key in STORED_CHOICES:  # a stored config never chooses what is read (the frames, a checkpoint) nor written
+        section, _, option = key.rpartition(".")
+        holder = config.get(section) if section else config
+        if isinstance(holder, dict) and holder.get(option) is not None:
+            holder[option] = None
     with tempfile.TemporaryDirectory(prefix="stamlane-config-") as folder:
         path = Path(folder) / "config.yaml"
         path.write_text(yaml.safe_dump(config, sort_keys=False))
