@@ -371,3 +371,39 @@ def test_a_stored_config_does_not_choose_what_predict_reads(
     made = sorted(p.name for p in (tmp_path / "outputs" / "predict" / "c").iterdir())
     assert made == ["set-test"], made  # the set's test split, as the docs say, not the stored source
     assert sorted(p.name for p in elsewhere.iterdir()) == before
+
+
+# ---------------------------------------------------------------------------------------------- sizes in checkpoints
+def test_a_network_larger_than_its_weights_is_never_built(
+    inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An encoder ``width`` of 64 in a checkpoint's hyper_parameters asks ~300 GB of parameters: counted on the
+    ``meta`` device against the stored weights, refused before one is allocated."""
+    import resource
+
+    content = torch.load(inputs["ckpt"], weights_only=True)
+    content["hyper_parameters"]["encoder"] = {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 64.0}}
+    torch.save(content, tmp_path / "wide.ckpt")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    argv = ["stream", str(inputs["frames"]), "--ckpt", str(tmp_path / "wide.ckpt"), "--out", str(tmp_path / "s")]
+    _refused(capsys, main(argv), "wide.ckpt", "its weights hold")
+    assert (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - peak) * 1024 < 2**30
+
+
+def test_export_counts_the_clip_it_traces(inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    argv = ["export", "--ckpt_path", str(inputs["huge"]), "--output", str(tmp_path / "m.onnx")]
+    _refused(capsys, main(argv), "8192x8192", "budget")
+    assert not (tmp_path / "m.onnx").exists()
+
+
+def test_a_checkpoint_folder_inside_the_data_is_refused_before_fit(
+    inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Lightning's own writer (a ``ModelCheckpoint`` with its ``dirpath``) goes through the output guard too."""
+    config = tmp_path / "c.yaml"
+    callback = "    - class_path: lightning.pytorch.callbacks.ModelCheckpoint\n"
+    config.write_text(f"trainer:\n  callbacks:\n{callback}      init_args:\n        dirpath: {inputs['set'] / 'ck'}\n")
+    argv = ["fit", "--config", str(REPO / "configs" / "demo.yaml"), "--config", str(config)]
+    argv += [f"--data.root={inputs['set']}", f"--trainer.default_root_dir={tmp_path / 'run'}"]
+    _refused(capsys, main(argv), "ck", "input")
+    assert not (inputs["set"] / "ck").exists() and not (tmp_path / "run").exists()

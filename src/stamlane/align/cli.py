@@ -49,7 +49,7 @@ from stamlane.align.homography import (
 )
 from stamlane.align.warp import Strategy, alignments_to_key
 from stamlane.safety.budget import check_workers
-from stamlane.safety.guard import check_outputs, make_folder
+from stamlane.safety.guard import atomic_path, check_outputs, make_folder
 from stamlane.safety.images import read_image
 
 __all__ = ["AlignJob", "ClipResult", "build_parser", "main", "process_clip"]
@@ -208,7 +208,10 @@ def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: Al
     name = "__".join(rel.parts) or "root"
     assert job.visualize_dir is not None  # asked for (--visualize)
     make_folder(job.visualize_dir, "--visualize")
-    cv2.imwrite(str(job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"), picture)
+    target = job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"
+    with atomic_path(target) as tmp:  # whole or not at all; a full disk is said, not skipped
+        if not cv2.imwrite(str(tmp), picture):
+            raise OSError(f"--visualize: cannot write {target}")
 
 
 def _run_one(task: tuple[Path, AlignJob]) -> ClipResult:

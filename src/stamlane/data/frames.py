@@ -110,7 +110,8 @@ def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path
             if not ok:
                 break
             if index % every == 0:
-                cv2.imwrite(str(out / f"{written:06d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+                if not cv2.imwrite(str(out / f"{written:06d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
+                    raise OSError(f"cannot write frame {written} of {video} into {out} (a full disk?)")
                 written += 1
             index += 1
             bar.update(1)

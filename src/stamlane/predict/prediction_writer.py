@@ -40,7 +40,7 @@ from stamlane_eval.io import culane_lines_path
 from stamlane.predict.image_score import image_score
 from stamlane.predict.overlay import draw_lanes, draw_legend
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
-from stamlane.safety.guard import make_folder, temporary_name
+from stamlane.safety.guard import atomic_path, make_folder, temporary_name
 from stamlane.safety.images import read_image
 from stamlane.safety.owner import mark
 from stamlane.types import Lanes
@@ -204,7 +204,9 @@ class LanePredictionWriter(BasePredictionWriter):
         path = culane_lines_path(self.output_dir / "overlays", raw_file).with_suffix("")
         path = path.with_suffix(".jpg")  # <stem>.lines -> <stem>.jpg
         make_folder(path.parent)
-        cv2.imwrite(str(output_path(self.output_dir, path)), overlay)
+        with atomic_path(output_path(self.output_dir, path)) as tmp:  # whole or not at all; a full disk said
+            if not cv2.imwrite(str(tmp), overlay):
+                raise OSError(f"cannot write the overlay {path} (a full disk?)")
         self.written["overlays"] += 1
 
     def _write_frame(self, overlay: np.ndarray) -> None:

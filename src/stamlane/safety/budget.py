@@ -156,9 +156,12 @@ def check_stream_buffers(
     strides: Sequence[int],
     embed_dim: int,
     what: str = "the streamed network",
+    *,
+    clips: bool = False,
 ) -> int:
     """The bytes `stream_bytes` counts, refused over `MAX_STREAM_BYTES` before any of them is allocated (a
     checkpoint's recorded ``image_size`` of 8192 a side passes `check_clip` with one frame, and asks ~20 GiB).
+    With ``clips``, the frames go through the network together (``stamlane export``'s clip graph): T times more.
 
     Raises:
         BudgetError: naming ``what``, the frames, the size, the bytes and the budget.
@@ -166,9 +169,11 @@ def check_stream_buffers(
     if not channels or len(channels) != len(strides):
         raise BudgetError(f"{what}: encoder channels {list(channels)} and strides {list(strides)} do not pair")
     need = stream_bytes(num_frames, size, channels, strides, embed_dim)
+    if clips:  # a whole clip through the network at once (the ONNX clip graph, traced): every frame's buffers
+        need = num_frames * stream_bytes(1, size, channels, strides, embed_dim) + need
     if need > MAX_STREAM_BYTES:
         raise BudgetError(
             f"{what}: {num_frames} frame(s) of {size[0]}x{size[1]} px need about {need / (1 << 30):.1f} GiB of "
-            f"buffers, over the budget of {MAX_STREAM_BYTES >> 30} GiB (give a smaller --image-size)"
+            f"buffers, over the budget of {MAX_STREAM_BYTES >> 30} GiB"
         )
     return need

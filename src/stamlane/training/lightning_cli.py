@@ -275,6 +275,7 @@ class StamLaneCLI(LightningCLI):
         reads = [*inputs, ckpt if ckpt not in ("last", "best", "hpc", "registry") else None]
         folders: list[str | Path | None] = [self.trainer.default_root_dir]
         folders += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
+        folders += [getattr(cb, "dirpath", None) for cb in self.trainer.checkpoint_callbacks]  # a ModelCheckpoint's
         files: list[str | Path | None] = []
         saver = next((cb for cb in callbacks_of(self.trainer) if isinstance(cb, SaveConfigCallback)), None)
         if saver is not None:  # the merged config, written over a --config of the same name in that folder

@@ -334,6 +334,24 @@ def check_data_hparams(hparams: Any, source: str | Path) -> None:
         raise CheckpointError(f"checkpoint {source}: datamodule_hyper_parameters unusable: {err}") from None
 
 
+def _check_network_size(build: Any, state_dict: Any, source: str | Path) -> None:
+    """Refuse hyper_parameters that build a network larger than the weights the checkpoint holds (an encoder
+    ``width`` of 64 asks tens of GiB before a weight is loaded): the network is built first on torch's ``meta``
+    device, which allocates nothing, and its values counted against the stored tensors'."""
+    import torch
+
+    if not isinstance(state_dict, Mapping):
+        raise CheckpointError(f"checkpoint {source}: its state_dict is no mapping of tensors")
+    stored = sum(t.numel() for t in state_dict.values() if isinstance(t, torch.Tensor))
+    with torch.device("meta"):
+        needed = sum(t.numel() for t in build().state_dict().values())
+    if needed > stored:
+        raise CheckpointError(
+            f"checkpoint {source}: its hyper_parameters build a network of {needed:,} values, its weights hold "
+            f"{stored:,} (a network larger than the file is never built)"
+        )
+
+
 def build_module(content: Mapping[str, Any], source: str | Path) -> Any:
     """The `StamLaneModule` of a checkpoint's content, built from the registry (never by jsonargparse), with its
     weights, on the CPU, in eval mode.
@@ -351,8 +369,15 @@ def build_module(content: Mapping[str, Any], source: str | Path) -> Any:
     hints, _ = parameter_hints(StamLaneModule)
     options = {k: v for k, v in hparams.items() if not k.startswith("_")}
     try:
+        _check_network_size(
+            lambda: StamLaneModule(**{k: build_value(v, hints[k]) for k, v in options.items()}),
+            content["state_dict"],
+            source,
+        )
         module = StamLaneModule(**{k: build_value(v, hints[k]) for k, v in options.items()})
         module.load_state_dict(content["state_dict"])
+    except CheckpointError:
+        raise
     except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, IndexError) as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
         raise CheckpointError(f"checkpoint {source} does not fit a stamlane network: {first[:200]}") from None
