@@ -109,7 +109,9 @@ class _ListClips(ClipDataset):
             except LaneFileError as err:  # names the file: not UTF-8 (gzip bytes?), a FIFO, over the size limit
                 raise DataError(f"list file {err}") from None
             if "\x00" in text:
-                raise DataError(f"list file {path}: holds a NUL byte at character {text.index(chr(0))} (not a text list)")
+                raise DataError(
+                    f"list file {path}: holds a NUL byte at character {text.index(chr(0))} (not a text list)"
+                )
             lines = text.splitlines()
             for number, line in enumerate(lines, start=1):
                 if not line.strip():

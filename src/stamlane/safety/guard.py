@@ -95,7 +95,11 @@ def _check_writable(out: PathLike, resolved: Path, folder: bool) -> None:
         raise GuardError(f"{out}: cannot write under {anchor}, a file, not a folder")
     if not os.access(anchor, os.W_OK | os.X_OK):
         raise GuardError(f"{out}: cannot write into {anchor} (permission denied)")
-    if os.statvfs(anchor).f_flag & os.ST_RDONLY:  # root is not exempt from a read-only mount
+    try:
+        read_only = bool(os.statvfs(anchor).f_flag & os.ST_RDONLY)  # root is not exempt from a read-only mount
+    except OSError:  # a file system that cannot say: the write itself will (make_folder, one line)
+        read_only = False
+    if read_only:
         raise GuardError(f"{out}: cannot write into {anchor} (a read-only file system)")
 
 

@@ -217,7 +217,9 @@ def _owner(layout: str, counts: SplitCounts, cfg: SynthConfig, settings: dict[st
     counted = ", ".join(f"{name} {n}" for name, n in counts.as_dict().items() if n)
     steps = f"key steps {settings['train_key_step']}/{settings['eval_key_step']}, seed {settings['seed']}"
     world = f"{cfg.world} world{' randomised' if cfg.randomise else ''}, labels {cfg.label_lanes}"
-    described = f"{cfg.width}x{cfg.height}, {cfg.num_frames} frames at {cfg.fps:g} fps, {steps}, {world}; clips: {counted}"
+    described = (
+        f"{cfg.width}x{cfg.height}, {cfg.num_frames} frames at {cfg.fps:g} fps, {steps}, {world}; clips: {counted}"
+    )
     return SYNTH_OWNER | {"layout": layout, "set": described}
 
 

@@ -347,8 +347,8 @@ def _check_network_size(build: Any, state_dict: Any, source: str | Path) -> None
         needed = sum(t.numel() for t in build().state_dict().values())
     if needed > stored:
         raise CheckpointError(
-            f"checkpoint {source}: its hyper_parameters build a network of {needed:,} values, its weights hold "
-            f"{stored:,} (a network larger than the file is never built)"
+            f"checkpoint {source} does not fit a stamlane network: its hyper_parameters build {needed:,} values, its "
+            f"weights hold {stored:,} (a network larger than its weights is never built)"
         )
 
 

@@ -219,7 +219,9 @@ def _lookup(name: Any, key: str) -> Any:
             raise Refused(key, f"names the file {short(name)}: a sub-config is never read from a stored config")
         # short: the key and the name say it; docs/safety.md says what the registry holds and that --config may
         # name any class
-        raise Refused(key, f"names {short(name)}, not in the registry (a stored config may name only stamlane's classes)")
+        raise Refused(
+            key, f"names {short(name)}, not in the registry (a stored config may name only stamlane's classes)"
+        )
     return found
 
 
