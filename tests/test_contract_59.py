@@ -407,3 +407,33 @@ def test_a_checkpoint_folder_inside_the_data_is_refused_before_fit(
     argv += [f"--data.root={inputs['set']}", f"--trainer.default_root_dir={tmp_path / 'run'}"]
     _refused(capsys, main(argv), "ck", "input")
     assert not (inputs["set"] / "ck").exists() and not (tmp_path / "run").exists()
+
+
+# ---------------------------------------------------------------------------------------------- several processes
+@pytest.mark.parametrize("bad", [0, 3], ids=["rank-0-share", "rank-1-share"])
+def test_a_bad_frame_under_ddp_ends_every_process_with_its_line(tmp_path: Path, bad: int) -> None:
+    """Two CPU processes (gloo): the process that meets a truncated frame says it and stops; the other, whose
+    collective breaks, says the same line (`stamlane.safety.boundary.peer_failure`), not gloo's traceback."""
+    import subprocess
+    import sys
+
+    from stamlane.synth import SynthConfig, generate_dataset
+    from stamlane.synth.layout import SplitCounts
+
+    root = tmp_path / "set"
+    generate_dataset(
+        root, SplitCounts(train=1, val=4, test=1), seed=1, config=SynthConfig(width=128, height=72, num_frames=2)
+    )
+    frame = root / "clips" / f"val-{bad:04d}" / "2.jpg"
+    frame.write_bytes(frame.read_bytes()[:200])
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE", "PYTHONWARNINGS": "ignore"}
+    args = ["validate", "--ckpt_path=single-synthetic", f"--data.root={root}", "--data.loader.batch_size=1"]
+    args += ["--data.loader.num_workers=0", f"--trainer.default_root_dir={tmp_path / 'run'}"]
+    args += ["--trainer.enable_progress_bar=false", "--trainer.strategy=ddp", "--trainer.devices=2"]
+    args += ["--trainer.accelerator=cpu"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "stamlane.cli", *args], env=env, capture_output=True, text=True, timeout=300
+    )
+    said = [line for line in proc.stderr.splitlines() if line.startswith("stamlane validate")]
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert len(said) == 2 and said[0] == said[1] and f"val-{bad:04d}/2.jpg" in said[0], said

@@ -27,7 +27,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from stamlane.safety.boundary import one_line
+from stamlane.safety.boundary import one_line, peer_failure, share_failure
 from stamlane.safety.paths import (
     CKPT_NAMES,
     PathError,
@@ -280,8 +280,15 @@ def main(argv: list[str] | None = None) -> int:
             print(f"stamlane {command}: {one_line(err)} (see stamlane {command} --help)", file=sys.stderr)
             return 2
         except (DataError, OSError, ValueError, MisconfigurationException) as err:  # bad input (or a place that
-            # cannot be written, by Lightning's own writers too): status 2
+            # cannot be written, by Lightning's own writers too): status 2, the same line from every process
+            share_failure(one_line(err))
             print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
+            return 2
+        except RuntimeError as err:  # a collective broken by another process leaving on a bad input: its line
+            line = peer_failure(err)
+            if line is None:
+                raise
+            print(f"stamlane {command}: {line}", file=sys.stderr)
             return 2
         return 0
     print(f"stamlane: unknown command {command!r}; {_usage()}", file=sys.stderr)

@@ -9,11 +9,16 @@ UTF-8, a nesting too deep to parse, a worker process that died. Anything else is
 
 from __future__ import annotations
 
+import hashlib
+import os
 import sys
+import tempfile
+import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import TypeVar
 
-__all__ = ["MAX_MESSAGE", "expected_errors", "one_line", "run_command"]
+__all__ = ["MAX_MESSAGE", "expected_errors", "one_line", "peer_failure", "run_command", "share_failure"]
 
 T = TypeVar("T")
 
@@ -67,3 +72,57 @@ def run_command(prog: str, body: Callable[[], T], *extra: type[BaseException]) -
     except expected_errors(*extra) as err:
         print(f"{prog}: {one_line(err)}", file=sys.stderr)
         return 2
+
+
+PEER_WAIT = 20.0
+"""Seconds a process whose collective broke waits for the line of the process that stopped it."""
+_PEER_WORDS = ("Connection closed by peer", "Connection reset by peer", "Broken pipe")
+"""gloo's (and the socket's) words for a collective another process of the run left."""
+
+
+def _failure_file() -> Path | None:
+    """The file the processes of one several-process run (Lightning's ddp, torchrun: ``MASTER_ADDR`` and
+    ``MASTER_PORT`` set) share a bad input's line through, in the machine's temporary folder; None in one process."""
+    address, port = os.environ.get("MASTER_ADDR"), os.environ.get("MASTER_PORT")
+    if not address or not port or os.environ.get("WORLD_SIZE") == "1":  # Lightning's ddp children lack WORLD_SIZE
+        return None
+    run = f"{address}:{port}:{os.environ.get('TORCHELASTIC_RUN_ID', '')}"
+    return Path(tempfile.gettempdir()) / f"stamlane-failure-{hashlib.sha256(run.encode()).hexdigest()[:16]}.txt"
+
+
+def share_failure(line: str) -> None:
+    """Leave a bad input's line where the other processes of this run find it (`peer_failure`): the process that
+    met it ends with it; the others, whose collectives break when it leaves, end with the same line, not gloo's
+    traceback. Nothing in one process; the first line of a run is kept."""
+    path = _failure_file()
+    if path is None:
+        return
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+    except FileExistsError:
+        if time.time() - path.stat().st_mtime < 60:  # this run's: the first line stays
+            return
+        path.unlink(missing_ok=True)  # an earlier run's on the same port
+        return share_failure(line)
+    except OSError:
+        return  # no shared temporary folder: the other processes say their own error
+    with os.fdopen(fd, "w") as file:
+        file.write(line)
+
+
+def peer_failure(err: BaseException, wait: float = PEER_WAIT) -> str | None:
+    """The line another process of this run stopped with (`share_failure`), when ``err`` is a collective broken by
+    that process leaving (gloo's "Connection closed by peer"); None for any other error, or when no line comes
+    within ``wait`` seconds (the other process died of something else: ``err`` keeps its traceback)."""
+    path = _failure_file()
+    if path is None or not any(words in str(err) for words in _PEER_WORDS):
+        return None
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        try:
+            if time.time() - path.stat().st_mtime < 120:
+                return path.read_text().strip() or None
+        except OSError:
+            pass
+        time.sleep(0.2)
+    return None
