@@ -5,7 +5,7 @@
                                     [--decode NAME:KEY=VALUE,... ...] [--val SYNTHETIC_ROOT [--val-labels val.json]]
 
 Runs every ``--ckpt`` (default: every shipped model, `stamlane.weights.SHIPPED`) through `StreamingPredictor`,
-loaded as ``stamlane stream --ckpt`` loads it (`stamlane.stream.cli.load_predictor`, on the CPU, the model's own
+loaded as ``stamlane stream --ckpt`` loads it (`stamlane.training.stored.StoredModel`, on the CPU, the model's own
 precision, alignment on), on the real data beside the project (``../shared``, never committed):
 
 1. **Labelled frames**: the six 1280x720 highway frames of ``data/frames/`` with their TuSimple labels
@@ -72,14 +72,15 @@ class RealRoadsError(Exception):
 
 # ------------------------------------------------------------------------------------------- predictor
 def load(ckpt: str) -> Any:
-    """A `StreamingPredictor` for ``ckpt`` (a shipped model's name or a checkpoint file), built as ``stamlane stream
-    --ckpt CKPT --device cpu`` builds it."""
-    from stamlane.stream.cli import StreamError, build_parser, load_predictor
+    """A `StreamingPredictor` for ``ckpt`` (a shipped model's name, a checkpoint file or a run folder) with every
+    setting the model was trained with, on the CPU (`stamlane.training.stored.StoredModel`, as ``stamlane stream``)."""
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.stream.predictor import StreamingPredictor
+    from stamlane.training.stored import StoredModel
 
-    args = build_parser().parse_args(["unused", "--ckpt", ckpt, "--device", "cpu"])
     try:
-        return load_predictor(args)
-    except StreamError as err:
+        return StreamingPredictor.from_stored(StoredModel.open(ckpt))
+    except CheckpointError as err:
         raise RealRoadsError(str(err)) from None
 
 

@@ -47,17 +47,10 @@ def soak_stream(args: argparse.Namespace) -> dict:
 
     from stamlane.data.clips import frame_order
     from stamlane.stream.predictor import StreamingPredictor
-    from stamlane.training.module import StamLaneModule
+    from stamlane.training.stored import StoredModel
 
     torch.set_num_threads(args.threads)
-    module = StamLaneModule.from_checkpoint(args.ckpt)
-    hp = module.hparams
-    predictor = StreamingPredictor.from_module(
-        module,
-        num_frames=int(module.num_frames),
-        image_size=tuple(hp["image_size"]),
-        crop_top=float(hp.get("crop_top") or 0.0),
-    )
+    predictor = StreamingPredictor.from_stored(StoredModel.open(args.ckpt))
     clips = sorted(p for p in Path(args.frames_root).glob("*") if p.is_dir())[: args.clips]
     paths = [f for clip in clips for f in sorted(clip.glob("*.jpg"), key=lambda p: frame_order(p.name))]
     if not paths:

@@ -39,7 +39,6 @@ __all__ = [
     "RunSpec",
     "fit",
     "flags_of",
-    "open_model",
     "open_run",
     "overrides_of",
     "predict",
@@ -402,31 +401,6 @@ def open_run(where: str | Path) -> Run:
     except (CheckpointError, GuardError, PathError) as err:
         raise RunError(str(err)) from None
     return Run(ckpt, config, source, text, start if isinstance(start, str) else None)
-
-
-def open_model(ckpt: str | Path) -> tuple[Any, Any]:
-    """A checkpoint's network and how its clips were read, for what runs a model without a LightningCLI (``stamlane
-    stream``, ``export``): the checkpoint read once within the budget (`stamlane.safety.checkpoints`), the network built
-    from the closed registry on the CPU in eval mode (`stamlane.training.registry.build_module`), the data options
-    checked by the registry and read in today's names (`stamlane.training.compat.clip_options`).
-
-    Returns:
-        ``(module, clip)``: the `StamLaneModule` and its `stamlane.data.options.ClipOptions` (None for a checkpoint
-        without data options).
-
-    Raises:
-        CheckpointError: the checkpoint unreadable or refused, in one line.
-    """
-    from stamlane.safety.checkpoints import read_checkpoint
-    from stamlane.training.compat import clip_options
-    from stamlane.training.registry import build_module, check_data_hparams
-
-    content = read_checkpoint(ckpt)
-    module = build_module(content, ckpt)
-    data = content.get("datamodule_hyper_parameters")
-    if data is not None:
-        check_data_hparams(data, ckpt)
-    return module, clip_options(data) if isinstance(data, dict) else None
 
 
 def predict(run: Run, split: str, probe: Probe | str, out: Path, **options: Any) -> Path:
