@@ -71,12 +71,9 @@ SUMMARIES: dict[str, str] = {
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+    import stamlane
 
-    try:
-        return version("stamlane")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        return "unknown (not installed)"
+    return str(stamlane.__version__)
 
 
 def _usage() -> str:

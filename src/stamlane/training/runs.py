@@ -254,14 +254,27 @@ class Run:
     @property
     def frames(self) -> int:
         """The clip length (T) of the run."""
-        from stamlane.training.compat import clip_options
-
-        return clip_options(self.data()).num_frames
+        return self.clip.num_frames
 
     @property
     def aligns(self) -> bool:
         """Whether the run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-        return bool((self.data().get("clip") or {}).get("align", "fly") == "fly")
+        return self.clip.align == "fly"
+
+    @property
+    def clip(self) -> Any:
+        """How the run read its clips (`stamlane.data.options.ClipOptions`, in today's names; an older run's flat
+        data options too).
+
+        Raises:
+            RunError: data options that are no `ClipOptions`.
+        """
+        from stamlane.training.compat import clip_options
+
+        try:
+            return clip_options(self.data())
+        except ValueError as err:
+            raise RunError(f"{self.source}: {err}") from None
 
     def data_root(self) -> Path | None:
         """The data root to give the run when it recorded its root relative to the folder it was started in
@@ -331,17 +344,12 @@ class Run:
                 args = ["predict", "--config", str(self.config_file), f"--ckpt_path={self.ckpt}", *flags_of(options)]
                 self._cli = run_cli(args, parser_kwargs={"exit_on_error": False})
                 first = self._cli.datamodule
-                self._align = first.clip.align if not probe.exact else self._run_align()
+                self._align = first.clip.align if not probe.exact else self.clip.align
             else:
                 self._cli.predict_again(self._datamodule(split, probe, root), Path(out), max_overlays)
         except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
             raise RunError(f"{self.source}: {one_line(err)}") from None
         return Path(out)
-
-    def _run_align(self) -> Any:
-        from stamlane.training.compat import clip_options
-
-        return clip_options(self.data()).align
 
     def _datamodule(self, split: str, probe: Probe, root: Path | None) -> Any:
         """The first prediction's data module with another split and probe (every other option as the run's)."""
