@@ -23,10 +23,13 @@ from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stamlane.data.probes import PROBES, REAL, Probe
 from stamlane.training.run_record import RecordError, RunRecord
+
+if TYPE_CHECKING:
+    from stamlane.data.options import ClipOptions
 
 __all__ = [
     "PROBES",
@@ -262,7 +265,7 @@ class Run:
         return self.clip.align == "fly"
 
     @property
-    def clip(self) -> Any:
+    def clip(self) -> ClipOptions:
         """How the run read its clips (`stamlane.data.options.ClipOptions`, in today's names; an older run's flat
         data options too).
 
