@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -22,6 +22,21 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # `pytest -n N`: N workers share the 
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def session_cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The suite's cache home (``$STAMLANE_CACHE_DIR``, `stamlane.align.user_cache`): a fresh folder of the session,
+    so that no test reads what an earlier session cached nor writes into the user's ``~/.cache`` (processes a test
+    starts inherit it)."""
+    folder = tmp_path_factory.mktemp("stamlane-cache")
+    before = os.environ.get("STAMLANE_CACHE_DIR")
+    os.environ["STAMLANE_CACHE_DIR"] = str(folder)
+    yield folder
+    if before is None:
+        os.environ.pop("STAMLANE_CACHE_DIR", None)
+    else:
+        os.environ["STAMLANE_CACHE_DIR"] = before
 
 
 @pytest.fixture(scope="session")
