@@ -6,6 +6,7 @@ byte before and after is the real check."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import stat
 from collections.abc import Callable, Iterator
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from stamlane.align.cache import pair_cache_folder
 from stamlane.align.user_cache import CACHE_ENV
 from stamlane.cli import main
 
@@ -125,3 +127,12 @@ def test_a_cache_that_cannot_be_written_costs_the_estimates_and_nothing_else(
     said = [r.getMessage() for r in caplog.records if r.name == "stamlane.cache"]
     assert len(said) == 1 and "is not written (it cannot be made" in said[0], said  # once, in one line
     assert _snapshot(data) == before
+
+
+def test_the_suite_keeps_its_cache_in_a_folder_of_its_own() -> None:
+    """tests/conftest.py names it before any test module is imported: nothing the suite runs writes into ``~/.cache``
+    (a test that wants an empty cache names its own)."""
+    folder = pair_cache_folder()
+    assert folder is not None and os.environ[CACHE_ENV] == str(folder.parent)
+    assert folder.parent.name.startswith("stamlane-test-cache-")
+    assert not folder.is_relative_to(Path.home() / ".cache")
