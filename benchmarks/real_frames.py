@@ -10,8 +10,8 @@ position is the recalled lines over the labelled ones of that position, pooled o
 
 **Lane counts** (`count_numbers`): per frame, the predicted lines (what the decoding drew) minus the labelled
 ones; their mean absolute value, the frames over- and under-counted, the frames with more than `MAX_LANES`
-predicted lines. A label rule that leaves lines out (the video's: three lines of the five the road has) makes a
-model that draws every line over-count: the count is against the labels, not against the road.
+predicted lines. A label rule that leaves lines out (the video's labels the ego pair and the next line on the left,
+none beyond) makes a model that draws more lines over-count: the count is against the labels, not the road.
 
 Intervals: the 95 % percentile bootstrap over frames (`RESAMPLES` resamples, seed `SEED`), given where at least
 `MIN_INTERVAL_FRAMES` frames hold the quantity; frames of one video are alike, so the interval is one over these
