@@ -561,8 +561,8 @@ def main(argv: list[str] | None = None) -> int:
         val = (args.val, args.val_labels) if args.val is not None else None
         if val is not None and not (args.val / args.val_labels).is_file():
             raise RealRoadsError(f"{args.val / args.val_labels} does not exist (--val takes a synthetic set)")
-        if val is not None:
-            real_frames.read_label_file(args.val / args.val_labels)  # a bad label file before any model
+        for record in real_frames.read_label_file(args.val / args.val_labels) if val is not None else []:
+            real_frames.frame_file(args.val, record["raw_file"], args.val / args.val_labels)  # before any model
         for ckpt in ckpts:
             print(f"real_roads: {ckpt} ({args.split}) ...", file=sys.stderr)
             if sealed:

@@ -399,3 +399,16 @@ def test_the_sealed_check_scores_the_sealed_frames_streamed_with_history(bench, 
     assert result["video"]["by_stretch"] == {"early": {"f1": numbers["f1"], "images": 2}}
     assert "labels/solidWhiteRight-sealed.json" in numbers["labels"]
     assert (out / "summary-sealed.md").is_file() and not (out / "summary.md").exists()
+
+
+def test_a_synthetic_label_leading_out_of_val_is_refused_before_any_model(
+    bench, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    val, out = tmp_path / "val", tmp_path / "out"
+    val.mkdir()
+    record = {"raw_file": "../elsewhere/clip/3.jpg", "lanes": [[1, 2]], "h_samples": [100, 110]}
+    (val / "val.json").write_text(json.dumps(record) + "\n")
+    argv = ["--ckpt", "no-such-model", "--shared", str(shared_dir), "--out", str(out), "--val", str(val)]
+    assert bench.main(argv) == 2  # said before the checkpoint (which does not exist) is opened
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "leads outside" in err[0] and "val.json" in err[0] and not out.exists()
