@@ -172,3 +172,18 @@ def test_video_tusimple_predictions_past_the_old_limits_are_scored(
     code, out, err = _run(capsys, "video", far, gt, "--size", "640x360", "--json")
     assert code == 0 and json.loads(out), err
     assert read_tusimple(far)[0]["h_samples"][2] == 150000
+
+
+def test_any_line_width_the_cpp_tool_draws_is_scored(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``-w`` of the C++ tool takes any thickness OpenCV draws (up to 32,767): --width 2000 is scored (every lane
+    covers the image: IoU 1), one past OpenCV's limit refused in one line."""
+    from stamlane_eval.io import MAX_LANE_WIDTH
+
+    for sub in ("pred", "anno"):
+        (tmp_path / sub / "d").mkdir(parents=True)
+        (tmp_path / sub / "d" / "0.lines.txt").write_text("100 590 200 300\n")
+    (tmp_path / "pred" / "d" / "0.lines.txt").write_text("900 590 1000 300\n")
+    code, out, err = _run(capsys, "culane", tmp_path / "pred", tmp_path / "anno", "--width", "2000", "--json")
+    assert code == 0 and json.loads(out)["0.5"]["tp"] == 1, err
+    code, out, err = _run(capsys, "culane", tmp_path / "pred", tmp_path / "anno", "--width", str(MAX_LANE_WIDTH + 1))
+    assert code == 2 and out == "" and "lane width" in err and len(err.strip().splitlines()) == 1

@@ -54,8 +54,10 @@ MAX_IMAGE_POINTS = 100_000
 per lane): the C++ metric resamples a lane at 50 points per segment, about 3 KB per input point while it is
 resampled (measured: one lane of 100,000 points, ``stamlane-eval culane``, peaks at 0.33 GB in 3.6 s); the C++
 tool's own inputs hold a few hundred points per image."""
-MAX_LANE_WIDTH = 1024
-"""Widest lane line (px) the CULane metric may draw."""
+MAX_LANE_WIDTH = 32767
+"""Widest lane line (px) the CULane metric may draw: OpenCV's ``MAX_THICKNESS``, past which the C++ tool's
+``cv::line`` raises (it scores every width up to it). Memory stays bounded by `CanvasBudget`: a lane's canvas is
+cropped to it and never larger than the image."""
 MAX_COORDINATE = 100_000.0
 """Largest absolute pixel coordinate counted as a pixel (6x ``MAX_IMAGE_SIDE``). No evaluator refuses a value beyond
 it, label or prediction: the official tools score it (lane.py: a gt x of 150,000 steepens its lane's angle fit and
