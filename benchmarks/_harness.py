@@ -25,6 +25,7 @@ __all__ = [
     "check_out_folder",
     "clips_of",
     "fail",
+    "guard_out",
     "read_json_object",
 ]
 
@@ -99,3 +100,18 @@ def clips_of(names: Sequence[str], labels: Path) -> list[str]:
             f"{labels}: {len(names)} images in {len(set(clips))} clip: the clip bootstrap needs at least 2 clips"
         )
     return clips
+
+
+def guard_out(prog: str, out: str | Path | None, *, folder: bool = False, side: Iterable[str] = ()) -> int | None:
+    """The check of a script's ``--out`` before any work (`check_out_file`, or `check_out_folder` with ``folder``):
+    None where it can be written (or none is given), else the exit status 2 after its one line (`fail`)."""
+    if out is None:
+        return None
+    try:
+        if folder:
+            check_out_folder(Path(out))
+        else:
+            check_out_file(Path(out), side=side)
+    except GuardError as err:
+        return fail(prog, err)
+    return None

@@ -303,3 +303,60 @@ def test_the_shared_frame_size_reads_only_inside_the_set(tmp_path: Path) -> None
         (root / "dataset.json").write_text(json.dumps(bad))
         with pytest.raises(ValueError, match=r"dataset\.json: no frame size"):
             image_size(root, "test")
+
+
+# ----------------------------------------------------------------------------- every other script's --out
+OUT_FILE_SCRIPTS = {  # script: the arguments besides --out it needs to parse
+    "align": [],
+    "align_presets": [],
+    "eval_speed": [],
+    "frame_store": [],
+    "fusion_share": ["some-run"],
+    "model": [],
+    "pipeline_side_by_side": [],
+    "postprocess": [],
+    "profile_pipeline": [],
+    "soak": ["eval"],
+    "stream": [],
+    "stream_overlap": [],
+    "synth": [],
+    "synth_align": [],
+    "video_speed": [],
+}
+OUT_FOLDER_SCRIPTS = {"demo_transfer": [], "history_recipe": [], "run_passes": []}
+
+
+@pytest.mark.parametrize("script", sorted({**OUT_FILE_SCRIPTS, **OUT_FOLDER_SCRIPTS}))
+def test_every_script_refuses_an_out_it_cannot_write_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, script: str
+) -> None:
+    """A file script given a folder as --out, a folder script given a file: one line, exit 2, nothing made."""
+    folder = script in OUT_FOLDER_SCRIPTS
+    out = tmp_path / ("file.json" if folder else "folder")
+    if folder:
+        out.write_text("{}")
+    else:
+        out.mkdir()
+    argv = [*{**OUT_FILE_SCRIPTS, **OUT_FOLDER_SCRIPTS}[script], "--out", str(out)]
+    before = _snapshot(tmp_path)
+    monkeypatch.setattr(sys, "argv", [f"{script}.py", *argv])  # the scripts whose main() reads sys.argv
+    with benchmark_module(script) as module:
+        try:
+            code = module.main(argv) if module.main.__code__.co_argcount else module.main()
+        except SystemExit as done:
+            code = done.code
+    _one_line(capsys, code, f"{script}.py", str(out), "is a file, not a folder" if folder else "is a folder")
+    assert _snapshot(tmp_path) == before and sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+
+
+@pytest.mark.parametrize("script", ["soak", "pipeline_side_by_side"])
+def test_results_merged_into_out_are_checked_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], script: str
+) -> None:
+    """The scripts that keep --out's earlier results refuse an --out that is not JSON before any work."""
+    out = tmp_path / "results.json"
+    out.write_text("not json")
+    argv = ["eval", "--out", str(out)] if script == "soak" else ["--skip", "render", "--out", str(out)]
+    with benchmark_module(script) as module:
+        _one_line(capsys, module.main(argv), f"{script}.py", "is not JSON")
+    assert out.read_text() == "not json"
