@@ -330,7 +330,8 @@ def _score(
             f"comparisons in one image, past the time budget",
             "pred",
             i + 1,
-        )  # Images with the same lane counts are scored together, so that no block pads lanes it does not have.
+        )
+    # Images with the same lane counts are scored together, so that no block pads lanes it does not have.
     p_start = np.cumsum(n_pred) - n_pred
     g_start = (np.cumsum(gt.counts) - gt.counts)[take]
     acc, fp, fn = np.zeros(n), np.zeros(n), np.zeros(n)
