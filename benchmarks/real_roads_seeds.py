@@ -11,14 +11,12 @@ the real frames' F1, with a 95 % paired bootstrap interval over the labelled ima
 averaged over the group's seeds first, then the images resampled; F1 as lane.py's, the harmonic mean of 1 - FP and
 1 - FN). With six labelled images, an interval that excludes 0 is a strong difference, one that does not may still
 be a real one.
-
-A file that is not a `real_roads.py` result (not JSON, a key missing), groups scored on different numbers of images
-or a ``--boot`` outside 100..100,000 is one line on stderr naming it, exit status 2 (`_harness`).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import sys
 import warnings
@@ -26,10 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _harness import BenchInputError, fail, read_json_object
-
-MAX_BOOT = 100_000
 SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
 COLUMNS = (
     "real-frame F1",
@@ -52,21 +46,14 @@ def f1(fp: float, fn: float) -> float:
 def read(folder: Path) -> dict[str, dict[int, dict]]:
     """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given)."""
     synthetic_file = folder / "synthetic-test.json"
-    synthetic = read_json_object(synthetic_file, "synthetic test file") if synthetic_file.exists() else {}
+    synthetic = json.loads(synthetic_file.read_text()) if synthetic_file.is_file() else {}
     groups: dict[str, dict[int, dict]] = {}
     for path in sorted(folder.glob("*.json")):
         match = SEEDED.match(path.stem)
         if match is None:
             continue
-        result = read_json_object(path, "result file", keys=("labelled_frames", "video"))
+        result = json.loads(path.read_text())
         result["synthetic"] = synthetic.get(path.stem, float("nan"))
-        try:  # every number the table and the differences read, before any is printed
-            numbers(result)
-            per_image({0: result})
-        except (KeyError, TypeError, ValueError, IndexError) as err:
-            raise BenchInputError(
-                f"result file {path} is not a real_roads.py result ({type(err).__name__}: {str(err)[:60]})"
-            ) from None
         groups.setdefault(match["group"], {})[int(match["seed"])] = result
     return groups
 
@@ -143,15 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--groups", nargs="+", help="the groups to show, in this order (default: every group)")
     parser.add_argument("--boot", type=int, default=10000, help="bootstrap draws")
     args = parser.parse_args(argv)
-    if not 100 <= args.boot <= MAX_BOOT:
-        return fail("real_roads_seeds", f"--boot must be in 100..{MAX_BOOT}, got {args.boot}")
-    try:
-        groups = read(args.folder)
-        counts = {len(s["labelled_frames"]["per_image"]) for seeds in groups.values() for s in seeds.values()}
-        if len(counts) > 1:
-            raise BenchInputError(f"{args.folder}: the result files score {sorted(counts)} images: not one set")
-    except BenchInputError as err:
-        return fail("real_roads_seeds", err)
+    groups = read(args.folder)
     if args.groups:
         missing = [g for g in args.groups if g not in groups]
         if missing:

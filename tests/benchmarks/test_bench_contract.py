@@ -241,46 +241,6 @@ def test_the_scripts_from_the_command_line(tmp_path: Path, script: str, args: li
     assert len(done.stderr.strip().splitlines()) == 1 and words in done.stderr, done.stderr
 
 
-# ------------------------------------------------------------------------------------------ real_roads_seeds
-def _seed_result(images: int) -> dict:
-    per_image = [{"fp": 0.0, "fn": 0.25} for _ in range(images)]
-    frames = {"f1": 0.857, "fp": 0.0, "fn": 0.25, "per_image": per_image}
-    return {"labelled_frames": frames, "video": {"frames_over_max": 0, "frames_with_crossing": 0, "mean_lanes": 3.0}}
-
-
-@pytest.mark.parametrize(
-    ("case", "words"),
-    [
-        ("a broken result file", ["result file", "b-s0.json", "is not JSON"]),
-        ("another script's file", ["result file", "b-s0.json", "has no 'labelled_frames'"]),
-        ("a result without its per-image rates", ["b-s0.json", "not a real_roads.py result"]),
-        ("groups on different images", ["score [5, 6] images"]),
-        ("a broken synthetic test file", ["synthetic test file", "is not JSON"]),
-        ("--boot 0", ["--boot"]),
-    ],
-)
-def test_real_roads_seeds_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str, words) -> None:
-    (tmp_path / "a-s0.json").write_text(json.dumps(_seed_result(6)))
-    (tmp_path / "b-s0.json").write_text(json.dumps(_seed_result(6)))
-    extra: list[str] = []
-    if case == "a broken result file":
-        (tmp_path / "b-s0.json").write_text('{"labelled_frames": ')
-    elif case == "another script's file":
-        (tmp_path / "b-s0.json").write_text(json.dumps({"runs": {}}))
-    elif case == "a result without its per-image rates":
-        broken = _seed_result(6)
-        del broken["labelled_frames"]["per_image"]
-        (tmp_path / "b-s0.json").write_text(json.dumps(broken))
-    elif case == "groups on different images":
-        (tmp_path / "b-s0.json").write_text(json.dumps(_seed_result(5)))
-    elif case == "a broken synthetic test file":
-        (tmp_path / "synthetic-test.json").write_text("nope")
-    else:
-        extra = ["--boot", "0"]
-    with benchmark_module("real_roads_seeds") as seeds:
-        _one_line(capsys, seeds.main([str(tmp_path), *extra]), *words)
-
-
 def test_the_shared_frame_size_reads_only_inside_the_set(tmp_path: Path) -> None:
     """`stamlane.experiments.split_scores.image_size` (card_intervals' and the experiments' frame size): the set's
     ``dataset.json``, else the first labelled frame, never one outside the folder given."""
