@@ -146,10 +146,18 @@ def main(argv: list[str] | None = None) -> int:
     for sp in (s, e):
         sp.add_argument("--out", type=Path, default=Path("outputs/bench/soak.json"))
     args = p.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import BenchInputError, fail, guard_out, read_json_object
+
+    if (refused := guard_out("soak.py", args.out)) is not None:  # before any work
+        return refused
+    try:  # the results of the other part, kept: read (and checked) before this one runs
+        old = read_json_object(args.out, "--out") if args.out.exists() else {}
+    except BenchInputError as err:
+        return fail("soak.py", err)
     report = soak_stream(args) if args.what == "stream" else soak_eval(args)
     report["maxrss_self_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    old = json.loads(args.out.read_text()) if args.out.is_file() else {}
     args.out.write_text(json.dumps(old | {args.what: report}, indent=1))
     print(f"wrote {args.out}", file=sys.stderr)
     return 0

@@ -348,6 +348,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames-dir", type=Path, help="real frames for the end-to-end timing (default: first clip)")
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "stream.json")
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("stream.py", args.out)) is not None:  # before any work
+        return refused
     torch.set_num_threads(args.threads)
 
     if args.ckpt is not None:
