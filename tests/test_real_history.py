@@ -117,7 +117,7 @@ def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path
     assert not out.exists()
 
 
-@pytest.mark.parametrize("folder", ["real-history", "real-history/seeds"])
+@pytest.mark.parametrize("folder", ["real-history", "real-history/seeds", "real-history/vehicles"])
 def test_the_committed_tables_are_the_committed_numbers(bench, folder: str) -> None:
     results = Path(__file__).resolve().parents[1] / "docs" / "results" / folder
     out = json.loads((results / "real-history.json").read_text())
