@@ -76,7 +76,7 @@ class AdaptConfig:
         pseudo: when a teacher's probabilities become labels.
     """
 
-    steps: int = 300
+    steps: int = 150
     lr: float = 2e-5
     fusion_lr_scale: float = 100.0
     weight_decay: float = 1e-4
@@ -213,9 +213,7 @@ def pseudo_label(seen: TeacherPass, config: AdaptConfig) -> PseudoLabelled:
     }
     if not keep:
         return PseudoLabelled(seen.clips[:0], torch.zeros((0, *seen.probs.shape[1:]), dtype=torch.int64), [], stats)
-    return PseudoLabelled(
-        seen.clips[keep], torch.from_numpy(np.stack(labels)), [seen.names[i] for i in keep], stats
-    )
+    return PseudoLabelled(seen.clips[keep], torch.from_numpy(np.stack(labels)), [seen.names[i] for i in keep], stats)
 
 
 def _anchor_pool(dataset: ClipDataset, count: int, rng: np.random.Generator, progress: bool) -> dict[str, Tensor]:
@@ -315,7 +313,7 @@ def adapt_student(
             loss_synthetic = module.loss(logits[r:], emb[r:], pool["binary"][si], pool["instance"][si])["loss"]
             loss = loss + loss_synthetic
         optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        loss.backward()  # type: ignore[no-untyped-call]
         optimizer.step()
         schedule.step()
         if step % 25 == 0 or step == config.steps - 1:
@@ -333,9 +331,7 @@ def adapt_student(
     return history
 
 
-def write_adapted(
-    source_ckpt: str | Path, module: StamLaneModule, out: str | Path, record: dict[str, Any]
-) -> Path:
+def write_adapted(source_ckpt: str | Path, module: StamLaneModule, out: str | Path, record: dict[str, Any]) -> Path:
     """Write ``source_ckpt`` with ``module``'s weights and ``record`` (`ADAPT_KEY`) to ``out``, atomically.
 
     Everything else of the input checkpoint (its config, hyperparameters, data options) travels unchanged, so that

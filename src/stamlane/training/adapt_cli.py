@@ -145,6 +145,8 @@ def _frames(source: Path, clip: Any, max_frames: int | None, stack: Any) -> Any:
         except SequenceWarning as err:
             raise AdaptError(f"{err} (adapt needs one drive: the frames of a video)") from None
     dataset = frames.dataset
+    if dataset is None:  # setup made it
+        raise AdaptError(f"--source {source}: no frames read")
     if max_frames is not None:
         dataset.entries = dataset.entries[:max_frames]
     need = (clip.num_frames - 1) * clip.stride + MIN_KEY_FRAMES
@@ -188,7 +190,9 @@ def run(args: argparse.Namespace) -> int:
             "confidence thresholds)"
         )
     if config.pseudo.min_agree > clip.num_frames - 1:
-        raise AdaptError(f"--min-agree {config.pseudo.min_agree}: the model's clips have {clip.num_frames - 1} history frames")
+        raise AdaptError(
+            f"--min-agree {config.pseudo.min_agree}: the model's clips have {clip.num_frames - 1} history frames"
+        )
     clip = replace(clip, align="fly" if clip.align != "none" else "none", cache_dir=None)
     start = time.perf_counter()
     held: list[Any] = []
@@ -235,4 +239,3 @@ def main(argv: list[str] | None = None) -> int:
         return args
     status = run_command("stamlane adapt", lambda: run(args), AdaptError)
     return int(status)
-
