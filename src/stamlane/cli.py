@@ -49,6 +49,7 @@ TOOLS: dict[str, str] = {
     "report": "stamlane.experiments.report_cli",
     "stream": "stamlane.stream.cli",
     "export": "stamlane.stream.export_cli",
+    "adapt": "stamlane.training.adapt_cli",
 }
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
@@ -64,6 +65,7 @@ SUMMARIES: dict[str, str] = {
     "show": "picture grid of clips with their targets, to check a dataset",
     "stream": "per-frame streaming inference on a video or a folder of frames",
     "export": "a checkpoint to ONNX, with the parity against PyTorch printed",
+    "adapt": "a model adapted to your camera from your own unlabelled video (docs/adapt.md)",
     "ablate": "the paper's ablation tables over seeds",
     "report": "the tables of experiment summaries (demo, ablate), the paper's tables",
 }
