@@ -143,11 +143,11 @@ class Model:
     def open(cls, ckpt: str) -> Model:
         from stamlane.data.transforms import ClipTransform
         from stamlane.safety.checkpoints import CheckpointError
-        from stamlane.training.runs import open_model
-        from stamlane.weights import resolve
+        from stamlane.training.stored import StoredModel
 
         try:
-            module, clip = open_model(resolve(ckpt))
+            stored = StoredModel.open(ckpt)
+            module, clip = stored.module, stored.settings.clip
         except (CheckpointError, OSError, ValueError) as err:
             raise DiagnosisError(f"--ckpt {ckpt}: {err}") from None
         if clip is None or clip.stride != 1 or module.num_frames not in (1, HISTORY + 1):

@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         teacher_pass,
         write_adapted,
     )
-    from stamlane.training.runs import open_model
+    from stamlane.training.stored import StoredModel
 
     torch.set_num_threads(args.threads)
     config = _config(args)
@@ -181,7 +181,8 @@ def run(args: argparse.Namespace) -> int:
     if args.synthetic is not None and not (args.synthetic / "train.json").is_file():
         raise AdaptError(f"--synthetic {args.synthetic} holds no train.json (a set of `stamlane synth`)")
     out = _outputs(args, ckpt, source)
-    module, clip = open_model(ckpt)
+    stored = StoredModel.open(ckpt)  # read once, the network from the closed registry
+    module, clip = stored.module, stored.settings.clip
     if clip is None:
         raise AdaptError(f"--ckpt_path {ckpt} records no data options: how its clips are read is unknown")
     if clip.num_frames < 2 and config.pseudo.min_agree > 0:
