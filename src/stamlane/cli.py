@@ -278,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
         except ArgumentError as err:
             print(f"stamlane {command}: {one_line(err)} (see stamlane {command} --help)", file=sys.stderr)
             return 2
-        except (DataError, FileNotFoundError, ValueError, MisconfigurationException) as err:  # bad input: status 2
+        except (DataError, OSError, ValueError, MisconfigurationException) as err:  # bad input (or a place that
+            # cannot be written, by Lightning's own writers too): status 2
             print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
             return 2
         return 0

@@ -50,7 +50,7 @@ from stamlane.align.homography import (
 )
 from stamlane.align.warp import Strategy, alignments_to_key
 from stamlane.safety.budget import check_workers
-from stamlane.safety.guard import check_outputs
+from stamlane.safety.guard import atomic_path, check_outputs, make_folder
 from stamlane.safety.images import read_image
 
 __all__ = ["AlignJob", "ClipResult", "build_parser", "main", "process_clip"]
@@ -217,8 +217,11 @@ def _visualize(clip: _Clip, clip_dir: Path, pairs: dict[int, list[int]], job: Al
     rel = clip_dir.resolve().relative_to(job.root.resolve())
     name = "__".join(rel.parts) or "root"
     assert job.visualize_dir is not None  # asked for (--visualize)
-    job.visualize_dir.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"), picture)
+    make_folder(job.visualize_dir, "--visualize")
+    target = job.visualize_dir / f"{name}_{clip.frames[k].stem}_{clip.frames[i].stem}.jpg"
+    with atomic_path(target) as tmp:  # whole or not at all; a full disk is said, not skipped
+        if not cv2.imwrite(str(tmp), picture):
+            raise OSError(f"--visualize: cannot write {target}")
 
 
 def _run_one(task: tuple[Path, AlignJob]) -> ClipResult:

@@ -18,7 +18,7 @@ import numpy as np
 
 from stamlane.align.cache import CacheDict, alignment_from_json, read_cache, write_cache
 from stamlane.align.warp import warp_to_key
-from stamlane.safety.guard import atomic_path
+from stamlane.safety.guard import atomic_path, make_folder
 
 __all__ = [
     "MANIFEST_NAME",
@@ -112,7 +112,7 @@ def write_aligned_frames(
     manifest = read_cache(manifest_path)
     written = unaligned = 0
     changed = False
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     for k, i, name in planned_outputs(frames, pairs):
         key, target = frames[k], out_dir / name
         entry = manifest.setdefault(key.name, {})

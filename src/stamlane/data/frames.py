@@ -25,6 +25,7 @@ from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.labels import DataError
 from stamlane.data.options import ClipOptions
 from stamlane.safety.budget import MAX_FPS
+from stamlane.safety.guard import make_folder
 from stamlane.safety.images import open_video, read_image
 
 __all__ = [
@@ -100,8 +101,7 @@ def video_rate(video: str | Path) -> float | None:
 def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path:
     """Decode a video into ``out_dir/000000.jpg, 000001.jpg, ...`` (every ``every``-th frame); returns ``out_dir``."""
     capture = open_video(video, DataError)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
     total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     index = written = 0
     with tqdm(total=total, desc=f"decoding {Path(video).name}", unit="frame") as bar:
@@ -110,7 +110,8 @@ def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path
             if not ok:
                 break
             if index % every == 0:
-                cv2.imwrite(str(out / f"{written:06d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95])
+                if not cv2.imwrite(str(out / f"{written:06d}.jpg"), frame, [cv2.IMWRITE_JPEG_QUALITY, 95]):
+                    raise OSError(f"cannot write frame {written} of {video} into {out} (a full disk?)")
                 written += 1
             index += 1
             bar.update(1)

@@ -7,6 +7,7 @@ evaluators' (``stamlane_eval.io``): a file the evaluator refuses is refused here
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
@@ -15,8 +16,10 @@ from typing import Any
 import numpy as np
 from stamlane_eval import io as eval_io
 from stamlane_eval.io import LaneFileError, iter_tusimple, tusimple_points
+from stamlane_eval.io.files import name_problem
 
 from stamlane.safety.guard import is_inside
+from stamlane.safety.paths import shown
 
 __all__ = [
     "DataError",
@@ -48,15 +51,29 @@ def resolve_inside(root: Path, rel: str, source: str) -> Path:
         source: where ``rel`` was read (file and line), for the error message.
 
     Raises:
-        DataError: when the path leaves the root (``..``, or an absolute path elsewhere).
+        DataError: when the path leaves the root (``..``, or an absolute path elsewhere) or is a name no file can
+            have (a NUL byte, a component over the file system's limit), naming ``source``.
     """
     rel_clean = rel.strip().lstrip("/")
     if not rel_clean:
         raise DataError(f"{source}: empty path")
-    path = (root / rel_clean).resolve()
+    # a name no file can have (a NUL byte, a component over the file system's limit) is the file's problem, said
+    # with its name: os.stat would raise "embedded null byte" or "[Errno 36] File name too long" without it
+    problem = name_problem(os.fsencode(root / rel_clean))
+    if problem is not None:
+        raise DataError(f"{source}: path {_brief(rel)} {problem}")
+    try:
+        path = (root / rel_clean).resolve()
+    except (OSError, RuntimeError) as err:  # a loop of links (RuntimeError on Python 3.11)
+        raise DataError(f"{source}: path {_brief(rel)} cannot be resolved ({type(err).__name__})") from None
     if not is_inside(path, root):
         raise DataError(f"{source}: path {rel!r} is outside the data root {root}")
     return path
+
+
+def _brief(rel: str) -> str:
+    """A path of a label or list file as a short printable line: the label file and the line say where it is."""
+    return shown(rel) if len(rel) <= 80 else f"{shown(rel[:40])}…{shown(rel[-30:])} ({len(rel)} characters)"
 
 
 def read_tusimple_labels(path: Path) -> Iterator[tuple[int, TuSimpleRecord | DataError]]:

@@ -8,7 +8,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
-from stamlane_eval.io import duplicate_raw_file
+from stamlane_eval.io import LaneFileError, duplicate_raw_file, read_text
 
 from stamlane.data.clips import IMAGE_SUFFIXES, ClipDataset, ClipEntry
 from stamlane.data.labels import (
@@ -102,10 +102,17 @@ class _ListClips(ClipDataset):
         seen: dict[str, str] = {}
         for name in self.lists:
             path = resolve_inside(self.root, name, "lists")
-            try:
-                lines = path.read_text().splitlines()
+            try:  # a FIFO or a device is never read; gzip bytes or a NUL are the list file's problem, named
+                text = read_text(path, universal_newlines=False)
             except OSError as err:
-                raise DataError(f"cannot read list file {path}: {err}") from err
+                raise DataError(f"cannot read list file {path}: {err.strerror}") from None
+            except LaneFileError as err:  # names the file: not UTF-8 (gzip bytes?), a FIFO, over the size limit
+                raise DataError(f"list file {err}") from None
+            if "\x00" in text:
+                raise DataError(
+                    f"list file {path}: holds a NUL byte at character {text.index(chr(0))} (not a text list)"
+                )
+            lines = text.splitlines()
             for number, line in enumerate(lines, start=1):
                 if not line.strip():
                     continue

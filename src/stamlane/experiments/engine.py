@@ -31,7 +31,7 @@ from stamlane.experiments.split_scores import image_size, read_per_image, read_v
 from stamlane.experiments.store import ExperimentError, RunStore
 from stamlane.experiments.summary import ModelEntry, RunEntry, Summary
 from stamlane.predict.image_score import iou_width
-from stamlane.safety.guard import file_sha256, write_atomic
+from stamlane.safety.guard import file_sha256, make_folder, write_atomic
 from stamlane.training.quiet import quiet_libraries
 from stamlane.training.run_record import RunRecord
 
@@ -185,7 +185,7 @@ class Experiment:
         names = [r.name for r in self.rows]
         if len(set(names)) != len(names):
             raise ExperimentError(f"two rows share a name: {names}")
-        self.out.mkdir(parents=True, exist_ok=True)
+        make_folder(self.out, "--out")
         quiet_libraries()
         start = self._start = time.perf_counter()
         settings = self.settings()

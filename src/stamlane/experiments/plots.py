@@ -16,6 +16,7 @@ from stamlane_eval.names import metric_name
 from stamlane.experiments.metrics import TUSIMPLE_F1
 from stamlane.experiments.summary import Difference, Summary
 from stamlane.experiments.tables import REVEAL_SPLITS, headroom
+from stamlane.safety.guard import atomic_path
 
 __all__ = [
     "NEUTRAL",
@@ -151,8 +152,8 @@ def plot_reveal(summary: Summary, path: Path) -> Path | None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:  # a picture whole or not at all (the temporary name keeps the suffix)
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
 
@@ -190,8 +191,8 @@ def plot_history_use(summary: Summary, path: Path) -> Path | None:
     ax.legend(fontsize=8)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:  # a picture whole or not at all (the temporary name keeps the suffix)
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
 
@@ -230,6 +231,7 @@ def plot_val_curves(out: Path, runs: Sequence[tuple[str, str, int]], seeds: Sequ
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
     return path

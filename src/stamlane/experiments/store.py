@@ -137,6 +137,12 @@ class RunStore:
             ExperimentError: the record does not parse, was made with other settings, names a path outside the
                 experiment's folder, or its checkpoint is missing or differs from the digest it recorded.
         """
+        try:
+            return self._finished(name, settings)
+        except ExperimentError as err:  # every refusal names the run it refuses, not only its done file
+            raise ExperimentError(f"run {name}: {err}") from None
+
+    def _finished(self, name: str, settings: dict[str, Any]) -> RunRecord | None:
         folder = self.folder(name)
         path = folder / DONE
         if not path.is_file():

@@ -155,10 +155,10 @@ def claimed_out(
     Raises:
         GuardError: as `stamlane.safety.guard.check_outputs` and `stamlane.safety.guard.exclusive` say.
     """
-    from stamlane.safety.guard import check_outputs, exclusive, temporary_name
+    from stamlane.safety.guard import check_outputs, exclusive, make_folder, temporary_name
 
     files = list(files)
     check_outputs([*files, *map(temporary_name, files)], list(reads), folders=[out], protected=list(protected))
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out, "--out")
     with exclusive(out):
         yield

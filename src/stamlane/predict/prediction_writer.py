@@ -40,7 +40,7 @@ from stamlane_eval.io import culane_lines_path
 from stamlane.predict.image_score import image_score
 from stamlane.predict.overlay import draw_lanes, draw_legend
 from stamlane.predict.writers import TusimpleWriter, output_path, write_culane_lines
-from stamlane.safety.guard import temporary_name
+from stamlane.safety.guard import atomic_path, make_folder, temporary_name
 from stamlane.safety.images import read_image
 from stamlane.safety.owner import mark
 from stamlane.types import Lanes
@@ -203,14 +203,16 @@ class LanePredictionWriter(BasePredictionWriter):
     def _write_picture(self, raw_file: str, overlay: np.ndarray) -> None:
         path = culane_lines_path(self.output_dir / "overlays", raw_file).with_suffix("")
         path = path.with_suffix(".jpg")  # <stem>.lines -> <stem>.jpg
-        path.parent.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(output_path(self.output_dir, path)), overlay)
+        make_folder(path.parent)
+        with atomic_path(output_path(self.output_dir, path)) as tmp:  # whole or not at all; a full disk said
+            if not cv2.imwrite(str(tmp), overlay):
+                raise OSError(f"cannot write the overlay {path} (a full disk?)")
         self.written["overlays"] += 1
 
     def _write_frame(self, overlay: np.ndarray) -> None:
         if self._video is None:
             assert self._video_fps is not None  # frames are written for a video only (on_predict_batch_end)
-            self.output_dir.mkdir(parents=True, exist_ok=True)
+            make_folder(self.output_dir, "predictions.output_dir")
             tmp = output_path(self.output_dir, temporary_name(self.video_path))
             size = (overlay.shape[1], overlay.shape[0])  # OpenCV's (W, H)
             self._video = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), self._video_fps, size)

@@ -18,6 +18,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from stamlane.safety.guard import make_folder
 from stamlane.types import Lanes
 
 __all__ = [
@@ -62,7 +63,7 @@ class TusimpleWriter:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_folder(self.path.parent)
         self._file = open_output(self.path.parent, self.path)
         self.count = 0
 
@@ -103,7 +104,7 @@ def write_culane_lines(out_dir: str | Path, raw_file: str, lanes: Lanes) -> Path
     from stamlane_eval.io import culane_lines_path
 
     path = culane_lines_path(out_dir, raw_file)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     with open_output(out_dir, path) as f:
         f.write(format_culane_lines(lanes))
     return path

@@ -20,6 +20,7 @@ __all__ = [
     "MAX_FRAMES",
     "MAX_RECORD_BYTES",
     "MAX_SIDE",
+    "MAX_STREAM_BYTES",
     "MAX_SYNTH_FRAMES",
     "MAX_WORKERS",
     "BudgetError",
@@ -27,7 +28,9 @@ __all__ = [
     "check_frames",
     "check_rate",
     "check_size",
+    "check_stream_buffers",
     "check_workers",
+    "stream_bytes",
 ]
 
 MAX_FRAMES = 32
@@ -43,6 +46,9 @@ MAX_FPS = 1000.0
 """Frame rate of a written or simulated video, frames per second."""
 MAX_WORKERS = 256
 """Worker processes of one pool (``synth --workers``, ``data.loader.num_workers``)."""
+MAX_STREAM_BYTES = 8 << 30
+"""Memory of the streaming predictor's tensors at their peak (8 GiB): a full-HD frame through the paper's full-width
+VGG16 with 8 frames takes about 3.5 GiB by `stream_bytes`; the demo's 80x256 network a few MiB."""
 MAX_RECORD_BYTES = 64 << 20
 """Largest summary, table index, run record or run config read (64 MiB; the largest written takes a few MiB)."""
 
@@ -120,3 +126,54 @@ def check_rate(fps: object, what: str = "--fps") -> float:
     if not math.isfinite(fps) or not 0 < fps <= MAX_FPS:
         raise BudgetError(f"{what} must be a finite rate in (0, {MAX_FPS:g}] frames/s, got {fps}")
     return float(fps)
+
+
+def stream_bytes(
+    num_frames: int, size: tuple[int, int], channels: Sequence[int], strides: Sequence[int], embed_dim: int
+) -> int:
+    """Bytes of float32 tensors the streaming predictor holds at once for one frame at the network size ``size``
+    (measured within 20% on CPU: 262 B/px for the 0.125-wide VGG at 2048x2048, against 284 B/px here):
+
+    - the frame and its standardised copy (3 + 3 values a pixel);
+    - every encoder stage's features, kept for the decoder's skips (``channels[i] / strides[i]**2`` a pixel), and
+      the working copy of the widest stage (``channels[0]``);
+    - the history ring of ``num_frames - 1`` deepest features, their stacked and their warped copies (3 times);
+    - the decoder at full resolution (three maps of ``channels[0]``), its logits and embedding (``2 + embed_dim``)
+      and their float32, CPU and softmax copies (three times).
+    """
+    h, w = size
+    pixels = h * w
+    per_pixel = 6 + sum(c / s**2 for c, s in zip(channels, strides, strict=True)) + 4 * channels[0]
+    per_pixel += 3 * (2 + embed_dim)
+    history = 3 * (num_frames - 1) * channels[-1] * pixels / strides[-1] ** 2
+    return int(4 * (per_pixel * pixels + history))
+
+
+def check_stream_buffers(
+    num_frames: int,
+    size: tuple[int, int],
+    channels: Sequence[int],
+    strides: Sequence[int],
+    embed_dim: int,
+    what: str = "the streamed network",
+    *,
+    clips: bool = False,
+) -> int:
+    """The bytes `stream_bytes` counts, refused over `MAX_STREAM_BYTES` before any of them is allocated (a
+    checkpoint's recorded ``image_size`` of 8192 a side passes `check_clip` with one frame, and asks ~20 GiB).
+    With ``clips``, the frames go through the network together (``stamlane export``'s clip graph): T times more.
+
+    Raises:
+        BudgetError: naming ``what``, the frames, the size, the bytes and the budget.
+    """
+    if not channels or len(channels) != len(strides):
+        raise BudgetError(f"{what}: encoder channels {list(channels)} and strides {list(strides)} do not pair")
+    need = stream_bytes(num_frames, size, channels, strides, embed_dim)
+    if clips:  # a whole clip through the network at once (the ONNX clip graph, traced): every frame's buffers
+        need = num_frames * stream_bytes(1, size, channels, strides, embed_dim) + need
+    if need > MAX_STREAM_BYTES:
+        raise BudgetError(
+            f"{what}: {num_frames} frame(s) of {size[0]}x{size[1]} px need about {need / (1 << 30):.1f} GiB of "
+            f"buffers, over the budget of {MAX_STREAM_BYTES >> 30} GiB"
+        )
+    return need

@@ -37,6 +37,7 @@ __all__ = [
     "exclusive",
     "file_sha256",
     "is_inside",
+    "make_folder",
     "read_input",
     "read_inside",
     "temporary_name",
@@ -94,6 +95,33 @@ def _check_writable(out: PathLike, resolved: Path, folder: bool) -> None:
         raise GuardError(f"{out}: cannot write under {anchor}, a file, not a folder")
     if not os.access(anchor, os.W_OK | os.X_OK):
         raise GuardError(f"{out}: cannot write into {anchor} (permission denied)")
+    try:
+        read_only = bool(os.statvfs(anchor).f_flag & os.ST_RDONLY)  # root is not exempt from a read-only mount
+    except OSError:  # a file system that cannot say: the write itself will (make_folder, one line)
+        read_only = False
+    if read_only:
+        raise GuardError(f"{out}: cannot write into {anchor} (a read-only file system)")
+
+
+def make_folder(path: PathLike, what: str = "output folder") -> Path:
+    """Create the folder ``path`` (and its parents) where it is missing: the one ``mkdir`` of every command's
+    outputs (`atomic_path`, `stamlane.safety.owner.mark`, a writer's folder), so that a folder that cannot be made
+    (under a file, in a read-only or a permission-less place, a name the file system refuses) is one line naming
+    it, never a traceback, whichever command and writer meets it.
+
+    Raises:
+        GuardError: the folder cannot be created (the OS's reason in words).
+    """
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise GuardError(f"{what} {path} cannot be created: it, or a folder above it, is a file") from None
+    except OSError as err:
+        reason = err.strerror or type(err).__name__
+        where = f" ({err.filename})" if err.filename and os.fspath(err.filename) != os.fspath(path) else ""
+        raise GuardError(f"{what} {path} cannot be created: {reason}{where}") from None
+    return path
 
 
 def check_outputs(
@@ -161,7 +189,7 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
     without an error, removed when it fails: a reader never sees half a file, an interrupted write leaves the old
     one. A block that writes nothing at the temporary name leaves ``path`` as it was."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent, f"the folder of {path}")
     tmp = temporary_name(path)
     try:
         yield tmp

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from stamlane.safety.guard import LOCK_NAME, GuardError, read_inside, write_atomic
+from stamlane.safety.guard import LOCK_NAME, GuardError, make_folder, read_inside, write_atomic
 
 __all__ = ["MAX_SIBLINGS", "OWNER_NAME", "claim", "mark", "owner_of"]
 
@@ -49,6 +49,9 @@ def _is_ours(folder: Path, owner: dict[str, Any], strict: bool) -> str | None:
         if not folder.is_dir():  # missing, or no folder: the output guard says what is in the way
             return None
         names = sorted(p.name for p in folder.iterdir() if p.name not in _OURS)
+        record = folder / OWNER_NAME
+        if os.path.lexists(record) and not record.is_file():  # a folder, a FIFO, a dangling link: never replaced
+            return f"holds an owner file {OWNER_NAME} that is no file (a folder, a link to nothing or a FIFO)"
     except OSError as err:
         return f"cannot be read ({err.strerror})"
     found = owner_of(folder)
@@ -99,7 +102,6 @@ def claim(
 
 def mark(folder: str | os.PathLike[str], owner: dict[str, Any]) -> None:
     """Write ``folder``'s owner file (atomically): ``owner``, and this run (its start time and process id)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = make_folder(folder)
     run = {"run": {"started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "pid": os.getpid()}}
     write_atomic(folder / OWNER_NAME, json.dumps(owner | run, indent=1) + "\n")

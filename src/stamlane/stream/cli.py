@@ -42,7 +42,7 @@ from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 from stamlane.align.homography import ALIGN_PRESETS, align_preset
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
-from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
+from stamlane.safety.guard import atomic_path, check_outputs, make_folder, temporary_name
 from stamlane.safety.images import open_video, read_image
 from stamlane.safety.owner import claim, mark
 from stamlane.stream.eval_outputs import (
@@ -314,7 +314,7 @@ def run(args: argparse.Namespace) -> int:
     )
     frames, count, fps = iter_frames(source, args.max_frames, args.first_frame or DEFAULT_FIRST_FRAME)
     predictor = load_predictor(args)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir, "--out")
     with ExitStack() as stack:  # each under a temporary name, renamed when the stream ends: a failure keeps the old
         temps = {
             key: stack.enter_context(atomic_folder(path) if key == "culane" else atomic_path(path))

@@ -32,6 +32,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from stamlane.models import LaneNet
+from stamlane.safety.guard import make_folder
 
 __all__ = [
     "DEFAULT_OPSET",
@@ -118,7 +119,7 @@ def _export(
 ) -> Path:
     if opset < 16:
         raise ValueError(f"opset must be >= 16 (GridSample), got {opset}")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     dynamic = {name: {0: "batch"} for name in [*inputs, *outputs]}
     # a wrapper left in training mode is traced in training mode (batch-norm statistics updated) and the
     # exporter's mode restore then puts the whole wrapped network back into training mode

@@ -24,6 +24,7 @@ import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, check_input_file, format_wxh, parse_or_status
 
 from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import check_stream_buffers
 from stamlane.safety.guard import atomic_path, check_outputs, temporary_name
 from stamlane.safety.owner import claim, mark
 from stamlane.weights import resolve
@@ -133,6 +134,9 @@ def _write(args: Any, opset: int, outputs: list[Path]) -> int:
     module = model.module
     common = deployment_metadata(module, model.settings.clip, args.ckpt_path, opset)
     num_frames, size = common["num_frames"], tuple(common["image_size"])
+    net = module.net  # the buffers of tracing a clip, counted before one is made (a checkpoint's recorded size)
+    shape = (net.encoder.out_channels, net.encoder.strides, int(getattr(net.decoder, "embed_dim", 4)))
+    check_stream_buffers(num_frames, size, *shape, f"export of {args.ckpt_path}", clips=True)
     writers = {
         "clip": lambda path: export_clip(module.net, path, num_frames, size, opset),
         "encoder": lambda path: export_encoder(module.net, path, size, opset),

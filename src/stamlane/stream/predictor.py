@@ -51,6 +51,7 @@ from stamlane.data.transforms import ClipTransform
 from stamlane.models import LaneNet
 from stamlane.models.feature_aligned import fuse_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
+from stamlane.safety.budget import check_stream_buffers
 from stamlane.types import Lanes
 
 if TYPE_CHECKING:
@@ -163,9 +164,17 @@ class StreamingPredictor:
         self.stride = int(strides[-1])
         if len(image_size) != 2 or any(int(s) < self.stride or int(s) % self.stride for s in image_size):
             raise ValueError(f"image_size must be (H, W), positive multiples of {self.stride}, got {image_size!r}")
-        self.net = net.eval()
         self.num_frames = num_frames
         self.image_size = (int(image_size[0]), int(image_size[1]))
+        check_stream_buffers(  # before a buffer is made: a checkpoint's recorded image_size is a stranger's
+            num_frames,
+            self.image_size,
+            list(getattr(net.encoder, "out_channels", [])),
+            list(strides),
+            int(getattr(net.decoder, "embed_dim", 4)),
+            "the streaming predictor",
+        )
+        self.net = net.eval()
         self.align = align
         self.horizon_row = horizon_row
         self.align_config = align_config or AlignConfig()

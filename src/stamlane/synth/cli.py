@@ -19,7 +19,8 @@ from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRA
 from stamlane.synth.tusimple_layout import LAYOUTS
 
 SYNTH_OWNER = {"command": "synth"}
-"""What ``synth --out``'s owner file says: a folder synth wrote (`stamlane.safety.owner`)."""
+"""What ``synth --out``'s owner file says: a folder synth wrote (`stamlane.safety.owner`); with the layout and the
+set it writes (`_owner`)."""
 
 __all__ = ["build_parser", "main"]
 
@@ -139,7 +140,6 @@ def _synth(args: argparse.Namespace) -> int:
     if (Path(args.out) / "dataset.json").exists():  # written last by either layout: a whole set
         print(f"stamlane synth: {args.out} already holds a set (dataset.json); give another --out", file=sys.stderr)
         return 2
-    claim(args.out, SYNTH_OWNER, "--out", strict=True)
     tusimple = args.layout == "tusimple"
     if args.demo and tusimple:
         print(
@@ -187,8 +187,11 @@ def _synth(args: argparse.Namespace) -> int:
         counts = DEMO_SPLITS
         settings = {"train_key_step": TRAIN_KEY_STEP, "eval_key_step": EVAL_KEY_STEP, "seed": 0, "layout": "stamlane"}
         cfg = SynthConfig(world=args.world, randomise=args.randomise, label_lanes=args.label_lanes)
+    # an interrupted set is written again only as it was asked: another layout or set would leave its files beside
+    owner = _owner(args.layout, counts, cfg, settings)
+    claim(args.out, owner, "--out", strict=True)
     start = time.perf_counter()
-    mark(args.out, SYNTH_OWNER)
+    mark(args.out, owner)
     info = generate_dataset(args.out, counts, **settings, config=cfg, progress=not args.quiet, workers=args.workers)
     seconds = time.perf_counter() - start
     long = counts.reveal + counts.reveal_traffic + counts.train_motion
@@ -205,6 +208,19 @@ def _synth(args: argparse.Namespace) -> int:
                 f"unaligned lane shift {st['unaligned_shift_px']:.1f} px (T=4, stride 1)"
             )
     return 0
+
+
+def _owner(layout: str, counts: SplitCounts, cfg: SynthConfig, settings: dict[str, object]) -> dict[str, str]:
+    """The owner file of a set: its layout, and the rest of what names and counts its files, in words. A folder an
+    interrupted run left is written again only by the same layout and set (an other one would leave the first
+    one's label files and clips beside the new ones: refused in one line by `stamlane.safety.owner.claim`)."""
+    counted = ", ".join(f"{name} {n}" for name, n in counts.as_dict().items() if n)
+    steps = f"key steps {settings['train_key_step']}/{settings['eval_key_step']}, seed {settings['seed']}"
+    world = f"{cfg.world} world{' randomised' if cfg.randomise else ''}, labels {cfg.label_lanes}"
+    described = (
+        f"{cfg.width}x{cfg.height}, {cfg.num_frames} frames at {cfg.fps:g} fps, {steps}, {world}; clips: {counted}"
+    )
+    return SYNTH_OWNER | {"layout": layout, "set": described}
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stamlane.safety.guard import write_atomic
+from stamlane.safety.guard import make_folder, write_atomic
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import FACTORS, REVEAL, REVEAL_TRAFFIC, TRAIN_MOTION, SynthConfig, clip_kinds
 from stamlane.synth.layout import (
@@ -164,7 +164,7 @@ def generate_dataset(
     steps |= {"reveal": 0, "reveal-traffic": 0}
     keys = {split: key_frames(cfg.num_frames, steps[split]) for split in SPLITS}  # checks the steps
     reach_of = {split: REVEAL_FRAMES - 1 if split in ("reveal", "reveal-traffic") else FIRST_KEY for split in SPLITS}
-    root.mkdir(parents=True, exist_ok=True)
+    make_folder(root, "--out")
     (root / "dataset.json").unlink(missing_ok=True)  # the old set's record first: incomplete until written, last
     stats: dict[str, dict[str, float | dict[str, float]]] = {}
     clip_factors: dict[str, str] = {}

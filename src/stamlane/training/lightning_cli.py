@@ -15,7 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from jsonargparse import Namespace
+from jsonargparse import ArgumentError, Namespace
 from lightning.pytorch import Callback, Trainer
 from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
@@ -34,6 +34,7 @@ from stamlane.training.launch import one_process_unless_asked, spawned
 from stamlane.training.lightning_compat import keep_command_line_hparams, run_subcommand, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
+from stamlane.training.typed_values import refused_class
 
 __all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI", "checkpoint_name"]
 
@@ -106,7 +107,10 @@ class StamLaneCLI(LightningCLI):
     def parse_arguments(self, parser: LightningArgumentParser, args: Any) -> None:
         given = list(args) if isinstance(args, (list, tuple)) else sys.argv[1:] if args is None else []
         check_flags(given)  # --data.num_frames: one line naming --data.clip.num_frames
-        super().parse_arguments(parser, args)
+        try:
+            super().parse_arguments(parser, args)
+        except ArgumentError as err:  # a refused class: the key and the class, not 400 characters of type hints
+            raise ArgumentError(None, refused_class(str(err)) or str(err)) from None
         # the config's paths (data.root, model.init_weights, ...) through the gate of the flags' paths, whichever
         # file named them: a name too long, a NUL byte, a FIFO or a loop of links is one line, never opened
         check_config_paths(self.config.get(str(self.config.get("subcommand"))) or self.config)
@@ -271,6 +275,7 @@ class StamLaneCLI(LightningCLI):
         reads = [*inputs, ckpt if ckpt not in ("last", "best", "hpc", "registry") else None]
         folders: list[str | Path | None] = [self.trainer.default_root_dir]
         folders += [lg.save_dir for lg in self.trainer.loggers if getattr(lg, "save_dir", None)]
+        folders += [getattr(cb, "dirpath", None) for cb in self.trainer.checkpoint_callbacks]  # a ModelCheckpoint's
         files: list[str | Path | None] = []
         saver = next((cb for cb in callbacks_of(self.trainer) if isinstance(cb, SaveConfigCallback)), None)
         if saver is not None:  # the merged config, written over a --config of the same name in that folder

@@ -55,6 +55,7 @@ __all__ = [
     "MAX_VALUES",
     "OPTIMIZERS",
     "SCHEDULERS",
+    "STORED_CHOICES",
     "build_module",
     "check_data_hparams",
     "check_hparams",
@@ -265,6 +266,13 @@ def check_run_config(text: str, source: str | Path) -> dict[str, Any]:
     return config
 
 
+STORED_CHOICES = ("source", "ckpt_path", "predictions.output_dir")
+"""Options of a stored run config that are dropped (set to null) when it is read back: what to predict on, which
+checkpoint to read and where to write are the user's to give (``--source``, ``--ckpt_path``,
+``--predictions.output_dir``), never a checkpoint's: a stored ``source: /elsewhere`` would make ``predict --data.root
+ROOT`` read another folder's frames and write there."""
+
+
 @contextmanager
 def safe_config_file(text: str, source: str | Path) -> Iterator[Path]:
     """A temporary copy of the checked run config (`check_run_config`), written from the checked data so that
@@ -272,6 +280,11 @@ def safe_config_file(text: str, source: str | Path) -> Iterator[Path]:
     import yaml
 
     config = check_run_config(text, source)
+    for key in STORED_CHOICES:  # a stored config never chooses what is read (the frames, a checkpoint) nor written
+        section, _, option = key.rpartition(".")
+        holder = config.get(section) if section else config
+        if isinstance(holder, dict) and holder.get(option) is not None:
+            holder[option] = None
     with tempfile.TemporaryDirectory(prefix="stamlane-config-") as folder:
         path = Path(folder) / "config.yaml"
         path.write_text(yaml.safe_dump(config, sort_keys=False))
@@ -321,6 +334,24 @@ def check_data_hparams(hparams: Any, source: str | Path) -> None:
         raise CheckpointError(f"checkpoint {source}: datamodule_hyper_parameters unusable: {err}") from None
 
 
+def _check_network_size(build: Any, state_dict: Any, source: str | Path) -> None:
+    """Refuse hyper_parameters that build a network larger than the weights the checkpoint holds (an encoder
+    ``width`` of 64 asks tens of GiB before a weight is loaded): the network is built first on torch's ``meta``
+    device, which allocates nothing, and its values counted against the stored tensors'."""
+    import torch
+
+    if not isinstance(state_dict, Mapping):
+        raise CheckpointError(f"checkpoint {source}: its state_dict is no mapping of tensors")
+    stored = sum(t.numel() for t in state_dict.values() if isinstance(t, torch.Tensor))
+    with torch.device("meta"):
+        needed = sum(t.numel() for t in build().state_dict().values())
+    if needed > stored:
+        raise CheckpointError(
+            f"checkpoint {source} does not fit a stamlane network: its hyper_parameters build {needed:,} values, its "
+            f"weights hold {stored:,} (a network larger than its weights is never built)"
+        )
+
+
 def build_module(content: Mapping[str, Any], source: str | Path) -> Any:
     """The `StamLaneModule` of a checkpoint's content, built from the registry (never by jsonargparse), with its
     weights, on the CPU, in eval mode.
@@ -338,8 +369,15 @@ def build_module(content: Mapping[str, Any], source: str | Path) -> Any:
     hints, _ = parameter_hints(StamLaneModule)
     options = {k: v for k, v in hparams.items() if not k.startswith("_")}
     try:
+        _check_network_size(
+            lambda: StamLaneModule(**{k: build_value(v, hints[k]) for k, v in options.items()}),
+            content["state_dict"],
+            source,
+        )
         module = StamLaneModule(**{k: build_value(v, hints[k]) for k, v in options.items()})
         module.load_state_dict(content["state_dict"])
+    except CheckpointError:
+        raise
     except (RuntimeError, KeyError, TypeError, ValueError, AttributeError, IndexError) as err:
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
         raise CheckpointError(f"checkpoint {source} does not fit a stamlane network: {first[:200]}") from None

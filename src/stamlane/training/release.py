@@ -70,8 +70,7 @@ def release(ckpt: Path, out: Path) -> dict[str, Any]:
         released["datamodule_hyper_parameters"] = dict(content["datamodule_hyper_parameters"]) | {"root": None}
     released[CONFIG_KEY] = yaml.safe_dump(config, sort_keys=False)
     check_run_config(released[CONFIG_KEY], out)  # what ships is what the registry reads back
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out) as tmp:
+    with atomic_path(out) as tmp:  # makes the folder (one line when it cannot)
         torch.save(released, tmp)
     return released
 

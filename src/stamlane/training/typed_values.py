@@ -23,7 +23,16 @@ from functools import cache, partial
 from pathlib import PurePath
 from typing import Any
 
-__all__ = ["Refused", "Section", "build_value", "check_section", "check_value", "parameter_hints", "short"]
+__all__ = [
+    "Refused",
+    "Section",
+    "build_value",
+    "check_section",
+    "check_value",
+    "parameter_hints",
+    "refused_class",
+    "short",
+]
 
 
 def registry() -> Mapping[str, Any]:
@@ -120,6 +129,34 @@ def _describe_arms(arms: list[Any]) -> str:
     return " | ".join(_describe(arm) for arm in arms)
 
 
+_REFUSED_CLASS = (  # jsonargparse's words for a class that is not of the kind its key takes, most telling first
+    (re.compile(r"Import path (?P<name>\S+) does not correspond to a subclass of (?P<base>\w+)"), "is no {} subclass"),
+    (re.compile(r"Expected '(?P<name>[^']+)' to be a subclass of <class '(?P<base>\w+)'>"), "is no {} subclass"),
+    (re.compile(r"Expected '(?P<name>[^']+)' to be a function that returns <class '(?P<base>\w+)'>"), "is no {} class"),
+    (  # a class that is no optimizer, given with init_args of its own (``os.system``'s ``command``)
+        re.compile(r"Callable\[.*?\.(?P<base>\w+)\] expects .*Got value: Namespace\(class_path='(?P<name>[^']+)'"),
+        "is no {} class",
+    ),
+)
+_PARSER_KEY = re.compile(r'Parser key "([^"]+)":')
+
+
+def refused_class(message: str) -> str | None:
+    """One short line for jsonargparse's message on a class its key does not take (``trainer.callbacks``,
+    ``trainer.logger``, ``model.optimizer`` naming ``os.system`` or a Logger where a Callback goes): 400-odd
+    characters of union subtypes and type hints become ``Parser key "trainer.logger": os.system is no Logger
+    subclass``. None for any other message (it is said as jsonargparse says it)."""
+    key = _PARSER_KEY.match(message)
+    if key is None:
+        return None
+    for pattern, words in _REFUSED_CLASS:
+        found = pattern.search(message)
+        if found is not None:
+            name, base = found["name"], found["base"]
+            return f'Parser key "{key[1]}": {short(name)[1:-1]} {words.format(base)}'
+    return None
+
+
 def short(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
@@ -180,11 +217,10 @@ def _lookup(name: Any, key: str) -> Any:
     if found is None:
         if "/" in name or "\\" in name or name.endswith((".yaml", ".yml", ".json")):
             raise Refused(key, f"names the file {short(name)}: a sub-config is never read from a stored config")
+        # short: the key and the name say it; docs/safety.md says what the registry holds and that --config may
+        # name any class
         raise Refused(
-            key,
-            f"names {name!r}, not in stamlane's registry (a checkpoint or a run folder may name only stamlane's "
-            f"classes, torch.optim's and Lightning's callbacks and loggers, by exact name; give your own config "
-            f"with --config to use others)",
+            key, f"names {short(name)}, not in the registry (a stored config may name only stamlane's classes)"
         )
     return found
 
