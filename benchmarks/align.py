@@ -262,6 +262,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "align.json")
     parser.add_argument("--example", type=Path, default=None, help="only write the synthetic example picture here")
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("align.py", args.out)) is not None:  # before any work
+        return refused
     if args.example is not None:
         write_example(args.example)
         return 0

@@ -78,6 +78,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "align_presets.json")
     args = p.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("align_presets.py", args.out)) is not None:  # before any work
+        return refused
     paths = sorted(args.frames_dir.glob("*.jpg"))
     if not paths:
         print(f"skipped: no real frames in {args.frames_dir} (../shared absent)")

@@ -15,17 +15,21 @@ by `stamlane_eval.stats`; they hold the weights fixed and say nothing about anot
 frame width (`stamlane.predict.image_score.iou_width`), the frame size from the set's ``dataset.json`` or its first
 frame (``--size WxH`` to give it).
 
-Exit status 2, with one line on stderr, where a file cannot be read or a prediction file does not hold the gt's
-images.
+Exit status 2, with one line on stderr naming the file or option, where a file cannot be read (not JSON lines, a
+``dataset.json`` without its frame size, a first frame outside the set's folder), a prediction file does not hold
+the gt's images once each, the gt names an image twice, or the split has fewer than two clips (`_harness`).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _harness import clips_of, fail
 from stamlane_eval import culane
 from stamlane_eval.cli_tools import parse_wxh
 from stamlane_eval.io import MAX_IMAGE_SIDE, read_tusimple, tusimple_points
@@ -38,28 +42,38 @@ from stamlane_eval.stats import (
     paired_bootstrap,
     tusimple_rates,
 )
-from stamlane_eval.tusimple import evaluate
+from stamlane_eval.tusimple import TuSimpleInputError, evaluate
 
 MAX_RESAMPLES = 20_000  # the bootstrap holds resamples x images weights (100 MB at 640 images)
 
 
-def rates_by_image(gt: list[dict], pred_file: Path) -> tuple[list[str], np.ndarray]:
-    """The per-image ``(fp, fn)`` rates of one prediction file, in ``raw_file`` order, with those names."""
+def rates_by_image(gt: list[dict], pred_file: Path, gt_file: Path | None = None) -> tuple[list[str], np.ndarray]:
+    """The per-image ``(fp, fn)`` rates of one prediction file, in ``raw_file`` order, with those names.
+
+    Raises:
+        ValueError: the files cannot be scored as lane.py scores them, naming the file (``gt_file``, or ``gt``) and
+            the line.
+    """
     preds = read_tusimple(pred_file)
-    result = evaluate(preds, gt, time_limit=False)
+    try:
+        result = evaluate(preds, gt, time_limit=False)
+    except TuSimpleInputError as err:  # its line, in the file it names
+        where = {"gt": gt_file or "gt", "pred": pred_file}.get(err.source or "", None)
+        line = f": line {err.line}" if err.line is not None else ""
+        raise ValueError(f"{where}{line}: {err.message}" if where else err.message) from None
     names = [record["raw_file"] for record in preds]
     order = np.argsort(names, kind="stable")
     return [names[i] for i in order], tusimple_rates(result.per_image)[order]
 
 
 def counts_by_image(
-    gt: list[dict], pred_file: Path, threshold: float, size: tuple[int, int]
+    gt: list[dict], pred_file: Path, threshold: float, size: tuple[int, int], gt_file: Path | None = None
 ) -> tuple[list[str], np.ndarray]:
     """The per-image ``(tp, fp, fn)`` lane counts of one prediction file at IoU ``threshold``, in ``raw_file`` order,
     with those names; the images are checked as for the TuSimple F1 (`rates_by_image`: the gt's, once each)."""
     from stamlane.predict.image_score import iou_width
 
-    names, _ = rates_by_image(gt, pred_file)
+    names, _ = rates_by_image(gt, pred_file, gt_file)
     lanes = {record["raw_file"]: record["lanes"] for record in read_tusimple(pred_file)}
     labels = {record["raw_file"]: record for record in gt}
     result = culane.evaluate(
@@ -99,31 +113,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", help="the frames' WxH for --iou (default: the set's dataset.json or first frame)")
     args = parser.parse_args(argv)
     if not 100 <= args.resamples <= MAX_RESAMPLES:  # stamlane_eval.stats' floor; the ceiling bounds its weights
-        print(
-            f"card_intervals: error: --resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}", file=sys.stderr
-        )
-        return 2
+        return fail("card_intervals", f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}")
     if args.iou is not None and not 0 <= args.iou < 1:
-        print(f"card_intervals: error: --iou must be in [0, 1), got {args.iou}", file=sys.stderr)
-        return 2
+        return fail("card_intervals", f"--iou must be in [0, 1), got {args.iou}")
     names = args.names or [path.parent.name for path in args.preds]
     if len(names) != len(args.preds):
-        print(f"card_intervals: error: {len(names)} names for {len(args.preds)} prediction files", file=sys.stderr)
-        return 2
+        return fail("card_intervals", f"{len(names)} names for {len(args.preds)} prediction files")
     try:
         gt = read_tusimple(args.gt)
         if args.iou is None:
-            scored = [rates_by_image(gt, path) for path in args.preds]
+            scored = [rates_by_image(gt, path, args.gt) for path in args.preds]
             metric, statistic = "TuSimple F1", f1_of_rates
         else:
             size = frame_size(args.size, args.gt)
-            scored = [counts_by_image(gt, path, args.iou, size) for path in args.preds]
+            scored = [counts_by_image(gt, path, args.iou, size, args.gt) for path in args.preds]
             metric, statistic = f"IoU F1 @{args.iou:g}", f1_of_counts
-    except (OSError, ValueError) as err:  # the io and the evaluator raise ValueError subclasses
-        print(f"card_intervals: error: {err}", file=sys.stderr)
-        return 2
-    images = scored[0][0]  # every file holds the gt's images once each (evaluate refuses any other), sorted alike
-    clips = [str(PurePosixPath(name).parent) for name in images]
+        images = scored[0][0]  # every file holds the gt's images once each (evaluate refuses any other), sorted alike
+        clips = clips_of(images, args.gt)
+    except (OSError, ValueError) as err:  # the io, the evaluator and _harness raise ValueError subclasses
+        return fail("card_intervals", err)
     print(f"{args.gt.name}: {len(images)} images in {len(set(clips))} clips, {metric} in %, 95 % intervals")
     rates = [r for _, r in scored]
     for name, values in zip(names, rates, strict=True):

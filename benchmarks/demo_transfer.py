@@ -27,7 +27,6 @@ import numpy as np
 
 from stamlane.experiments.demo import MODELS
 from stamlane.experiments.store import RunStore
-from stamlane.training.compat import clip_options
 
 SPLITS = ("test", "challenging")
 
@@ -85,19 +84,15 @@ def unseen_seed(demo: Path, out: Path, seed: int, clips: int) -> dict:
 def real_frames(demo: Path, frames: Path, out: Path) -> Path:
     """``<out>/real_frames.jpg``: every model's lanes on each real frame (the frame as its own history)."""
     from stamlane.predict.overlay import draw_lanes
-    from stamlane.safety.checkpoints import read_checkpoint
     from stamlane.stream import StreamingPredictor
-    from stamlane.training.module import StamLaneModule
+    from stamlane.training.stored import StoredModel
 
     images = sorted(p for p in frames.iterdir() if p.suffix.lower() in (".jpg", ".png"))
     store = RunStore(demo)
     predictors = []
     for name, seeds in _runs(demo).items():
         ckpt = store.last_ckpt(store.run_name(name, seeds[0]))
-        module = StamLaneModule.from_checkpoint(ckpt)
-        data = read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {}
-        crop_top = module.hparams.get("crop_top") or clip_options(data).crop_top  # older runs: the data's
-        predictor = StreamingPredictor.from_module(module, crop_top=float(crop_top))
+        predictor = StreamingPredictor.from_stored(StoredModel.open(ckpt))
         predictors.append((name, predictor))
     rows = []
     for path in images:
@@ -124,6 +119,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=Path, default=None, help="a folder of real road frames")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/transfer"))
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("demo_transfer.py", args.out, folder=True)) is not None:  # before any work
+        return refused
     if not _runs(args.demo):
         print(f"demo_transfer: no demo runs under {args.demo} (run `stamlane demo` first)", file=sys.stderr)
         return 2

@@ -516,6 +516,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/eval_speed.json"), help="figures as JSON")
     ap.add_argument("--run-reference", nargs=2, metavar=("PRED", "GT"), help=argparse.SUPPRESS)  # the e2e child
     args = ap.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("eval_speed.py", args.out)) is not None:  # before any work
+        return refused
     if args.run_reference:  # one reference evaluation in this fresh process (timed from outside)
         lane = [r for r in args.reference if "LaneEval" in r.read_text()]
         evaluator = _load_reference(lane[0]).LaneEval if lane else _ReferenceLaneEval()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -70,6 +71,11 @@ def main() -> None:
     p.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     p.add_argument("--out", type=Path)
     args = p.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("fusion_share.py", args.out)) is not None:  # before any work
+        raise SystemExit(refused)
     torch.set_num_threads(2)
     results: dict[str, dict[str, list]] = {s: defaultdict(list) for s in SOURCES}
     for run in args.run:

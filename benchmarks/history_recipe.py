@@ -28,6 +28,7 @@ import argparse
 import csv
 import hashlib
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -259,6 +260,11 @@ def main() -> None:
     add_bf16_argument(parser)
     parser.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     args = parser.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("history_recipe.py", args.out, folder=True)) is not None:  # before any work
+        raise SystemExit(refused)
     if not (args.data / "train-clean.json").is_file():
         parser.error(f"{args.data} is not a synthetic set of format 5 (no train-clean.json); generate it first")
     args.out.mkdir(parents=True, exist_ok=True)

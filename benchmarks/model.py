@@ -201,6 +201,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("model.py", args.out)) is not None:  # before any work
+        return refused
     unknown = [f for f in args.fusions if f not in FUSIONS]
     if unknown:
         print(f"error: unknown fusion {unknown[0]!r}; choose from {', '.join(FUSIONS)}", file=sys.stderr)

@@ -20,6 +20,11 @@ Writes into ``--out`` (default ``outputs/bench/paper-learns``): ``<run>.json`` a
 (run, step, train loss, validation loss, validation F1, learning rate), ``paper-learns.json`` (the commands,
 settings, CPU, seconds and the first / last numbers of each run) and ``curve.png`` (the three curves) of every run
 in the folder (``--combine-only``: those alone, from the runs' files).
+
+A bad input is one line on stderr and exit status 2 before any run (`_harness`): an ``--out`` that is a file or lies
+inside ``--root``, a ``--size`` that is no ``WxH``, a ``--root`` whose ``dataset.json`` is not a set's (no
+``config``), a run file in ``--out`` that is not this script's (combined: nothing is written), no run file to
+combine; a ``stamlane synth`` / ``align`` / ``fit`` that refuses its input ends the script with its own line.
 """
 
 from __future__ import annotations
@@ -34,6 +39,9 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _harness import BenchInputError, check_out_folder, fail, read_json_object
+
 REPO = Path(__file__).resolve().parents[1]
 STAMLANE = [sys.executable, "-c", "import sys; from stamlane.cli import main; sys.exit(main())"]
 """``stamlane`` of this interpreter (the console script need not be on ``PATH``)."""
@@ -46,21 +54,59 @@ VARIANTS = {
 shipped configuration that does not diverge without ImageNet weights."""
 
 
+class StepFailed(RuntimeError):
+    """A ``stamlane`` subcommand that failed: ``code`` its exit status, ``line`` its last line on stderr."""
+
+    def __init__(self, what: str, code: int, stderr: str) -> None:
+        lines = stderr.strip().splitlines()
+        self.code, self.line = code, lines[-1] if lines else ""
+        self.tail = stderr[-2000:]
+        super().__init__(f"{what} failed ({code}): {self.line}")
+
+
+def _stamlane(what: str, command: list[str], env: dict[str, str] | None = None) -> None:
+    result = subprocess.run(command, env=env, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise StepFailed(what, result.returncode, result.stderr)
+
+
+def check_set(root: Path) -> bool:
+    """Whether ``root`` holds a set (its ``dataset.json``, checked), False where there is none yet.
+
+    Raises:
+        BenchInputError: ``root`` is a file, or its ``dataset.json`` is not a set's (not JSON, no ``config``).
+    """
+    if os.path.lexists(root) and not root.is_dir():
+        raise BenchInputError(f"--root {root} is a file, not a folder")
+    info = root / "dataset.json"
+    if not os.path.lexists(info):
+        return False
+    config = read_json_object(info, "--root's dataset.json", keys=("config",))["config"]
+    if not isinstance(config, dict):
+        raise BenchInputError(f"--root's dataset.json {info}: config is not an object (not a synthetic set?)")
+    return True
+
+
 def make_set(root: Path, clips: int, size: str, frames: int) -> None:
     """A synthetic set in TuSimple's layout (train / val / test 80 / 10 / 10 % of ``clips``) and its alignment cache
-    for the config's 4 frames, unless ``root`` already holds one."""
-    if not (root / "dataset.json").is_file():
+    for the config's 4 frames, unless ``root`` already holds one (its ``dataset.json`` checked first).
+
+    Raises:
+        BenchInputError: a ``dataset.json`` that is not a set's.
+        StepFailed: ``stamlane synth`` or ``align`` failed.
+    """
+    if not check_set(root):
         command = [
             *STAMLANE,
             *("synth", "--out", str(root), "--layout", "tusimple", "--clips", str(clips), "--size", size),
             *("--frames", str(frames), "--challenging-clips", "0", "--reveal-clips", "0"),
             *("--reveal-traffic-clips", "0", "--quiet"),
         ]
-        subprocess.run(command, check=True)
+        _stamlane("stamlane synth", command)
     if not (root / "alignment").is_dir():
-        subprocess.run(
+        _stamlane(
+            "stamlane align",
             [*STAMLANE, "align", str(root), "--cache", str(root / "alignment"), "--num-frames", "4", "--quiet"],
-            check=True,
         )
 
 
@@ -172,9 +218,11 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
         ax.legend()
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=90)
-    tmp.replace(path)
+    from stamlane.safety.guard import atomic_path
+
+    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
+        fig.savefig(tmp, dpi=90)
+    plt.close(fig)
 
 
 RUNS = {
@@ -204,19 +252,21 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict | None:
-    """Train run ``name`` (`RUNS`); its summary, also written to ``<out>/<name>.json`` with its curve rows."""
+def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict:
+    """Train run ``name`` (`RUNS`); its summary, also written to ``<out>/<name>.json`` with its curve rows.
+
+    Raises:
+        StepFailed: ``stamlane fit`` failed or logged nothing.
+    """
     variant, size, steps, every = {**RUNS, **QUICK_RUNS}[name]
     logs = (args.out / "runs").resolve()
     command = fit_command(variant, args, logs, steps, every, size, name)
     start = time.perf_counter()
-    result = subprocess.run(command, env=env, capture_output=True, text=True)
+    _stamlane(f"{name}: stamlane fit", command, env)
     seconds = time.perf_counter() - start
     versions = sorted((logs / name).glob("version_*/metrics.csv"), key=lambda p: p.stat().st_mtime)
-    if result.returncode != 0 or not versions:
-        print(f"paper_learns.py: {name}: stamlane fit failed ({result.returncode}):", file=sys.stderr)
-        print(result.stderr[-2000:], file=sys.stderr)
-        return None
+    if not versions:
+        raise StepFailed(f"{name}: stamlane fit", 1, f"no metrics.csv under {logs / name}")
     rows = curve_rows(name, read_metrics(versions[-1]))
     summary = {
         "variant": variant,
@@ -231,9 +281,11 @@ def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict | None
         "seconds": seconds,
         **summarise(rows),
     }
-    tmp = args.out / f"{name}.json.tmp"
-    tmp.write_text(json.dumps(finite({"summary": summary, "rows": rows}), indent=1, allow_nan=False))
-    tmp.replace(args.out / f"{name}.json")
+    from stamlane.safety.guard import write_atomic
+
+    write_atomic(
+        args.out / f"{name}.json", json.dumps(finite({"summary": summary, "rows": rows}), indent=1, allow_nan=False)
+    )
     val = ", ".join(f"step {v['step']}: loss {v['loss']:.3g} F1 {v['tusimple_f1']:.3f}" for v in summary["val"])
     print(
         f"{name}: {summary['steps']} steps in {seconds:.0f} s; train loss {summary['train_loss_first_fifth']:.3g} -> "
@@ -256,25 +308,47 @@ def finite(value: object) -> object:
     return value
 
 
-def combine(out: Path, info: dict) -> None:
-    """``curve.csv``, ``paper-learns.json`` and ``curve.png`` of every run whose ``<name>.json`` is in ``out`` (runs
-    made by several invocations, one after the other or side by side, end in one set of files)."""
+CURVE_FIELDS = ["run", "step", "train_loss", "val_loss", "val_f1", "lr"]
+
+
+def read_runs(out: Path, allow_none: bool = False) -> tuple[list[dict], dict[str, dict]]:
+    """The curve rows and summaries of every run file (``<name>.json``) in ``out``, each checked whole first.
+
+    Raises:
+        BenchInputError: a run file that is not this script's (not JSON, no ``rows`` list of curve rows or no
+            ``summary`` object), or no run file at all.
+    """
     rows, runs = [], {}
     for name in [*RUNS, *QUICK_RUNS]:
         path = out / f"{name}.json"
-        if path.is_file():
-            record = json.loads(path.read_text())
-            rows += record["rows"]
-            runs[name] = record["summary"]
-    tmp = out / "curve.csv.tmp"
-    with tmp.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=["run", "step", "train_loss", "val_loss", "val_f1", "lr"])
-        writer.writeheader()
-        writer.writerows(rows)
-    tmp.replace(out / "curve.csv")
-    tmp = out / "paper-learns.json.tmp"
-    tmp.write_text(json.dumps(finite({**info, "runs": runs}), indent=2, allow_nan=False))
-    tmp.replace(out / "paper-learns.json")
+        if not os.path.lexists(path):
+            continue
+        record = read_json_object(path, "run file", keys=("rows", "summary"))
+        mine, summary = record["rows"], record["summary"]
+        good = isinstance(mine, list) and all(isinstance(r, dict) and set(r) == set(CURVE_FIELDS) for r in mine)
+        if not good or not isinstance(summary, dict) or any(r["run"] != name for r in mine):
+            raise BenchInputError(f"run file {path}: its rows or summary are not this script's (run {name})")
+        rows += mine
+        runs[name] = summary
+    if not runs and not allow_none:
+        raise BenchInputError(f"--out {out}: no run file to combine ({', '.join(f'{n}.json' for n in RUNS)})")
+    return rows, runs
+
+
+def combine(out: Path, info: dict) -> None:
+    """``curve.csv``, ``paper-learns.json`` and ``curve.png`` of every run whose ``<name>.json`` is in ``out`` (runs
+    made by several invocations, one after the other or side by side, end in one set of files)."""
+    import io
+
+    from stamlane.safety.guard import write_atomic
+
+    rows, runs = read_runs(out)
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=CURVE_FIELDS)
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(out / "curve.csv", text.getvalue())
+    write_atomic(out / "paper-learns.json", json.dumps(finite({**info, "runs": runs}), indent=2, allow_nan=False))
     title = (
         f"configs/tusimple_stam4.yaml from scratch (width 1.0, 4 frames, SGD lr 0.05), batch {info['batch']}, "
         f"synthetic TuSimple-layout set ({info['set']['size']}), seed {info['seed']} (one seed), {info['cpu']}"
@@ -283,17 +357,31 @@ def combine(out: Path, info: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from stamlane_eval.cli_tools import parse_wxh
+    from stamlane_eval.io import MAX_IMAGE_SIDE
+
+    from stamlane.safety.guard import GuardError
     from stamlane.training.hardware import cpu_name
 
     args = _parser().parse_args(argv)
     if args.quick:
         quick = [name for name in args.runs if name in QUICK_RUNS]  # the quick runs asked for, else both
         args.clips, args.size, args.frames, args.runs = 3, "128x72", 5, quick or list(QUICK_RUNS)
-    if min(args.batch, args.threads, args.clips) < 1:
-        print("paper_learns.py: --batch, --threads and --clips must be >= 1", file=sys.stderr)
-        return 2
+    if min(args.batch, args.threads, args.clips, args.frames) < 1:
+        return fail("paper_learns.py", "--batch, --threads, --clips and --frames must be >= 1")
+    try:
+        parse_wxh(args.size, MAX_IMAGE_SIDE)
+    except argparse.ArgumentTypeError as err:
+        return fail("paper_learns.py", f"--size: {err}")
     env = dict(os.environ, OMP_NUM_THREADS=str(args.threads), OMP_WAIT_POLICY="PASSIVE")
     args.root = args.root.resolve()
+    try:
+        check_out_folder(args.out, protected=[] if args.combine_only else [args.root])
+        read_runs(args.out, allow_none=not args.combine_only)  # every run file checked before anything is written
+        if not args.combine_only:
+            check_set(args.root)
+    except (GuardError, BenchInputError) as err:
+        return fail("paper_learns.py", err)
     args.out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     info = {
@@ -307,11 +395,18 @@ def main(argv: list[str] | None = None) -> int:
         combine(args.out, info)
         print(f"wrote {args.out}/curve.csv, paper-learns.json, curve.png")
         return 0
-    make_set(args.root, args.clips, args.size, args.frames)
-    for name in args.runs:
-        if run(name, args, env) is None:
+    try:
+        make_set(args.root, args.clips, args.size, args.frames)
+        for name in args.runs:
+            run(name, args, env)
+        combine(args.out, info)
+    except BenchInputError as err:
+        return fail("paper_learns.py", err)
+    except StepFailed as err:  # a refusal (2) is its one line; a crash shows what it printed
+        if err.code != 2:
+            print(f"paper_learns.py: {err}\n{err.tail}", file=sys.stderr)
             return 1
-    combine(args.out, info)
+        return fail("paper_learns.py", err)
     print(f"wrote {args.out}/curve.csv, paper-learns.json, curve.png ({time.perf_counter() - started:.0f} s)")
     return 0
 

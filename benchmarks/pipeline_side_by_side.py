@@ -132,6 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/pipeline_side_by_side.json"))
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import BenchInputError, fail, guard_out, read_json_object
+
+    if (refused := guard_out("pipeline_side_by_side.py", args.out)) is not None:  # before any work
+        return refused
+    try:  # the parts skipped keep their earlier results: read (and checked) before any part runs
+        earlier = read_json_object(args.out, "--out") if args.skip and args.out.exists() else {}
+    except BenchInputError as err:
+        return fail("pipeline_side_by_side.py", err)
     import torch
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
@@ -189,8 +198,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"weights, bit for bit: {same}"
             )
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    if args.skip and args.out.is_file():  # the parts skipped keep their earlier results
-        result = json.loads(args.out.read_text()) | result
+    result = earlier | result  # the parts skipped keep their earlier results
     args.out.write_text(json.dumps(result, indent=1))
     print(f"wrote {args.out}")
     return 0

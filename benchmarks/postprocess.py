@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -59,6 +60,11 @@ def main() -> None:
     parser.add_argument("--max-points", type=int, nargs="+", default=[1000, 2000, 3000])
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/postprocess.json"))
     args = parser.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("postprocess.py", args.out)) is not None:  # before any work
+        raise SystemExit(refused)
 
     height, width = args.size
     prob, emb = synthetic_heads(height, width, args.lanes, args.width, args.spread, args.noise, seed=0)

@@ -260,6 +260,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--runs", type=int, default=2, help="with --check: profiles made now, each compared")
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("profile_pipeline.py", args.out)) is not None:  # before any work
+        return refused
     if args.check:
         reference = json.loads(args.check.read_text())["summary"]
         if args.result:

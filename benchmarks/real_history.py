@@ -15,6 +15,12 @@ checkpoint), and each checkpoint (default: the shipped ``stam4-dashcam`` and ``s
 - ``copies``: the predictor reset and the spoiled frame alone, its history slots copies of it (how a stream starts).
   A single-frame checkpoint runs once: both are the same.
 
+The kinds ``vehicle`` and ``traffic`` (asked for by ``--kinds``) are the paper's case: real vehicles (rear views cut
+from ``../shared/data/frames`` by the rectangles of `PATCHES`), `VEHICLES_PER_FRAME` pasted on different lines,
+standing on the road plane (`Road`, `placement`: scaled with their row) and moving relative to it (`SPEED_MS` along
+the road, up to `LATERAL_MS` across); ``vehicle``: in the key frame alone, the history intact; ``traffic``: in every
+frame where they stood then (25 fps). Both share the key frame; `hidden_counts`: the labelled points hidden.
+
 The kind ``none`` (the key frame clean) is the reference. lane.py's F1 per checkpoint, probe and kind, in TuSimple's
 1280x720 as `real_roads.score_video_frames` scores it, with a 95 % bootstrap interval over the ten frames (the draws
 of a frame resampled together); the history use (``history − copies``) and each checkpoint against the first, paired.
@@ -30,6 +36,8 @@ import argparse
 import json
 import re
 import sys
+from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +49,17 @@ import real_roads  # a benchmark script beside this one
 
 from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption
 
-KINDS = ("none", *CORRUPTIONS)
+VEHICLE_KINDS = ("vehicle", "traffic")  # real vehicles pasted over the lines: the key frame alone / every frame
+KINDS = ("none", *CORRUPTIONS, *VEHICLE_KINDS)
+DEFAULT_KINDS = ("none", *CORRUPTIONS)  # what the committed tables of docs/results/real-history/ were made with
+PATCHES = real_roads.REPO / "benchmarks" / "labels" / "real_vehicles.json"  # rectangles in ../shared/data/frames
+VEHICLES_PER_FRAME = 2  # vehicles pasted on a frame, each on another labelled line
+LANE_WIDTH_M = 3.7  # a US highway lane: the metric scale of the ego lane's two lines
+VEHICLE_WIDTH_M = 1.85  # every patch's vehicle, mirror to mirror
+HFOV_DEG = 60.0  # the video camera's assumed horizontal field of view (only the vehicles' speeds in pixels need it)
+SPEED_MS = (3.0, 15.0)  # range of a vehicle's speed along the road relative to the camera, either way (m/s)
+LATERAL_MS = 1.5  # largest lateral speed (m/s): a lane change across the line it covers
+NEAREST_M = 2.5  # a vehicle nearer than this (its bottom below the bonnet) is not drawn
 SEEDED = re.compile(r"^(?P<recipe>.+)-s(?P<seed>\d+)$")  # a checkpoint of one seed of a recipe
 DEFAULT_CKPTS = ("stam4-dashcam", "single-dashcam")
 DEFAULT_DRAWS = 3
@@ -59,18 +77,222 @@ def spoil(image: np.ndarray, kind: str, seed: list[int]) -> np.ndarray:
     return np.ascontiguousarray((clip[0].transpose(1, 2, 0)[..., ::-1] * 255.0).round().astype(np.uint8))
 
 
-def read_frames(path: Path, wanted: set[int]) -> dict[int, np.ndarray]:
-    """The video's frames of index in ``wanted`` (BGR uint8)."""
+def read_frames(path: Path, wanted: set[int]) -> tuple[dict[int, np.ndarray], float]:
+    """The video's frames of index in ``wanted`` (BGR uint8) and its frame rate (25 where it records none)."""
     from stamlane.stream.cli import StreamError, iter_frames
 
     try:
-        frames, _, _ = iter_frames(path, max(wanted) + 1)
+        frames, _, fps = iter_frames(path, max(wanted) + 1)
         images = {i: image for i, (_, image) in enumerate(frames) if i in wanted}
     except StreamError as err:
         raise real_roads.RealRoadsError(str(err)) from None
     if len(images) < len(wanted):
         raise real_roads.RealRoadsError(f"{path} ends before frame {max(wanted)}, which its labels need")
-    return images
+    return images, float(fps or 25.0)
+
+
+# --------------------------------------------------------------------------------------------- real vehicles
+def read_patches(shared: Path) -> list[np.ndarray]:
+    """The vehicles of `PATCHES`, cut from the real frames in ``shared/data/frames`` (BGR uint8, rear views)."""
+    spec = json.loads(PATCHES.read_text())
+    patches = []
+    for entry in spec["patches"]:
+        path = shared / "data" / "frames" / entry["frame"]
+        image = cv2.imread(str(path)) if path.is_file() else None
+        if image is None:
+            raise real_roads.RealRoadsError(f"{path} cannot be read (the vehicle patches are cut from it)")
+        x0, y0, x1, y1 = entry["box"]
+        if not (0 <= x0 < x1 <= image.shape[1] and 0 <= y0 < y1 <= image.shape[0]):
+            raise real_roads.RealRoadsError(f"{PATCHES.name}: box {entry['box']} lies outside {path}")
+        patches.append(image[y0:y1, x0:x1].copy())
+    return patches
+
+
+@dataclass(frozen=True)
+class Road:
+    """A labelled frame's road, in TuSimple's 1280x720 label pixels: each line as ``x = a y + b`` with its first and
+    last labelled rows, the ego lane's vanishing row, the camera's height (metres, from `LANE_WIDTH_M` and how fast
+    the ego lane widens down the frame) and its focal length (`HFOV_DEG`)."""
+
+    lines: list[tuple[float, float, float, float]]
+    horizon: float
+    height: float
+    focal: float
+
+    @classmethod
+    def of(cls, record: dict) -> Road:
+        rows = np.asarray(record["h_samples"], np.float64)
+        lines = []
+        for lane in record["lanes"]:
+            xs = np.asarray(lane, np.float64)
+            on = xs >= 0
+            if on.sum() >= 2:
+                a, b = np.polyfit(rows[on], xs[on], 1)
+                lines.append((float(a), float(b), float(rows[on].min()), float(rows[on].max())))
+        if len(lines) < 2:
+            raise real_roads.RealRoadsError(f"{record['raw_file']}: fewer than two labelled lines, no road to drive on")
+        bottom = real_roads.TUSIMPLE_WIDTH * 9 / 16
+        lines.sort(key=lambda line: line[0] * bottom + line[1])
+        centre = real_roads.TUSIMPLE_WIDTH / 2
+        left, right = min(
+            pairwise(lines), key=lambda p: abs((p[0][0] + p[1][0]) * bottom / 2 + (p[0][1] + p[1][1]) / 2 - centre)
+        )
+        widening = right[0] - left[0]  # the ego lane's width grows by this many pixels a row
+        horizon = -(right[1] - left[1]) / widening
+        focal = real_roads.TUSIMPLE_WIDTH / (2 * np.tan(np.radians(HFOV_DEG) / 2))
+        return cls(lines, float(horizon), LANE_WIDTH_M / widening, float(focal))
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """A vehicle on the road at the key frame: on ``line`` (its index in `Road.lines`) ``z`` metres ahead,
+    ``offset`` metres right of it, moving ``speed`` m/s away along the road and ``lateral`` m/s to the right;
+    ``patch``: its picture (an index of `read_patches`)."""
+
+    line: int
+    z: float
+    offset: float
+    speed: float
+    lateral: float
+    patch: int
+
+
+def draw_vehicles(road: Road, rng: np.random.Generator, patches: int) -> list[Vehicle]:
+    """`VEHICLES_PER_FRAME` vehicles, each on another line, its bottom on a row drawn over the nearer 70 % of the
+    line's labelled rows (so that it hides the line from there up), within 0.3 m of the line."""
+    chosen = rng.choice(len(road.lines), size=min(VEHICLES_PER_FRAME, len(road.lines)), replace=False)
+    vehicles = []
+    for line in (int(i) for i in chosen):
+        top, bottom = road.lines[line][2:]
+        row = top + float(rng.uniform(0.3, 1.0)) * (bottom - top)
+        z = road.focal * road.height / max(row - road.horizon, 1.0)
+        speed = float(rng.choice([-1.0, 1.0])) * float(rng.uniform(*SPEED_MS))
+        offset, lateral = float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-LATERAL_MS, LATERAL_MS))
+        vehicles.append(Vehicle(line, z, offset, speed, lateral, int(rng.integers(patches))))
+    return vehicles
+
+
+def placement(vehicle: Vehicle, road: Road, aspect: float, t: float) -> tuple[float, float, float, float] | None:
+    """Where ``vehicle`` stands ``t`` seconds after the key frame (negative: before it): its box ``(x0, y0, x1, y1)``
+    in label pixels, the bottom on the ground row of its distance, its width `VEHICLE_WIDTH_M` at that row's scale,
+    its height ``aspect`` (height / width of its picture) times that; None nearer than `NEAREST_M`."""
+    z = vehicle.z + vehicle.speed * t
+    if z < NEAREST_M:
+        return None
+    scale = road.focal / z  # pixels a metre at its distance
+    bottom = road.horizon + road.height * scale
+    a, b = road.lines[vehicle.line][:2]
+    centre = a * bottom + b + (vehicle.offset + vehicle.lateral * t) * scale
+    width = VEHICLE_WIDTH_M * scale
+    return centre - width / 2, bottom - aspect * width, centre + width / 2, bottom
+
+
+def silhouette(height: int, width: int) -> np.ndarray:
+    """A vehicle's rear outline in its box, ``(height, width)`` float32 in [0, 1]: the top 40 % (cabin and roof)
+    narrowing to 76 % of the width, the edges softened by a pixel."""
+    alpha = np.zeros((height, width), np.float32)
+    for row in range(height):
+        inset = round(0.12 * max(0.0, 1 - row / (0.4 * height)) * width)
+        alpha[row, inset : max(width - inset, inset + 1)] = 1.0
+    return cv2.GaussianBlur(alpha, (3, 3), 0) if min(height, width) >= 3 else alpha
+
+
+def _boxes(
+    vehicles: list[Vehicle], road: Road, patches: list[np.ndarray], t: float, width: int
+) -> list[tuple[Vehicle, int, int, int, int]]:
+    """Each vehicle standing at time ``t`` with its box in the pixels of a frame ``width`` wide, far to near."""
+    scale = width / real_roads.TUSIMPLE_WIDTH
+    out = []
+    for vehicle in sorted(vehicles, key=lambda v: -(v.z + v.speed * t)):
+        patch = patches[vehicle.patch]
+        box = placement(vehicle, road, patch.shape[0] / patch.shape[1], t)
+        if box is not None:
+            x0, y0, x1, y1 = (round(c * scale) for c in box)
+            if x1 - x0 >= 2 and y1 - y0 >= 2:
+                out.append((vehicle, x0, y0, x1, y1))
+    return out
+
+
+def paste(image: np.ndarray, vehicles: list[Vehicle], road: Road, patches: list[np.ndarray], t: float) -> np.ndarray:
+    """``image`` (BGR uint8, any size of TuSimple's aspect) with ``vehicles`` where they stand at time ``t``, far to
+    near, each its picture resized to its box and blended through its `silhouette`; ``image`` is not changed."""
+    out = image.astype(np.float32)
+    h, w = image.shape[:2]
+    for vehicle, x0, y0, x1, y1 in _boxes(vehicles, road, patches, t, w):
+        cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        if cx1 <= cx0 or cy1 <= cy0:
+            continue
+        sprite = cv2.resize(patches[vehicle.patch], (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
+        part = (slice(cy0 - y0, cy1 - y0), slice(cx0 - x0, cx1 - x0))
+        alpha = silhouette(y1 - y0, x1 - x0)[part][..., None]
+        out[cy0:cy1, cx0:cx1] = alpha * sprite[part].astype(np.float32) + (1 - alpha) * out[cy0:cy1, cx0:cx1]
+    return np.clip(out.round(), 0, 255).astype(np.uint8)
+
+
+def cover(
+    shape: tuple[int, int], vehicles: list[Vehicle], road: Road, patches: list[np.ndarray], t: float
+) -> np.ndarray:
+    """Where the vehicles standing at time ``t`` hide the road in a frame of ``shape`` (H, W): bool, the pixels
+    of their silhouettes above one half."""
+    h, w = shape
+    mask = np.zeros((h, w), bool)
+    for _, x0, y0, x1, y1 in _boxes(vehicles, road, patches, t, w):
+        cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        if cx1 > cx0 and cy1 > cy0:
+            alpha = silhouette(y1 - y0, x1 - x0)[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
+            mask[cy0:cy1, cx0:cx1] |= alpha > 0.5
+    return mask
+
+
+def hidden_counts(record: dict, masks: list[np.ndarray]) -> list[int]:
+    """``[labelled points, hidden in the key frame, of those free in at least one earlier frame]``: the record's
+    points (label pixels) looked up in ``masks`` (the earlier frames' covers, oldest first, the key frame's last) at
+    the same image point (the camera's own motion over the few frames left out: a line moves little in the image)."""
+    h, w = masks[-1].shape
+    scale = w / real_roads.TUSIMPLE_WIDTH
+    points = hidden = shown = 0
+    for lane in record["lanes"]:
+        for x, y in zip(lane, record["h_samples"]):
+            col, row = round(x * scale), round(y * scale)
+            if x < 0 or not (0 <= col < w and 0 <= row < h):
+                continue
+            points += 1
+            if masks[-1][row, col]:
+                hidden += 1
+                shown += int(any(not m[row, col] for m in masks[:-1]))
+    return [points, hidden, shown]
+
+
+def spoiled_window(
+    clean: list[np.ndarray], kind: str, seed: list[int], record: dict, patches: list[np.ndarray], fps: float
+) -> list[np.ndarray]:
+    """A labelled frame and its predecessors (``clean``, oldest first, the frame last) as the probes see them: the
+    frame spoiled by ``kind`` and its history clean; ``vehicle``: real vehicles pasted over its lines (`paste`),
+    the history clean; ``traffic``: the same vehicles in every frame where they stood then (``fps``)."""
+    if kind not in VEHICLE_KINDS:
+        return [*clean[:-1], spoil(clean[-1], kind, seed)]
+    road = Road.of(record)
+    vehicles = draw_vehicles(road, np.random.default_rng(seed), len(patches))
+    depth = len(clean) - 1
+    history = [
+        paste(image, vehicles, road, patches, -(depth - k) / fps) if kind == "traffic" else image
+        for k, image in enumerate(clean[:-1])
+    ]
+    return [*history, paste(clean[-1], vehicles, road, patches, 0.0)]
+
+
+def window_covers(
+    record: dict, kind: str, seed: list[int], patches: list[np.ndarray], fps: float, depth: int, shape: tuple[int, int]
+) -> list[np.ndarray]:
+    """What the vehicles of `spoiled_window` hide in each frame of its window (oldest first; `cover`): nothing in the
+    history of ``vehicle``, the vehicles where they stood then in that of ``traffic``."""
+    road = Road.of(record)
+    vehicles = draw_vehicles(road, np.random.default_rng(seed), len(patches))
+    times = [-(depth - k) / fps for k in range(depth + 1)]
+    return [
+        cover(shape, vehicles, road, patches, t) if kind == "traffic" or t == 0 else np.zeros(shape, bool)
+        for t in times
+    ]
 
 
 def run_probe(predictor: Any, history: list[np.ndarray], key: np.ndarray) -> list[np.ndarray]:
@@ -105,10 +327,16 @@ Probe = tuple[str, Any, str]  # (checkpoint name, its predictor, "history" or "c
 
 
 def run(
-    ckpts: list[str], video: Path, kinds: list[str], draws: int, resamples: int, frames: int | None = None
+    ckpts: list[str],
+    video: Path,
+    kinds: list[str],
+    draws: int,
+    resamples: int,
+    frames: int | None = None,
+    patches: list[np.ndarray] | None = None,
 ) -> tuple[dict, dict[str, np.ndarray]]:
     """Every checkpoint on every spoiled labelled frame (the first ``frames``): the numbers, and the first
-    checkpoint's sheet cells."""
+    checkpoint's sheet cells; ``patches``: the vehicles of the vehicle kinds (`read_patches`)."""
     records = real_roads.read_video_labels()[:frames]
     names = [Path(ckpt).stem for ckpt in ckpts]  # a file's name without its folder, as real_roads.py names it
     if len(set(names)) < len(names):
@@ -116,9 +344,11 @@ def run(
     predictors = [real_roads.load(ckpt) for ckpt in ckpts]
     probes = [(c, p, probe) for c, p in zip(names, predictors, strict=True) for probe in ("history", "copies")]
     probes = [(c, p, probe) for c, p, probe in probes if p.num_frames > 1 or probe == "history"]
-    preds, scored, sheet = stream(probes, records, video, kinds, draws)
+    preds, scored, sheet, hidden = stream(probes, records, video, kinds, draws, patches or [])
     out: dict[str, Any] = {"video": video.name, "labels": str(real_roads.VIDEO_LABELS.relative_to(real_roads.REPO))}
     out |= {"frames": [real_roads.video_frame(r) for r in records], "draws": draws, "kinds": kinds}
+    if hidden:  # the vehicle kinds: labelled points they hide in the key frame, of those free in an earlier frame
+        out["hidden_points"] = {k: dict(zip(("points", "hidden", "free_in_history"), v)) for k, v in hidden.items()}
     out["checkpoints"] = {c: {"num_frames": p.num_frames, "kinds": {k: {} for k in kinds}} for c, p, _ in probes}
     results = {key: scores(value, scored[key[2]], resamples) for key, value in preds.items()}
     for (ckpt, probe, kind), value in results.items():
@@ -134,36 +364,43 @@ def run(
 
 
 def stream(
-    probes: list[Probe], records: list[dict], video: Path, kinds: list[str], draws: int
-) -> tuple[dict[tuple[str, str, str], list[dict]], dict[str, list[dict]], dict[str, np.ndarray]]:
+    probes: list[Probe], records: list[dict], video: Path, kinds: list[str], draws: int, patches: list[np.ndarray]
+) -> tuple[dict[tuple[str, str, str], list[dict]], dict[str, list[dict]], dict[str, np.ndarray], dict[str, list[int]]]:
     """Every probe on every spoiled labelled frame: lane.py's prediction records per (checkpoint, probe, kind), the
-    label records they answer per kind (``raw_file`` ``<video>#<frame>~<kind>~<draw>``, ``frame`` added), and the
-    sheet's cells (the first checkpoint on the middle frame, draw 0)."""
+    label records they answer per kind (``raw_file`` ``<video>#<frame>~<kind>~<draw>``, ``frame`` added), the
+    sheet's cells (the first checkpoint on the middle frame, draw 0) and, per vehicle kind, `hidden_counts` summed."""
     label_frames = [real_roads.video_frame(r) for r in records]
     depth = max(predictor.num_frames for _, predictor, _ in probes) - 1
     if min(label_frames) < depth:
         raise real_roads.RealRoadsError(f"labelled frame {min(label_frames)} has fewer than {depth} predecessors")
-    images = read_frames(video, {f - k for f in label_frames for k in range(depth + 1)})
+    images, fps = read_frames(video, {f - k for f in label_frames for k in range(depth + 1)})
     width = images[label_frames[0]].shape[1]
     sheet_frame = label_frames[len(label_frames) // 2]  # mid-clip: frame 121 of the ten
     preds: dict[tuple[str, str, str], list[dict]] = {(c, probe, k): [] for c, _, probe in probes for k in kinds}
     scored: dict[str, list[dict]] = {k: [] for k in kinds}
     sheet: dict[str, np.ndarray] = {}
+    hidden: dict[str, list[int]] = {}
     for record, frame in zip(records, label_frames, strict=True):
         for kind in kinds:
             for draw in range(draws if kind != "none" else 1):
-                key = spoil(images[frame], kind, [frame, KINDS.index(kind), draw])
+                seed = [frame, KINDS.index("vehicle" if kind in VEHICLE_KINDS else kind), draw]  # vehicle = traffic
+                clean = [images[frame - k] for k in range(depth, -1, -1)]
+                window = spoiled_window(clean, kind, seed, record, patches, fps)
+                key = window[-1]
+                if kind in VEHICLE_KINDS:
+                    masks = window_covers(record, kind, seed, patches, fps, depth, key.shape[:2])
+                    hidden[kind] = [a + b for a, b in zip(hidden.get(kind, [0, 0, 0]), hidden_counts(record, masks))]
                 name = f"{record['raw_file']}~{kind}~{draw}"
                 scored[kind].append(record | {"raw_file": name, "frame": frame})
                 for ckpt, predictor, probe in probes:
-                    history = [images[frame - k] for k in range(predictor.num_frames - 1, 0, -1)]
+                    history = window[len(window) - predictor.num_frames : -1]
                     lanes = run_probe(predictor, history if probe == "history" else [], key)
                     pred = real_roads.video_prediction(record, lanes, width)
                     preds[ckpt, probe, kind].append(pred | {"raw_file": name, "frame": frame})
                     if ckpt == probes[0][0] and frame == sheet_frame and draw == 0:
                         truth = [lane * (width / real_roads.TUSIMPLE_WIDTH) for lane in real_roads.gt_lanes(record)]
                         sheet[f"{kind}|{probe}"] = _cell(key, lanes, truth, f"{ckpt}, {probe}: {kind}")
-    return preds, scored, sheet
+    return preds, scored, sheet, hidden
 
 
 def recipe_groups(names: list[str]) -> dict[str, list[str]]:
@@ -265,6 +502,14 @@ def table(out: dict) -> str:
     lines = _table(head, rows)
     if out.get("recipes"):
         lines += ["", *recipe_table(out)]
+    if out.get("hidden_points"):
+        counts = [
+            [kind, str(c["points"]), f"{100 * c['hidden'] / max(c['points'], 1):.1f}",
+             f"{100 * c['free_in_history'] / max(c['hidden'], 1):.1f}"]
+            for kind, c in out["hidden_points"].items()
+        ]  # fmt: skip
+        head = ["key frame", "labelled points", "% hidden by the vehicles", "% of those free in an earlier frame"]
+        lines += ["", *_table(head, counts)]
     return "\n".join(lines) + "\n"
 
 
@@ -293,7 +538,9 @@ def recipe_table(out: dict) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
-    parser.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"key-frame spoils, of {' '.join(KINDS)}")
+    parser.add_argument(
+        "--kinds", nargs="+", default=list(DEFAULT_KINDS), help=f"key-frame spoils, of {' '.join(KINDS)}"
+    )
     parser.add_argument("--draws", type=int, default=DEFAULT_DRAWS, help=f"spoils per frame and kind (1-{MAX_DRAWS})")
     parser.add_argument("--frames", type=int, help="only the first N labelled frames")
     parser.add_argument("--resamples", type=int, default=2000, help=f"bootstrap resamples (100-{MAX_RESAMPLES})")
@@ -328,8 +575,10 @@ def main(argv: list[str] | None = None) -> int:
     if problem is not None:
         print(f"real_history: error: {problem}", file=sys.stderr)
         return 2
+    kinds = list(dict.fromkeys(args.kinds))
     try:
-        out, cells = run(args.ckpt, video, list(dict.fromkeys(args.kinds)), args.draws, args.resamples, args.frames)
+        patches = read_patches(args.shared) if set(kinds) & set(VEHICLE_KINDS) else []
+        out, cells = run(args.ckpt, video, kinds, args.draws, args.resamples, args.frames, patches)
     except real_roads.RealRoadsError as err:
         print(f"real_history: error: {err}", file=sys.stderr)
         return 2

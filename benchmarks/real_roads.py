@@ -1,11 +1,11 @@
 """The real-road check: how a checkpoint does on real labelled frames and on a real highway video.
 
-    python benchmarks/real_roads.py [--ckpt NAME_OR_FILE ...] [--shared ../shared] [--frames N]
+    python benchmarks/real_roads.py [--ckpt NAME_OR_FILE ...] [--shared ../shared] [--split dev|sealed] [--frames N]
                                     [--video-frames N] [--strip 4] [--out outputs/bench/real-roads]
                                     [--decode NAME:KEY=VALUE,... ...] [--val SYNTHETIC_ROOT [--val-labels val.json]]
 
 Runs every ``--ckpt`` (default: every shipped model, `stamlane.weights.SHIPPED`) through `StreamingPredictor`,
-loaded as ``stamlane stream --ckpt`` loads it (`stamlane.stream.cli.load_predictor`, on the CPU, the model's own
+loaded as ``stamlane stream --ckpt`` loads it (`stamlane.training.stored.StoredModel`, on the CPU, the model's own
 precision, alignment on), on the real data beside the project (``../shared``, never committed):
 
 1. **Labelled frames**: the six 1280x720 highway frames of ``data/frames/`` with their TuSimple labels
@@ -33,10 +33,16 @@ precision, alignment on), on the real data beside the project (``../shared``, ne
    split (``ROOT/val.json``, each clip streamed from its first frame, its labelled key frames scored by lane.py):
    where a decoding is to be chosen; the real frames only report what the choice does.
 
+Every set of labelled frames is also scored by lane position (ego pair, adjacent, outer: recall) and by the lines'
+count against the labels', F1 and both with 95 % bootstrap intervals over frames (`real_frames`).
+``--split sealed`` scores the sealed video frames instead (docs/real-protocol.md: once per release, each model's own
+decoding; ``<name>-sealed.json``, ``summary-sealed.md``); the default, dev, never reads their labels.
+
 Writes ``<out>/<name>.json`` and ``<out>/<name>-strip.jpg`` per checkpoint (each atomically; ``<name>@<decoding>``
 with ``--decode``) and prints a table;
 ``<out>/summary.md`` holds the table of every checkpoint of the run. Exit status 2 with one line where
-``--shared`` lacks the data or a checkpoint cannot be read.
+``--shared`` lacks the data, a label file is bad (no JSON lines, a frame twice, a ``raw_file`` leading out of its
+folder) or a checkpoint cannot be read.
 """
 
 from __future__ import annotations
@@ -53,14 +59,18 @@ from typing import Any
 import cv2
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import real_frames  # a benchmark module beside this one: label files, the split, the numbers by lane position
+from real_roads_tables import dev_lanes_rows, lanes_table, sealed_table, table
+from real_video_stats import crossings, stability
+
 REPO = Path(__file__).resolve().parents[1]
 FRAMES_LABELS = "data/lanenet_frames.json"  # under --shared; raw_file is relative to data/
 VIDEO = "data/real/solidWhiteRight.mp4"
-VIDEO_LABELS = REPO / "benchmarks" / "labels" / "solidWhiteRight.json"  # TuSimple records, 1280 x 720 pixels
-TUSIMPLE_WIDTH = 1280  # the labels' frame width: the video's lanes are scaled to it before lane.py scores them
+VIDEO_LABELS = REPO / "benchmarks" / "labels" / "solidWhiteRight.json"  # TuSimple records, 1280 x 720 pixels (dev)
+SEALED_LABELS = REPO / "benchmarks" / "labels" / "solidWhiteRight-sealed.json"  # the sealed frames (real-protocol.md)
+TUSIMPLE_WIDTH, TUSIMPLE_HEIGHT = 1280, 720  # the labels' frame: the video's lanes are scaled to it before scoring
 MAX_LANES = 4  # the issue's bound: a highway frame shows at most four lines worth drawing
-MATCH_PX = 0.05  # a lane matches the previous frame's nearest lane within this fraction of the frame width
-MIN_COMMON_ROWS = 3  # rows two lanes must share to be compared
 STABILITY_ROW_STEP = 10  # px between the rows lanes are compared on
 STRIP_CELL = (480, 270)  # W, H of a frame in the overlay strip
 STRIP_QUALITY = 80  # JPEG quality of the strip (~200 KB for two rows of four)
@@ -72,14 +82,15 @@ class RealRoadsError(Exception):
 
 # ------------------------------------------------------------------------------------------- predictor
 def load(ckpt: str) -> Any:
-    """A `StreamingPredictor` for ``ckpt`` (a shipped model's name or a checkpoint file), built as ``stamlane stream
-    --ckpt CKPT --device cpu`` builds it."""
-    from stamlane.stream.cli import StreamError, build_parser, load_predictor
+    """A `StreamingPredictor` for ``ckpt`` (a shipped model's name, a checkpoint file or a run folder) with every
+    setting the model was trained with, on the CPU (`stamlane.training.stored.StoredModel`, as ``stamlane stream``)."""
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.stream.predictor import StreamingPredictor
+    from stamlane.training.stored import StoredModel
 
-    args = build_parser().parse_args(["unused", "--ckpt", ckpt, "--device", "cpu"])
     try:
-        return load_predictor(args)
-    except StreamError as err:
+        return StreamingPredictor.from_stored(StoredModel.open(ckpt))
+    except CheckpointError as err:
         raise RealRoadsError(str(err)) from None
 
 
@@ -89,7 +100,9 @@ def read_labels(shared: Path, limit: int | None = None) -> tuple[list[dict], Pat
     path = shared / FRAMES_LABELS
     if not path.is_file():
         raise RealRoadsError(f"{path} does not exist (the real labelled frames live in ../shared beside the project)")
-    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    records = real_frames.read_label_file(path)
+    for record in records:  # a raw_file with .. or a link out of the folder is never read
+        real_frames.frame_file(path.parent, record["raw_file"], path)
     return records[:limit] if limit else records, path.parent
 
 
@@ -141,7 +154,12 @@ def lanes_of(predictor: Any, image: np.ndarray, configs: dict[str, Any], rows: l
     }
 
 
-def _scores(preds: list[dict], records: list[dict]) -> dict:
+def _scores(
+    preds: list[dict], records: list[dict], found: list[int] | None = None, sizes: list[tuple[int, int]] | None = None
+) -> dict:
+    """lane.py's numbers of ``preds`` on ``records``, per image too; with the lines each decoding drew (``found``)
+    and the labels' frame sizes (``sizes``, W x H), F1's interval over frames and the numbers by lane position and
+    count (`real_frames.lane_numbers`)."""
     from stamlane_eval.tusimple import evaluate
 
     result = evaluate(preds, records, time_limit=False)
@@ -150,6 +168,9 @@ def _scores(preds: list[dict], records: list[dict]) -> dict:
         for r, i in zip(records, result.per_image, strict=True)
     ]
     numbers = {k: result.as_dict()[k] for k in ("f1", "accuracy", "fp", "fn", "images", "lane_tp", "lane_fp")}
+    if found is not None and sizes is not None:
+        lanes = real_frames.lane_numbers(preds, found, records, sizes)
+        numbers |= {"f1_interval": real_frames.f1_interval(per_image)} | lanes
     return numbers | {"per_image": per_image}
 
 
@@ -187,12 +208,13 @@ def score_frames(
 
     preds: dict[str, list] = {name: [] for name in configs}
     found: dict[str, list] = {name: [] for name in configs}
-    heights = []
+    heights, sizes = [], []
     for record in records:
         image = cv2.imread(str(root / record["raw_file"]))
         if image is None:
             raise RealRoadsError(f"cannot read {root / record['raw_file']}")
         heights.append(image.shape[0])
+        sizes.append((image.shape[1], image.shape[0]))
         predictor.reset()
         start = time.perf_counter()
         lanes = lanes_of(predictor, image, configs, list(record["h_samples"]))
@@ -202,7 +224,13 @@ def score_frames(
             xs = lanes_to_xs(these, record["h_samples"])
             preds[name].append({"raw_file": record["raw_file"], "lanes": xs, "run_time": ms})
     ceiling = crop_ceiling(records, heights, predictor.transform.crop_top)
-    return {name: (_scores(preds[name], records) | {"crop_ceiling": ceiling}, found[name]) for name in configs}
+    return {
+        name: (
+            _scores(preds[name], records, [len(f) for f in found[name]], sizes) | {"crop_ceiling": ceiling},
+            found[name],
+        )
+        for name in configs
+    }
 
 
 def score_synthetic(predictor: Any, root: Path, labels: str, configs: dict[str, Any]) -> dict[str, dict]:
@@ -213,10 +241,12 @@ def score_synthetic(predictor: Any, root: Path, labels: str, configs: dict[str, 
     path = root / labels
     if not path.is_file():
         raise RealRoadsError(f"{path} does not exist (give --val a synthetic set: stamlane synth --out ROOT ...)")
-    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    records = real_frames.read_label_file(path)
     by_clip: dict[str, dict[int, dict]] = {}
     for record in records:
-        raw = Path(record["raw_file"])
+        raw = real_frames.frame_file(root, record["raw_file"], path).relative_to(root)
+        if not raw.stem.isdigit() or not raw.stem.isascii():
+            raise RealRoadsError(f"{path}: raw_file {record['raw_file'][:80]!r} is no clip frame (<clip>/<n>.jpg)")
         by_clip.setdefault(str(raw.parent), {})[int(raw.stem)] = record
     preds: dict[str, dict[str, dict]] = {name: {} for name in configs}
     for clip, keys in by_clip.items():
@@ -239,70 +269,6 @@ def score_synthetic(predictor: Any, root: Path, labels: str, configs: dict[str, 
 
 
 # -------------------------------------------------------------------------------------------- the video
-def _xs(lanes: list[np.ndarray], rows: np.ndarray) -> np.ndarray:
-    """``(N, R)`` x of each lane at ``rows`` (NaN where the lane does not reach the row)."""
-    from stamlane_eval.tusimple import lanes_to_xs
-
-    xs = np.asarray(lanes_to_xs(lanes, rows), dtype=np.float64).reshape(len(lanes), len(rows))
-    xs[xs < 0] = np.nan
-    return xs
-
-
-def crossings(lanes: list[np.ndarray], rows: np.ndarray) -> int:
-    """Pairs of lanes of one frame that cross: their left-right order differs between two rows they share."""
-    xs = _xs(lanes, rows)
-    count = 0
-    for i in range(len(xs)):
-        for j in range(i + 1, len(xs)):
-            d = xs[i] - xs[j]
-            d = d[np.isfinite(d)]
-            if d.size >= 2 and d.min() < 0 < d.max():
-                count += 1
-    return count
-
-
-def stability(frames: list[list[np.ndarray]], rows: np.ndarray, width: int) -> dict[str, float]:
-    """Frame-to-frame stability of the lanes of consecutive frames.
-
-    Each lane of a frame is matched to the previous frame's lane nearest to it (mean |dx| over the rows both reach,
-    at least `MIN_COMMON_ROWS`), greedily by distance, one to one, within ``MATCH_PX * width``.
-
-    Returns:
-        ``count_changes``: frames whose lane count differs from the previous frame's; ``jitter_px``: mean |dx| of the
-        matched lanes (px, original frame); ``jitter_px_median``; ``matched``: fraction of a frame's lanes matched to
-        one of the previous frame's (1.0: every lane continues); ``unmatched_per_frame``: lanes that appear or jump.
-    """
-    changes, jitter, matched, total = 0, [], 0, 0
-    previous: np.ndarray | None = None
-    for lanes in frames:
-        xs = _xs(lanes, rows)
-        if previous is not None:
-            changes += len(xs) != len(previous)
-            pairs = []
-            for i in range(len(xs)):
-                for j in range(len(previous)):
-                    common = np.isfinite(xs[i]) & np.isfinite(previous[j])
-                    if common.sum() >= MIN_COMMON_ROWS:
-                        pairs.append((float(np.abs(xs[i][common] - previous[j][common]).mean()), i, j))
-            used_i, used_j = set(), set()
-            for d, i, j in sorted(pairs):
-                if d <= MATCH_PX * width and i not in used_i and j not in used_j:
-                    used_i.add(i)
-                    used_j.add(j)
-                    jitter.append(d)
-            matched += len(used_i)
-            total += len(xs)
-        previous = xs
-    pairs_seen = max(len(frames) - 1, 1)
-    return {
-        "count_changes": changes,
-        "jitter_px": float(np.mean(jitter)) if jitter else float("nan"),
-        "jitter_px_median": float(np.median(jitter)) if jitter else float("nan"),
-        "matched": matched / total if total else float("nan"),
-        "unmatched_per_frame": (total - matched) / pairs_seen,
-    }
-
-
 def run_video(
     predictor: Any, path: Path, max_frames: int | None, configs: dict[str, Any]
 ) -> tuple[dict[str, tuple[dict, list[list]]], list[np.ndarray]]:
@@ -345,20 +311,30 @@ def video_numbers(path: Path, images: list[np.ndarray], found: list[list], ms: l
     return numbers | {"lanes_per_frame_sequence": counts}
 
 
-def read_video_labels() -> list[dict]:
-    """The TuSimple records of the video's labelled frames (``raw_file`` ``<video>#<frame>``)."""
-    return [json.loads(line) for line in VIDEO_LABELS.read_text().splitlines() if line.strip()]
+def read_video_labels(path: Path = VIDEO_LABELS) -> list[dict]:
+    """The TuSimple records of the video's labelled frames (``raw_file`` ``<video>#<frame>``): the dev ones, or
+    those of ``path`` (`SEALED_LABELS`); checked as a ground truth, each naming a frame of the video once."""
+    records = real_frames.read_label_file(path)
+    for record in records:
+        real_frames.video_index(record["raw_file"], Path(VIDEO).name, path)
+    return records
 
 
-def score_video_frames(found: list[list[np.ndarray]], records: list[dict], width: int) -> dict | None:
+def score_video_frames(
+    found: list[list[np.ndarray]], records: list[dict], width: int, labels: Path = VIDEO_LABELS
+) -> dict | None:
     """lane.py's numbers of the lanes ``found`` in the video's frames on its labelled ones (``records``, in TuSimple's
     1280 x 720: the lanes are scaled by ``TUSIMPLE_WIDTH / width`` first, so that lane.py's 20-px threshold means what
-    it means on TuSimple); None where the frames streamed end before the first labelled one."""
+    it means on TuSimple), with the numbers by lane position and count; None where the frames streamed end before
+    the first labelled one."""
     scored = [r for r in records if video_frame(r) < len(found)]
     if not scored:
         return None
     preds = [video_prediction(record, found[video_frame(record)], width) for record in scored]
-    return _scores(preds, scored) | {"labels": str(VIDEO_LABELS.relative_to(REPO))}
+    counts = [len(found[video_frame(record)]) for record in scored]
+    sizes = [(TUSIMPLE_WIDTH, TUSIMPLE_HEIGHT)] * len(scored)
+    shown = labels.relative_to(REPO) if labels.is_relative_to(REPO) else labels
+    return _scores(preds, scored, counts, sizes) | {"labels": str(shown)}
 
 
 def video_frame(record: dict) -> int:
@@ -425,21 +401,21 @@ def check(
     specs: list[str] | None = None,
     val: tuple[Path, str] | None = None,
 ) -> list[tuple[str, dict, np.ndarray]]:
-    """Every number of the real-road check for one checkpoint, per decoding (``specs``, `decodings`): its name
-    (``<checkpoint>``, or ``<checkpoint>@<decoding>`` with ``specs``), numbers and overlay strip; with ``val`` (a
-    synthetic root and its label file) the synthetic validation numbers too."""
+    """Every number of the real-road check for one checkpoint on the dev frames, per decoding (``specs``,
+    `decodings`): its name (``<checkpoint>``, or ``<checkpoint>@<decoding>`` with ``specs``), numbers and overlay
+    strip; with ``val`` (a synthetic root and its label file) the synthetic validation numbers too."""
     import dataclasses
 
     records, root = read_labels(shared, frames)
     video = shared / VIDEO
     if not video.is_file():
         raise RealRoadsError(f"{video} does not exist (the real video lives in ../shared beside the project)")
+    video_records = dev_video_labels()
     predictor = load(ckpt)
     configs = decodings(predictor, specs)
     synthetic = score_synthetic(predictor, val[0], val[1], configs) if val is not None else {}
     labelled_numbers = score_frames(predictor, records, root, configs)
     video_results, images = run_video(predictor, video, video_frames, configs)
-    video_records = read_video_labels()
     labelled = [cv2.imread(str(root / r["raw_file"])) for r in records[:cells]]
     gt = [gt_lanes(r) for r in records[:cells]]
     out = []
@@ -452,6 +428,7 @@ def check(
             video_numbers = video_numbers | {"labelled_frames": video_labelled}
         picture = strip(images, video_lanes, labelled, frame_lanes[:cells], gt, cells, full)
         result = {
+            "split": "dev",
             "checkpoint": ckpt,
             "num_frames": predictor.num_frames,
             "image_size": list(predictor.image_size),
@@ -467,40 +444,80 @@ def check(
     return out
 
 
-def table(results: list[dict]) -> str:
-    """A markdown table of the headline numbers of each checkpoint."""
-    val = any("synthetic_val" in r for r in results)
-    lines = [
-        "| checkpoint | "
-        + ("decoding | synthetic val F1 | " if val else "")
-        + "TuSimple F1 | its ceiling (crop) | accuracy | FP | FN | video: labelled F1 | lanes per frame (frames) "
-        "| > 4 lanes | count changes | jitter px (median) | crossing frames |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if val else ""),
-    ]
-    for r in results:
-        f, v = r["labelled_frames"], r["video"]
-        hist = ", ".join(f"{k}: {n}" for k, n in v["lanes_per_frame"].items())
-        video_f1 = f"{100 * v['labelled_frames']['f1']:.1f}" if "labelled_frames" in v else ""
-        extra = ""
-        if val:
-            s = r.get("synthetic_val")
-            extra = (
-                f"{r.get('decoding', 'model')} | {100 * s['f1']:.1f} | " if s else f"{r.get('decoding', 'model')} | | "
-            )
-        lines.append(
-            f"| {Path(r['checkpoint']).name} | {extra}{100 * f['f1']:.1f} | {100 * f['crop_ceiling']['f1']:.1f} "
-            f"| {100 * f['accuracy']:.1f} "
-            f"| {100 * f['fp']:.1f} | {100 * f['fn']:.1f} | {video_f1} | {hist} | {v['frames_over_max']} "
-            f"| {v['count_changes']} "
-            f"| {v['jitter_px']:.1f} ({v['jitter_px_median']:.1f}) | {v['frames_with_crossing']} |"
-        )
-    return "\n".join(lines) + "\n"
+def dev_video_labels() -> list[dict]:
+    """The video's dev labels, refused where one names a sealed frame (`real_frames.read_split`)."""
+    records = read_video_labels()
+    sealed = set(real_frames.read_split()["sealed"])
+    leak = [r["raw_file"] for r in records if r["raw_file"] in sealed]
+    if leak:
+        raise RealRoadsError(f"{VIDEO_LABELS}: {leak[0]!r} is a sealed frame (docs/real-protocol.md)")
+    return records
+
+
+def sealed_labels() -> list[dict]:
+    """The sealed frames' labels, refused unless they are the ones the split was made from (its SHA-256) and every
+    one is a sealed frame."""
+    records = read_video_labels(SEALED_LABELS)
+    key = str(SEALED_LABELS.relative_to(REPO))
+    real_frames.check_split_labels(real_frames.read_split(), key, SEALED_LABELS, records, "sealed")
+    return records
+
+
+def check_sealed(ckpt: str, shared: Path, video_frames: int | None, cells: int) -> tuple[str, dict, np.ndarray]:
+    """The sealed frames' numbers of one checkpoint, its own decoding (docs/real-protocol.md: scored once per
+    release): the video streamed with history, lane.py's numbers on the sealed frames with their interval, by lane
+    position and count, per stretch of the video; and a strip of the first sealed frames (labels as yellow bands
+    under the predictions)."""
+    from stamlane_eval.tusimple import evaluate
+
+    records = sealed_labels()
+    video = shared / VIDEO
+    if not video.is_file():
+        raise RealRoadsError(f"{video} does not exist (the real video lives in ../shared beside the project)")
+    predictor = load(ckpt)
+    configs = decodings(predictor, None)
+    streamed, images = run_video(predictor, video, video_frames, configs)
+    lanes = streamed["model"][1]
+    width = images[0].shape[1]
+    numbers = score_video_frames(lanes, records, width, SEALED_LABELS)
+    if numbers is None:
+        raise RealRoadsError(f"--video-frames {video_frames} ends before the first sealed frame")
+    scored = [r for r in records if video_frame(r) < len(lanes)]
+    by_stretch: dict[str, list[dict]] = {}
+    for record in scored:
+        by_stretch.setdefault(real_frames.stretch_of(video_frame(record)), []).append(record)
+    stretches = {}
+    for stretch, these in by_stretch.items():
+        result = evaluate([video_prediction(r, lanes[video_frame(r)], width) for r in these], these, time_limit=False)
+        stretches[stretch] = {"f1": result.f1, "images": result.images}
+    picks = scored[:cells]
+    scale = width / TUSIMPLE_WIDTH
+    gt = [[lane * scale for lane in gt_lanes(r)] for r in picks]
+    picked = [images[video_frame(r)] for r in picks]
+    title = f"{Path(ckpt).stem} sealed"
+    picture = strip(images, lanes, picked, [lanes[video_frame(r)] for r in picks], gt, cells, title)
+    result = {
+        "split": "sealed",
+        "protocol": "docs/real-protocol.md",
+        "checkpoint": ckpt,
+        "num_frames": predictor.num_frames,
+        "image_size": list(predictor.image_size),
+        "crop_top": predictor.transform.crop_top,
+        "video": {"video": video.name, "frames": len(lanes), "labelled_frames": numbers, "by_stretch": stretches},
+    }
+    return f"{Path(ckpt).stem}-sealed", result, picture
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ckpt", nargs="+", help="shipped model names or checkpoint files (default: every shipped)")
     parser.add_argument("--shared", type=Path, default=REPO.parent / "shared", help="the folder holding data/")
+    parser.add_argument(
+        "--split",
+        choices=real_frames.SPLITS,
+        default="dev",
+        help="dev (default): the photos and the video's dev frames; sealed: the sealed frames, once per release",
+    )
     parser.add_argument("--frames", type=int, help="score only the first N labelled frames")
     parser.add_argument("--video-frames", type=int, help="stream only the first N video frames")
     parser.add_argument("--strip", type=int, default=4, help="frames per row of the overlay strip")
@@ -523,10 +540,16 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and value < 1:
             print(f"real_roads: error: {name} must be >= 1, got {value}", file=sys.stderr)
             return 2
+    sealed = args.split == "sealed"
     ckpts = args.ckpt or [m.name for m in SHIPPED]
     results, pictures = [], []
     try:
-        read_labels(args.shared)  # the data first: a missing folder is said before any model is loaded
+        if sealed and (args.frames or args.decode or args.val):
+            raise RealRoadsError(
+                "--split sealed scores the sealed frames with each model's own decoding only: "
+                "give no --frames, --decode or --val (docs/real-protocol.md)"
+            )
+        sealed_labels() if sealed else (read_labels(args.shared), dev_video_labels())  # the data before any model
         try:  # --out may be neither a file nor inside the data beside the project
             check_outputs(folders=[args.out], protected=[args.shared])
         except GuardError as err:
@@ -539,14 +562,18 @@ def main(argv: list[str] | None = None) -> int:
         val = (args.val, args.val_labels) if args.val is not None else None
         if val is not None and not (args.val / args.val_labels).is_file():
             raise RealRoadsError(f"{args.val / args.val_labels} does not exist (--val takes a synthetic set)")
+        for record in real_frames.read_label_file(args.val / args.val_labels) if val is not None else []:
+            real_frames.frame_file(args.val, record["raw_file"], args.val / args.val_labels)  # before any model
         for ckpt in ckpts:
-            print(f"real_roads: {ckpt} ...", file=sys.stderr)
-            for name, result, picture in check(
-                ckpt, args.shared, args.frames, args.video_frames, args.strip, args.decode, val
-            ):
+            print(f"real_roads: {ckpt} ({args.split}) ...", file=sys.stderr)
+            if sealed:
+                checked = [check_sealed(ckpt, args.shared, args.video_frames, args.strip)]
+            else:
+                checked = check(ckpt, args.shared, args.frames, args.video_frames, args.strip, args.decode, val)
+            for name, result, picture in checked:
                 results.append(result)
                 pictures.append((name, picture))
-    except RealRoadsError as err:
+    except (RealRoadsError, real_frames.RealFramesError) as err:
         print(f"real_roads: error: {err}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
@@ -554,10 +581,14 @@ def main(argv: list[str] | None = None) -> int:
         with atomic_path(args.out / f"{name}-strip.jpg") as tmp:
             cv2.imwrite(str(tmp), picture, [cv2.IMWRITE_JPEG_QUALITY, STRIP_QUALITY])
         write_atomic(args.out / f"{name}.json", json.dumps(result, indent=1) + "\n")
-    summary = table(results)
-    write_atomic(args.out / "summary.md", summary)
+    if sealed:
+        summary = "Sealed frames (docs/real-protocol.md), each model's own decoding:\n\n" + sealed_table(results)
+    else:
+        summary = table(results) + "\nBy lane position and count (dev):\n\n" + lanes_table(dev_lanes_rows(results))
+    summary_name = "summary-sealed.md" if sealed else "summary.md"
+    write_atomic(args.out / summary_name, summary)
     print(summary, end="")
-    print(f"wrote {args.out}/: " + ", ".join(f"{n}.json, {n}-strip.jpg" for n, _ in pictures) + ", summary.md")
+    print(f"wrote {args.out}/: " + ", ".join(f"{n}.json, {n}-strip.jpg" for n, _ in pictures) + f", {summary_name}")
     return 0
 
 

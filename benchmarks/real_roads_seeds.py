@@ -11,12 +11,16 @@ the real frames' F1, with a 95 % paired bootstrap interval over the labelled ima
 averaged over the group's seeds first, then the images resampled; F1 as lane.py's, the harmonic mean of 1 - FP and
 1 - FN). With six labelled images, an interval that excludes 0 is a strong difference, one that does not may still
 be a real one.
+
+Exit status 2 with one line where ``DIR`` is no folder, a run file is unreadable, no JSON or no dev result of
+``real_roads.py``, the runs were scored on different numbers of images, or ``--boot`` is out of 1 to `MAX_BOOT`.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import sys
 import warnings
@@ -25,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
+MAX_RUN_BYTES = 64 << 20  # a run file larger than this is no real_roads.py result
+MAX_BOOT = 100_000  # bootstrap draws: each a few numpy means (~20 us), 100,000 a few seconds per pair
 COLUMNS = (
     "real-frame F1",
     "FP",
@@ -43,18 +49,64 @@ def f1(fp: float, fn: float) -> float:
     return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
 
 
+class SeedsError(ValueError):
+    """A folder or run file that cannot be combined (one line, exit status 2)."""
+
+
+def _json(path: Path) -> object:
+    """The JSON of a run file (a regular file of at most `MAX_RUN_BYTES`)."""
+    from stamlane.safety.guard import GuardError, read_input
+
+    try:
+        return json.loads(read_input(path, MAX_RUN_BYTES, "run file"))
+    except GuardError as err:
+        raise SeedsError(str(err)) from None
+    except ValueError as err:
+        raise SeedsError(f"{path}: not JSON ({err})") from None
+
+
+def _number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def check_result(result: object, path: Path) -> dict:
+    """``result`` when it is a `benchmarks/real_roads.py` dev result with the numbers `numbers` reads."""
+    frames = result.get("labelled_frames") if isinstance(result, dict) else None
+    video = result.get("video") if isinstance(result, dict) else None
+    ok = isinstance(frames, dict) and isinstance(video, dict)
+    ok = ok and all(_number(frames.get(k)) for k in ("f1", "fp", "fn"))  # type: ignore[union-attr]
+    ok = ok and all(_number(video.get(k)) for k in ("frames_over_max", "frames_with_crossing", "mean_lanes"))  # type: ignore[union-attr]
+    images = frames.get("per_image") if ok else None  # type: ignore[union-attr]
+    ok = ok and isinstance(images, list) and len(images) > 0
+    ok = ok and all(isinstance(i, dict) and _number(i.get("fp")) and _number(i.get("fn")) for i in images)  # type: ignore[union-attr]
+    if not ok:
+        raise SeedsError(f"{path}: not a real_roads.py dev result (labelled_frames with f1, fp, fn, per_image; video)")
+    return result  # type: ignore[return-value]
+
+
 def read(folder: Path) -> dict[str, dict[int, dict]]:
-    """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given)."""
+    """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given).
+
+    Raises:
+        SeedsError: ``folder`` is no folder, or a run file is unreadable, no JSON or no dev result.
+    """
+    if not folder.is_dir():
+        raise SeedsError(f"{folder} is no folder of <group>-s<seed>.json files")
     synthetic_file = folder / "synthetic-test.json"
-    synthetic = json.loads(synthetic_file.read_text()) if synthetic_file.is_file() else {}
+    synthetic = _json(synthetic_file) if os.path.lexists(synthetic_file) else {}
+    if not isinstance(synthetic, dict) or not all(_number(v) for v in synthetic.values()):
+        raise SeedsError(f"{synthetic_file}: not an object of <group>-s<seed>: synthetic test F1")
     groups: dict[str, dict[int, dict]] = {}
     for path in sorted(folder.glob("*.json")):
         match = SEEDED.match(path.stem)
         if match is None:
             continue
-        result = json.loads(path.read_text())
+        result = check_result(_json(path), path)
         result["synthetic"] = synthetic.get(path.stem, float("nan"))
         groups.setdefault(match["group"], {})[int(match["seed"])] = result
+    sizes = {(g, s): len(r["labelled_frames"]["per_image"]) for g, seeds in groups.items() for s, r in seeds.items()}
+    if len(set(sizes.values())) > 1:
+        raise SeedsError(f"{folder}: the runs were scored on different numbers of images ({sizes}): not comparable")
     return groups
 
 
@@ -130,7 +182,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--groups", nargs="+", help="the groups to show, in this order (default: every group)")
     parser.add_argument("--boot", type=int, default=10000, help="bootstrap draws")
     args = parser.parse_args(argv)
-    groups = read(args.folder)
+    if not 1 <= args.boot <= MAX_BOOT:
+        print(f"real_roads_seeds: error: --boot must be 1 to {MAX_BOOT}, got {args.boot}", file=sys.stderr)
+        return 2
+    try:
+        groups = read(args.folder)
+    except SeedsError as err:
+        print(f"real_roads_seeds: error: {err}", file=sys.stderr)
+        return 2
     if args.groups:
         missing = [g for g in args.groups if g not in groups]
         if missing:

@@ -27,6 +27,10 @@ Writes ``--out`` (default ``outputs/bench/scale.json``) and a markdown table bes
   step takes (each worker loads whole batches, one sample after another).
 
 Timings on a shared machine are noisy: compare the ratios of one run, which are measured side by side.
+
+A bad option is one line on stderr and exit status 2, before anything runs or is written (`_harness`): an ``--out``
+that is a folder, lies under a file or cannot be written; with ``--replot`` an ``--out`` that is not this script's
+JSON.
 """
 
 from __future__ import annotations
@@ -48,6 +52,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _harness import BenchInputError, check_out_file, fail, read_json_object
 
 PAPER = {"width": 1.0, "frames": 4, "size": (256, 512), "batch": 1}
 """The centre of every sweep: the paper's model (configs/tusimple_stam4.yaml) at batch 1."""
@@ -241,24 +248,27 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from stamlane.safety.guard import GuardError
     from stamlane.training.hardware import cpu_name
 
     args = _parser().parse_args(argv)
-    if args.replot:
-        if not args.out.is_file():
-            print(f"scale.py: --replot needs --out's json, {args.out} is not a file", file=sys.stderr)
-            return 2
-        print(report(json.loads(args.out.read_text()), args.out))
-        return 0
+    try:
+        check_out_file(args.out, side=(".md", ".png"))  # before any work: --out and the files beside it
+        if args.replot:
+            payload = read_json_object(args.out, "--out", keys=("centre", "device", "cpu", "cores", "threads"))
+            print(report(payload, args.out))
+            return 0
+    except (GuardError, BenchInputError) as err:
+        return fail("scale.py", err)
+    except (KeyError, TypeError, ValueError, IndexError) as err:  # parsed, but not what this script writes
+        return fail("scale.py", f"--out {args.out} is not a scale.py result ({type(err).__name__}: {err})")
     if args.steps < 1 or args.warmup < 0 or args.threads < 1 or (args.batch and min(args.batch) < 1):
-        print("scale.py: --steps, --threads and --batch must be >= 1, --warmup >= 0", file=sys.stderr)
-        return 2
+        return fail("scale.py", "--steps, --threads and --batch must be >= 1, --warmup >= 0")
     if args.device == "cuda":
         import torch
 
         if not torch.cuda.is_available():
-            print("scale.py: --device cuda but torch sees no CUDA device", file=sys.stderr)
-            return 2
+            return fail("scale.py", "--device cuda but torch sees no CUDA device")
     centre, axes = (QUICK_PAPER, QUICK) if args.quick else (PAPER, FULL)
     batches = args.batch if args.batch is not None else ([2] if not args.quick else [])
     started = time.perf_counter()
@@ -304,10 +314,9 @@ def main(argv: list[str] | None = None) -> int:
                 line += f" = {result['load_over_step']:.3f} of a step; workers to keep a step fed: {feed}"
             print(line, flush=True)
     payload["seconds"] = time.perf_counter() - started
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp_out = args.out.with_suffix(".json.tmp")
-    tmp_out.write_text(json.dumps(payload, indent=2))
-    tmp_out.replace(args.out)
+    from stamlane.safety.guard import write_atomic
+
+    write_atomic(args.out, json.dumps(payload, indent=2))
     print("\n" + report(payload, args.out))
     print(f"\nwrote {args.out} ({payload['seconds']:.0f} s)")
     return 0
@@ -338,9 +347,9 @@ def report(payload: dict, out: Path) -> str:
                 f"| alignment {align} | {r['load_s']:.3f} | {r.get('load_over_step', float('nan')):.3f} | {feed} |"
             ]
     text = "\n".join(lines) + "\n"
-    tmp = out.with_suffix(".md.tmp")
-    tmp.write_text(text)
-    tmp.replace(out.with_suffix(".md"))
+    from stamlane.safety.guard import write_atomic
+
+    write_atomic(out.with_suffix(".md"), text)
     if rows:
         _plot(rows, centre, out.with_suffix(".png"), lines[0])
     return text
@@ -377,9 +386,11 @@ def _plot(rows: list[dict], centre: dict, path: Path, title: str) -> None:
             ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=80)
-    tmp.replace(path)
+    from stamlane.safety.guard import atomic_path
+
+    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
+        fig.savefig(tmp, dpi=80)
+    plt.close(fig)
 
 
 def _by_batch(rows: list[dict], centre: dict) -> dict[int, dict]:

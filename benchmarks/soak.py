@@ -47,17 +47,10 @@ def soak_stream(args: argparse.Namespace) -> dict:
 
     from stamlane.data.clips import frame_order
     from stamlane.stream.predictor import StreamingPredictor
-    from stamlane.training.module import StamLaneModule
+    from stamlane.training.stored import StoredModel
 
     torch.set_num_threads(args.threads)
-    module = StamLaneModule.from_checkpoint(args.ckpt)
-    hp = module.hparams
-    predictor = StreamingPredictor.from_module(
-        module,
-        num_frames=int(module.num_frames),
-        image_size=tuple(hp["image_size"]),
-        crop_top=float(hp.get("crop_top") or 0.0),
-    )
+    predictor = StreamingPredictor.from_stored(StoredModel.open(args.ckpt))
     clips = sorted(p for p in Path(args.frames_root).glob("*") if p.is_dir())[: args.clips]
     paths = [f for clip in clips for f in sorted(clip.glob("*.jpg"), key=lambda p: frame_order(p.name))]
     if not paths:
@@ -153,10 +146,18 @@ def main(argv: list[str] | None = None) -> int:
     for sp in (s, e):
         sp.add_argument("--out", type=Path, default=Path("outputs/bench/soak.json"))
     args = p.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import BenchInputError, fail, guard_out, read_json_object
+
+    if (refused := guard_out("soak.py", args.out)) is not None:  # before any work
+        return refused
+    try:  # the results of the other part, kept: read (and checked) before this one runs
+        old = read_json_object(args.out, "--out") if args.out.exists() else {}
+    except BenchInputError as err:
+        return fail("soak.py", err)
     report = soak_stream(args) if args.what == "stream" else soak_eval(args)
     report["maxrss_self_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    old = json.loads(args.out.read_text()) if args.out.is_file() else {}
     args.out.write_text(json.dumps(old | {args.what: report}, indent=1))
     print(f"wrote {args.out}", file=sys.stderr)
     return 0

@@ -212,12 +212,11 @@ def measure_end_to_end(
 
 def _load(ckpt: Path) -> tuple[torch.nn.Module, ClipOptions]:
     """The StamLaneModule of a checkpoint (eval mode) and how its clips were read (flat older checkpoints too)."""
-    from stamlane.safety.checkpoints import read_checkpoint
-    from stamlane.training.compat import clip_options
-    from stamlane.training.module import StamLaneModule
+    from stamlane.data.options import ClipOptions
+    from stamlane.training.stored import StoredModel
 
-    module = StamLaneModule.from_checkpoint(ckpt)
-    return module, clip_options(read_checkpoint(ckpt).get("datamodule_hyper_parameters") or {})
+    model = StoredModel.open(ckpt)  # read once: the network and the data options it trained with
+    return model.module, model.settings.clip or ClipOptions()
 
 
 def _dataset(module: torch.nn.Module, clip: ClipOptions, root: Path, labels: list[str], warp: str = "image") -> object:
@@ -349,6 +348,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames-dir", type=Path, help="real frames for the end-to-end timing (default: first clip)")
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "stream.json")
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("stream.py", args.out)) is not None:  # before any work
+        return refused
     torch.set_num_threads(args.threads)
 
     if args.ckpt is not None:

@@ -61,23 +61,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/stream_overlap.json"))
     args = parser.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("stream_overlap.py", args.out)) is not None:  # before any work
+        return refused
     import torch
 
     from stamlane.stream import StreamingPredictor
     from stamlane.training.hardware import cpu_name
-    from stamlane.training.module import StamLaneModule
-    from stamlane.weights import shipped_path
+    from stamlane.training.stored import StoredModel
 
     warnings.filterwarnings("ignore")
     torch.set_num_threads(max(1, os.cpu_count() or 1))
-    module = StamLaneModule.from_checkpoint(shipped_path("stam4-synthetic")).eval().to(args.device)
+    model = StoredModel.open("stam4-synthetic")
+    model.module.to(args.device)
     result: dict = {"cpu": cpu_name(), "cores": os.cpu_count(), "device": args.device, "video": VIDEO.is_file()}
     result["load_1min_at_start"] = round(os.getloadavg()[0], 1)
     times: dict[str, list[float]] = {"serial": [], "pipelined": []}
     outputs: dict[str, list] = {}
     for _ in range(args.repeats):
         for mode in times:
-            predictor = StreamingPredictor.from_module(module)
+            predictor = StreamingPredictor.from_stored(model)
             start = time.perf_counter()
             if mode == "serial":
                 got = [predictor(image) for image in frames(args.frames)]

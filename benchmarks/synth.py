@@ -48,6 +48,11 @@ def main() -> None:
     p.add_argument("--out", default=None)
     p.add_argument("--set", nargs="*", default=[], help="SynthConfig overrides, e.g. fps=10 grain=0")
     args = p.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("synth.py", args.out)) is not None:  # before any work
+        raise SystemExit(refused)
     overrides = parse_overrides(args.set)
     h, w = parse_wxh(args.size)
     results: dict[str, dict] = {}

@@ -24,9 +24,16 @@ between dashes and under the cars that hide it, as TuSimple's annotators draw it
    in the frame scaled to TuSimple's 1280 x 720 (``h_samples`` 160, 170, ... 710; lane.py's 20-px threshold is meant
    at that size: ``TUSIMPLE_WIDTH / width``, 4/3 for this 960x540 video).
 
+**The sealed frames** (docs/real-protocol.md): the frames ``i % 4 == 0``, 4-220, at least 3 frames from a dev frame,
+labelled by the same rule and fit, ``--frames 4 8 16 ... 220 --out benchmarks/labels/solidWhiteRight-sealed.json``;
+each looked at before any model ran on it, frames 64 and 220 rejected by the protocol's rule 1 (two lines: the next
+dashed line on the left not found) and left out of the file (``benchmarks/labels/real_split.json`` lists them).
+
 Every frame's picture (``--pictures DIR``: paint used in green, the label in yellow, the vanishing point in red; and
 ``sheet.jpg``, the ten at half size) was looked at; no label was corrected by hand. Writes the labels as json lines (``raw_file`` ``<video>#<frame>``, lanes
-in TuSimple's 1280 x 720 pixels) atomically; exit status 2 with one line where the video is missing or unreadable.
+in TuSimple's 1280 x 720 pixels) atomically; exit status 2 with one line where the video is missing or unreadable, a
+frame index is negative, past the video's end or given twice, or ``--out`` is a folder, no ``.json`` name, an
+existing file that is no TuSimple label file, or inside the data.
 """
 
 from __future__ import annotations
@@ -59,6 +66,7 @@ PAINT_MIN = 25.0  # top-hat value of paint
 OUTLIER_PX = 4.0  # px from the fitted quadratic: dropped
 MIN_PAINT_ROWS = 35  # rows with paint to be a painted line
 SHEET_TOP = 0.52  # the contact sheet shows each frame below this fraction of its height (the road)
+MAX_OUT_BYTES = 64 << 20  # an existing --out larger than this is no label file of a few frames
 
 
 class VideoLabelsError(Exception):
@@ -230,6 +238,26 @@ def label_video(path: Path, frames: tuple[int, ...]) -> tuple[list[dict], dict[i
     return records, pictures
 
 
+def check_out(out: Path) -> None:
+    """Refuse an ``--out`` that is no ``.json`` name, or an existing file that is not a TuSimple label file (a file
+    of the user's is never replaced by labels); a folder or a FIFO is `check_outputs`' to refuse."""
+    from stamlane_eval.io.files import LaneFileError
+    from stamlane_eval.io.tusimple import TuSimpleInputError, check_tusimple, read_tusimple
+
+    from stamlane.safety.guard import GuardError, read_input
+
+    if out.suffix != ".json":
+        raise VideoLabelsError(f"--out {out}: the labels are TuSimple json lines; give a name ending in .json")
+    if not out.is_file():
+        return
+    try:
+        check_tusimple(read_tusimple(out, text=read_input(out, MAX_OUT_BYTES, "--out")), "gt")
+    except (GuardError, LaneFileError, TuSimpleInputError) as err:
+        raise VideoLabelsError(
+            f"--out {out} exists and is no TuSimple label file ({err}); it is not replaced"
+        ) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--shared", type=Path, default=REPO.parent / "shared", help="the folder holding data/")
@@ -245,6 +273,10 @@ def main(argv: list[str] | None = None) -> int:
             raise VideoLabelsError(f"{path} does not exist (the real video lives in ../shared beside the project)")
         if min(args.frames) < 0:
             raise VideoLabelsError(f"--frames takes frame indices >= 0, got {min(args.frames)}")
+        twice = sorted({i for i in args.frames if args.frames.count(i) > 1})
+        if twice:  # a label file names each frame once (lane.py would score it twice)
+            raise VideoLabelsError(f"--frames names frame {twice[0]} more than once: each frame is labelled once")
+        check_out(args.out)
         try:  # the labels and pictures may not land on the video or anywhere in the data beside the project
             check_outputs(files=[args.out], folders=[args.pictures], protected=[args.shared])
         except GuardError as err:

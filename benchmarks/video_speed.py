@@ -247,6 +247,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reference-frames", type=int, default=100, help="frames the (slow) reference scores")
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/video_speed.json"), help="figures as JSON")
     args = ap.parse_args(argv)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
+    from _harness import guard_out
+
+    if (refused := guard_out("video_speed.py", args.out)) is not None:  # before any work
+        return refused
     cv2.setNumThreads(1)  # one core: OpenCV would otherwise spread some calls over the machine's cores
     gc.disable()  # as `stamlane-eval` runs (cli.main): the collector would only walk the parsed lanes
     w, h = (int(v) for v in args.size.lower().split("x"))

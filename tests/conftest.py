@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -22,6 +24,28 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # `pytest -n N`: N workers share the 
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+
+
+_CACHE_HOME: list[tuple[str, str | None]] = []  # (the session's folder, the variable's value before it)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The suite's cache home (``$STAMLANE_CACHE_DIR``, `stamlane.align.user_cache`): a fresh folder of the session,
+    set before any test module is imported (some build a subprocess environment at import), so that no test reads
+    what an earlier session cached nor writes into the user's ``~/.cache``; processes a test starts inherit it."""
+    folder = tempfile.mkdtemp(prefix="stamlane-test-cache-")
+    _CACHE_HOME.append((folder, os.environ.get("STAMLANE_CACHE_DIR")))
+    os.environ["STAMLANE_CACHE_DIR"] = folder
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    while _CACHE_HOME:
+        folder, before = _CACHE_HOME.pop()
+        shutil.rmtree(folder, ignore_errors=True)
+        if before is None:
+            os.environ.pop("STAMLANE_CACHE_DIR", None)
+        else:
+            os.environ["STAMLANE_CACHE_DIR"] = before
 
 
 @pytest.fixture(scope="session")

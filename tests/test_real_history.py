@@ -117,7 +117,7 @@ def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path
     assert not out.exists()
 
 
-@pytest.mark.parametrize("folder", ["real-history", "real-history/seeds"])
+@pytest.mark.parametrize("folder", ["real-history", "real-history/seeds", "real-history/vehicles"])
 def test_the_committed_tables_are_the_committed_numbers(bench, folder: str) -> None:
     results = Path(__file__).resolve().parents[1] / "docs" / "results" / folder
     out = json.loads((results / "real-history.json").read_text())
@@ -156,3 +156,100 @@ def test_a_video_shorter_than_its_labels_is_one_line(bench, tmp_path: Path, caps
     assert bench.main(["--ckpt", "single-dashcam", "--shared", str(shared), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "ends before frame" in err[0] and not out.exists()
+
+
+# ------------------------------------------------------------------------------------------- real vehicles
+def _road_record() -> dict:
+    """Three straight lines in label pixels, rows 400-700 labelled: x = -1.6 y + 1200, x = -y + 990 and x = y + 290
+    (the ego lane: 2 px a row wider, vanishing at row 350, 640 across)."""
+    rows = list(range(400, 710, 10))
+    lanes = [[-1.6 * y + 1200 for y in rows], [-y + 990 for y in rows], [y + 290 for y in rows]]
+    return {"raw_file": "v#9", "lanes": lanes, "h_samples": rows}
+
+
+def test_the_road_of_a_record_is_its_lines_vanishing_row_and_scale(bench):
+    road = bench.Road.of(_road_record())
+    assert [round(a, 6) for a, *_ in road.lines] == [-1.6, -1, 1]  # sorted left to right at the bottom
+    assert road.horizon == pytest.approx(350)  # the ego pair
+    assert road.height == pytest.approx(bench.LANE_WIDTH_M / 2)
+    assert road.focal == pytest.approx(640 / np.tan(np.radians(bench.HFOV_DEG) / 2))
+    with pytest.raises(bench.real_roads.RealRoadsError, match="fewer than two"):
+        bench.Road.of({"raw_file": "v#9", "lanes": [[300, 200]], "h_samples": [600, 700]})
+
+
+def test_a_vehicle_stands_on_its_line_scaled_with_its_row_and_moves_with_its_speed(bench):
+    road = bench.Road.of(_road_record())
+    near = bench.Vehicle(line=2, z=5.0, offset=0.0, speed=10.0, lateral=1.0, patch=0)
+    x0, y0, x1, y1 = bench.placement(near, road, 0.5, 0.0)
+    assert y1 == pytest.approx(road.horizon + road.focal * road.height / 5.0)  # the bottom on its ground row
+    assert (x0 + x1) / 2 == pytest.approx(y1 + 290)  # centred on line 2 (x = y + 290) there
+    assert x1 - x0 == pytest.approx(bench.VEHICLE_WIDTH_M * road.focal / 5.0) and y1 - y0 == pytest.approx(
+        (x1 - x0) / 2
+    )
+    far = bench.placement(bench.Vehicle(2, 10.0, 0.0, 10.0, 1.0, 0), road, 0.5, 0.0)
+    assert far[3] < y1 and far[2] - far[0] == pytest.approx((x1 - x0) / 2)  # twice as far: higher, half as wide
+    before = bench.placement(near, road, 0.5, -0.1)  # 0.1 s earlier it was 1 m nearer (it drives away) and left
+    assert before == bench.placement(bench.Vehicle(2, 4.0, -0.1, 10.0, 1.0, 0), road, 0.5, 0.0)
+    assert bench.placement(near, road, 0.5, -0.3) is None  # 2 m ahead: under the bonnet
+
+
+def test_the_draws_and_the_paste_are_deterministic_and_hide_the_lines_they_stand_on(bench):
+    record, road = _road_record(), bench.Road.of(_road_record())
+    patch = np.full((50, 100, 3), (0, 0, 255), np.uint8)  # a red vehicle
+    draws = [bench.draw_vehicles(road, np.random.default_rng([9, 5, d]), 1) for d in (0, 0, 1)]
+    assert draws[0] == draws[1] != draws[2]
+    assert len({v.line for v in draws[0]}) == bench.VEHICLES_PER_FRAME
+    image = np.full((540, 960, 3), 90, np.uint8)
+    pasted = bench.paste(image, draws[0], road, [patch], 0.0)
+    assert (image == 90).all() and np.array_equal(pasted, bench.paste(image, draws[0], road, [patch], 0.0))
+    red = (pasted[..., 2] > 200) & (pasted[..., 0] < 50)
+    mask = bench.cover((540, 960), draws[0], road, [patch], 0.0)
+    assert red.any() and np.array_equal(red & mask, red)  # the vehicles are where `cover` says
+    points, hidden, _ = bench.hidden_counts(record, [mask])
+    assert points == 3 * 31 and 0 < hidden < points
+    for v in draws[0]:  # each covers its line just above its bottom row
+        _, y0, _, y1 = bench.placement(v, road, 0.5, 0.0)
+        a, b = road.lines[v.line][:2]
+        row = y1 - 0.25 * (y1 - y0)
+        assert mask[round(row * 0.75), round((a * row + b) * 0.75)]
+
+
+def test_the_vehicle_kinds_keep_or_move_the_history_and_share_the_key_frame(bench):
+    record = _road_record()
+    rng = np.random.default_rng(4)
+    clean = [rng.integers(0, 256, (540, 960, 3), dtype=np.uint8) for _ in range(4)]
+    patches = [np.full((50, 100, 3), 255, np.uint8)]
+    vehicle = bench.spoiled_window(clean, "vehicle", [9, 5, 0], record, patches, 25.0)
+    traffic = bench.spoiled_window(clean, "traffic", [9, 5, 0], record, patches, 25.0)
+    assert all(a is b for a, b in zip(vehicle[:-1], clean[:-1]))  # the history intact
+    assert np.array_equal(vehicle[-1], traffic[-1]) and not np.array_equal(vehicle[-1], clean[-1])
+    assert all(not np.array_equal(a, b) for a, b in zip(traffic[:-1], clean[:-1]))  # the vehicles there too
+    covers = bench.window_covers(record, "traffic", [9, 5, 0], patches, 25.0, 3, (540, 960))
+    assert not any(np.array_equal(covers[-1], c) for c in covers[:-1])  # they moved
+    still = bench.window_covers(record, "vehicle", [9, 5, 0], patches, 25.0, 3, (540, 960))
+    assert not any(c.any() for c in still[:-1]) and np.array_equal(still[-1], covers[-1])
+    blank = bench.spoiled_window(clean, "blank", [9, 4, 0], record, patches, 25.0)
+    assert all(a is b for a, b in zip(blank[:-1], clean[:-1])) and not np.array_equal(blank[-1], clean[-1])
+
+
+def test_a_short_run_pastes_real_vehicles(bench, shared_dir: Path, tmp_path: Path):
+    out = tmp_path / "vehicles"
+    argv = ["--ckpt", "stam4-dashcam", "--kinds", "vehicle", "traffic", "--draws", "1", "--frames", "2"]
+    assert bench.main([*argv, "--shared", str(shared_dir), "--out", str(out), "--resamples", "200"]) == 0
+    result = json.loads((out / "real-history.json").read_text())
+    assert set(result["hidden_points"]) == {"vehicle", "traffic"}
+    vehicle, traffic = result["hidden_points"]["vehicle"], result["hidden_points"]["traffic"]
+    assert vehicle["hidden"] == traffic["hidden"] > 0 and vehicle["free_in_history"] == vehicle["hidden"]
+    assert traffic["free_in_history"] <= traffic["hidden"]
+    kinds = result["checkpoints"]["stam4-dashcam"]["kinds"]
+    assert kinds["vehicle"]["copies"]["f1"] == kinds["traffic"]["copies"]["f1"]  # the same key frame copied
+    assert (out / "summary.md").read_text() == bench.table(result)
+    assert len(bench.read_patches(shared_dir)) == len(json.loads(bench.PATCHES.read_text())["patches"])
+
+
+def test_missing_vehicle_pictures_are_one_line(bench, tmp_path: Path, capsys) -> None:
+    shared = _fake_shared(tmp_path / "shared", 3)
+    out = tmp_path / "out"
+    assert bench.main(["--kinds", "traffic", "--shared", str(shared), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "lanenet_0002.jpg cannot be read" in err[0] and not out.exists()

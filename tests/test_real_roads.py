@@ -216,3 +216,199 @@ def test_fine_tuning_a_shipped_model_on_a_tusimple_layout_set_is_one_command(tmp
     weights = [k for k, v in shipped.items() if v.is_floating_point() and "running_" not in k]  # not BN statistics
     moved = [float((tuned["state_dict"][k] - shipped[k]).abs().max()) for k in weights]
     assert 0 < max(moved) <= 0.0021  # one AdamW step of lr 0.002 from the shipped weights, not a fresh initialisation
+
+
+# ------------------------------------------------------------------- lane positions, counts, the protocol's split
+@pytest.fixture(scope="module")
+def frames_module():
+    with benchmark_module("real_frames") as module:
+        yield module
+
+
+ROWS_720 = list(range(160, 720, 10))  # TuSimple's h_samples
+
+
+def _straight(x_bottom: float, x_top: float, top: int = 300) -> list[float]:
+    """A TuSimple x list of a straight line from (x_top, top) to (x_bottom, 720), -2 above ``top``."""
+    return [x_top + (x_bottom - x_top) * (y - top) / (720 - top) if y >= top else -2 for y in ROWS_720]
+
+
+def test_positions_rank_the_lines_by_their_bottom_crossing_on_each_side_of_the_centre(frames_module):
+    # bottoms at 100, 400, 600 (left of 640) and 700, 1000 (right): 600 and 700 the ego pair, 400 and 1000 adjacent
+    lanes = [_straight(b, 600) for b in (1000, 100, 700, 400, 600)] + [[-2.0] * len(ROWS_720)]
+    record = {"raw_file": "a.jpg", "lanes": lanes, "h_samples": ROWS_720}
+    assert frames_module.positions(record, 1280, 720) == ["adjacent", "outer", "ego", "adjacent", "ego", None]
+
+
+def test_a_line_leaving_the_frame_is_placed_where_its_lowest_points_meet_the_bottom_row(frames_module):
+    # labelled on rows 300-500 only, x = y - 100: its five lowest points (460-500) extended meet row 720 at 620
+    xs = [y - 100.0 if 300 <= y <= 500 else -2 for y in ROWS_720]
+    assert frames_module.bottom_x(xs, ROWS_720, 720) == pytest.approx(620.0)
+    assert frames_module.bottom_x([-2.0] * len(ROWS_720), ROWS_720, 720) is None
+    one = [-2.0] * len(ROWS_720)
+    one[10] = 333.0
+    assert frames_module.bottom_x(one, ROWS_720, 720) == 333.0
+
+
+def test_a_line_is_recalled_as_lane_py_matches_it_and_too_many_predictions_recall_none(frames_module):
+    from stamlane_eval.tusimple import evaluate_image
+
+    gt = [_straight(b, 600) for b in (300, 600, 1000)]
+    record = {"raw_file": "a.jpg", "lanes": gt, "h_samples": ROWS_720}
+    near, off = [x + 10 if x >= 0 else x for x in gt[0]], [x + 40 if x >= 0 else x for x in gt[2]]
+    assert frames_module.matched_lanes([near, gt[1], off], record) == [True, True, False]  # 10 px in, 40 px out
+    assert evaluate_image([near, gt[1], off], gt, ROWS_720).matched == 2  # what lane.py counts
+    six = [near, gt[1], off, _straight(50, 500), _straight(1200, 700), _straight(20, 600)]  # > 3 + 2: the frame missed
+    assert frames_module.matched_lanes(six, record) == [False, False, False]
+    numbers = frames_module.frame_numbers([near, gt[1], off], 3, record, (1280, 720))
+    # bottoms 300 and 600 on the left (600 ego, 300 adjacent), 1000 the right ego line: the right one missed
+    assert numbers["positions"] == {"ego": [2, 1], "adjacent": [1, 1], "outer": [0, 0]} and numbers["gt_lanes"] == 3
+
+
+def _frame(ego: tuple[int, int], adjacent: tuple[int, int], pred: int, gt: int) -> dict:
+    return {
+        "positions": {"ego": list(ego), "adjacent": list(adjacent), "outer": [0, 0]},
+        "pred_lanes": pred,
+        "gt_lanes": gt,
+    }
+
+
+def test_recall_by_position_and_the_count_error_by_hand(frames_module):
+    frames = [_frame((2, 2), (1, 1), 4, 3), _frame((2, 1), (1, 0), 3, 3), _frame((2, 2), (0, 0), 5, 2)]
+    recall = frames_module.position_recall(frames)
+    assert recall["ego"]["recall"] == pytest.approx(5 / 6) and recall["ego"]["labelled"] == 6
+    assert recall["adjacent"]["recall"] == pytest.approx(1 / 2) and recall["adjacent"]["frames"] == 2
+    assert recall["outer"]["recall"] is None and recall["outer"]["labelled"] == 0
+    assert recall["ego"]["interval"] is None  # 3 frames: fewer than MIN_INTERVAL_FRAMES, no interval
+    counts = frames_module.count_numbers(frames)  # errors +1, 0, +3
+    assert counts["mean_abs_error"] == pytest.approx(4 / 3) and counts["mean_error"] == pytest.approx(4 / 3)
+    assert (counts["over_counted"], counts["under_counted"], counts["exact"], counts["over_max"]) == (2, 0, 1, 1)
+
+
+def test_the_intervals_resample_frames_and_drop_resamples_without_the_position(frames_module):
+    every = [_frame((2, 2), (1, 1), 3, 3)] * 6
+    assert frames_module.position_recall(every)["ego"]["interval"] == [1.0, 1.0]
+    mixed = [_frame((2, k % 3), (1 if k < 5 else 0, 1 if k < 2 else 0), 3, 3) for k in range(12)]
+    recall = frames_module.position_recall(mixed)
+    low, high = recall["ego"]["interval"]
+    assert low < recall["ego"]["recall"] < high and 0.0 <= low and high <= 1.0
+    assert recall["ego"]["resamples"] == frames_module.RESAMPLES
+    # adjacent lines in 5 of 12 frames: a resample may draw none of them; it is left out, not scored 0/0
+    assert 0 < recall["adjacent"]["resamples"] <= frames_module.RESAMPLES
+    assert frames_module.position_recall(mixed) == recall  # seeded: the same frames give the same interval
+
+
+def test_the_committed_split_is_the_protocols_rule(frames_module, bench):
+    split = frames_module.read_split()
+    dev_video = [r["raw_file"] for r in bench.read_video_labels()]
+    assert set(dev_video) <= set(split["dev"]) and not set(split["dev"]) & set(split["sealed"])
+    dev = [int(name.rpartition("#")[2]) for name in dev_video]
+    rule = [i for i in range(4, 221, 4) if min(abs(i - d) for d in dev) >= 3]  # docs/real-protocol.md
+    rejected = [int(r["raw_file"].rpartition("#")[2]) for r in split["rejected"]]
+    assert len(rule) == 45 and [int(n.rpartition("#")[2]) for n in split["sealed"]] == sorted(set(rule) - set(rejected))
+    records = bench.sealed_labels()  # the sealed file is the one the split was made from (its SHA-256)
+    assert [r["raw_file"] for r in records] == split["sealed"]
+    assert all(len(r["lanes"]) == 3 for r in records)  # the label rule's three lines on every kept frame
+
+
+def test_a_changed_sealed_file_or_a_sealed_frame_among_the_dev_labels_is_refused(frames_module, bench, tmp_path: Path):
+    split = frames_module.read_split()
+    records = bench.read_video_labels(bench.SEALED_LABELS)
+    changed = tmp_path / "sealed.json"
+    changed.write_text("".join(json.dumps(r) + "\n" for r in records[:-1]))
+    key = "benchmarks/labels/solidWhiteRight-sealed.json"
+    with pytest.raises(frames_module.RealFramesError, match="SHA-256"):
+        frames_module.check_split_labels(split, key, changed, records[:-1], "sealed")
+    with pytest.raises(frames_module.RealFramesError, match="is not a dev frame"):
+        frames_module.check_split_labels(
+            split | {"labels": {key: {"sha256": _sha(changed)}}}, key, changed, records[:1], "dev"
+        )
+
+
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _fake_shared(root: Path, lines: list[str]) -> Path:
+    (root / "data" / "real").mkdir(parents=True)
+    (root / "data" / "lanenet_frames.json").write_text("".join(line + "\n" for line in lines))
+    return root
+
+
+@pytest.mark.parametrize(
+    ("lines", "said"),
+    [
+        (["{not json"], "line 1"),
+        (['{"raw_file": "../../outside.jpg", "lanes": [[1, 2]], "h_samples": [700, 710]}'], "leads outside"),
+        (['{"raw_file": "/etc/hostname", "lanes": [[1, 2]], "h_samples": [700, 710]}'], "leads outside"),
+        (['{"raw_file": "frames/a\\u0000.jpg", "lanes": [[1, 2]], "h_samples": [700, 710]}'], "NUL"),
+        (['{"raw_file": "frames/a.jpg", "lanes": [[1, 2]], "h_samples": [700, 710]}'] * 2, "frames/a.jpg"),
+        (['{"raw_file": "frames/a.jpg", "lanes": "x", "h_samples": [700, 710]}'], "lanes"),
+    ],
+)
+def test_bad_labels_are_one_line_naming_the_file_and_write_nothing(
+    bench, tmp_path: Path, capsys: pytest.CaptureFixture, lines: list[str], said: str
+):
+    shared, out = _fake_shared(tmp_path / "shared", lines), tmp_path / "out"
+    (tmp_path / "outside.jpg").write_bytes(b"not read")
+    assert bench.main(["--ckpt", "single-synthetic", "--shared", str(shared), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("real_roads: error:") and "lanenet_frames.json" in err[0], err
+    assert said in err[0] and not out.exists()
+
+
+def test_a_video_label_of_another_file_and_sealed_options_are_refused(
+    bench, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    other = tmp_path / "labels.json"
+    other.write_text(json.dumps({"raw_file": "../x.mp4#3", "lanes": [[1, 2]], "h_samples": [700, 710]}) + "\n")
+    with pytest.raises(bench.real_frames.RealFramesError, match=r"no frame of solidWhiteRight\.mp4"):
+        bench.read_video_labels(other)
+    out = tmp_path / "out"
+    for extra in (["--frames", "2"], ["--decode", "model"]):
+        assert bench.main(["--split", "sealed", "--shared", str(shared_dir), "--out", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--split sealed" in err[0] and not out.exists()
+
+
+def test_the_dev_check_reports_lines_by_position_and_count(bench, shared_dir: Path, tmp_path: Path):
+    out = tmp_path / "real"
+    argv = ["--ckpt", "single-dashcam", "--shared", str(shared_dir), "--frames", "1", "--video-frames", "12"]
+    assert bench.main([*argv, "--strip", "1", "--out", str(out)]) == 0
+    result = json.loads((out / "single-dashcam.json").read_text())
+    photo, video = result["labelled_frames"], result["video"]["labelled_frames"]
+    assert result["split"] == "dev" and photo["per_frame"][0]["gt_lanes"] == 4  # photo 0: four labelled lines
+    assert photo["by_position"]["ego"]["labelled"] == 2 and photo["by_position"]["adjacent"]["labelled"] == 2
+    # the video's rule: the ego pair and the next line on the left (frame 11, the one streamed)
+    assert video["by_position"]["ego"]["labelled"] == 2 and video["by_position"]["adjacent"]["labelled"] == 1
+    assert video["by_position"]["ego"]["matched"] + video["by_position"]["adjacent"]["matched"] == video["lane_tp"]
+    assert video["counts"]["frames"] == 1 and photo["f1_interval"] is None  # one frame: no interval
+    assert "By lane position and count (dev)" in (out / "summary.md").read_text()
+
+
+def test_the_sealed_check_scores_the_sealed_frames_streamed_with_history(bench, shared_dir: Path, tmp_path: Path):
+    out = tmp_path / "sealed"
+    argv = ["--split", "sealed", "--ckpt", "single-synthetic", "--shared", str(shared_dir), "--video-frames", "9"]
+    assert bench.main([*argv, "--strip", "2", "--out", str(out)]) == 0
+    result = json.loads((out / "single-synthetic-sealed.json").read_text())
+    numbers = result["video"]["labelled_frames"]
+    assert result["split"] == "sealed" and "labelled_frames" not in result  # no photo: they are dev
+    assert [f["raw_file"] for f in numbers["per_image"]] == ["solidWhiteRight.mp4#4", "solidWhiteRight.mp4#8"]
+    assert result["video"]["by_stretch"] == {"early": {"f1": numbers["f1"], "images": 2}}
+    assert "labels/solidWhiteRight-sealed.json" in numbers["labels"]
+    assert (out / "summary-sealed.md").is_file() and not (out / "summary.md").exists()
+
+
+def test_a_synthetic_label_leading_out_of_val_is_refused_before_any_model(
+    bench, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    val, out = tmp_path / "val", tmp_path / "out"
+    val.mkdir()
+    record = {"raw_file": "../elsewhere/clip/3.jpg", "lanes": [[1, 2]], "h_samples": [100, 110]}
+    (val / "val.json").write_text(json.dumps(record) + "\n")
+    argv = ["--ckpt", "no-such-model", "--shared", str(shared_dir), "--out", str(out), "--val", str(val)]
+    assert bench.main(argv) == 2  # said before the checkpoint (which does not exist) is opened
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "leads outside" in err[0] and "val.json" in err[0] and not out.exists()

@@ -59,3 +59,30 @@ def test_a_missing_group_is_one_line_and_status_2(bench, tmp_path: Path, capsys)
     assert bench.main([str(tmp_path), "--groups", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(line.startswith("real_roads_seeds: no <group>-s<seed>.json") for line in err)
+
+
+def test_broken_run_files_and_bad_options_are_one_line_each(bench, tmp_path: Path, capsys) -> None:
+    good = json.dumps(_result([(0.0, 0.0), (0.25, 0.25)], 1))
+    cases = {
+        "not-json": ({"a-s0.json": "{broken"}, "not JSON"),
+        "not-a-result": (
+            {"a-s0.json": json.dumps({"labelled_frames": {"f1": "high"}})},
+            "not a real_roads.py dev result",
+        ),
+        "other-images": ({"a-s0.json": good, "b-s0.json": json.dumps(_result([(0.0, 0.0)], 1))}, "different numbers"),
+        "bad-synthetic": ({"a-s0.json": good, "synthetic-test.json": "[1, 2]"}, "synthetic-test.json"),
+    }
+    for name, (files, said) in cases.items():
+        folder = tmp_path / name
+        folder.mkdir()
+        for file, text in files.items():
+            (folder / file).write_text(text)
+        assert bench.main([str(folder), "--boot", "10"]) == 2, name
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("real_roads_seeds: error:") and said in err[0], (name, err)
+    folder = tmp_path / "folder-run"
+    (folder / "a-s0.json").mkdir(parents=True)  # a run "file" that is a folder
+    for argv in ([str(folder)], [str(tmp_path / "missing")], [str(tmp_path / "not-json"), "--boot", "0"]):
+        assert bench.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("real_roads_seeds: error:"), (argv, err)

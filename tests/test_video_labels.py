@@ -101,3 +101,32 @@ def test_bad_frames_and_an_output_over_the_video_are_one_line_each(
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("video_labels: error:")
     assert not out.exists() and video.stat().st_size == before
+
+
+def test_a_frame_twice_and_an_output_that_is_no_label_file_are_one_line_each(
+    labels, shared_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    mine, folder, text = tmp_path / "mine.json", tmp_path / "folder.json", tmp_path / "labels.txt"
+    mine.write_text('{"my": "settings"}\n')  # a file of the user's: never replaced by labels
+    folder.mkdir()
+    cases = [
+        (["--frames", "11", "33", "11", "--out", str(tmp_path / "new.json")], "frame 11 more than once"),
+        (["--frames", "11", "--out", str(mine)], "no TuSimple label file"),
+        (["--frames", "11", "--out", str(folder)], "is a folder"),
+        (["--frames", "11", "--out", str(text)], ".json"),
+    ]
+    for argv, said in cases:
+        assert labels.main(["--shared", str(shared_dir), *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("video_labels: error:") and said in err[0], err
+    assert mine.read_text() == '{"my": "settings"}\n' and not any(folder.iterdir())
+    assert not (tmp_path / "new.json").exists() and not text.exists()
+
+
+def test_an_existing_label_file_is_replaced_atomically(labels, shared_dir: Path, tmp_path: Path):
+    out = tmp_path / "labels.json"
+    out.write_text(labels.LABELS.read_text().splitlines()[0] + "\n")  # a label file of one frame: replaced
+    assert labels.main(["--shared", str(shared_dir), "--frames", "33", "--out", str(out)]) == 0
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["raw_file"] for r in records] == ["solidWhiteRight.mp4#33"]
+    assert [p.name for p in tmp_path.iterdir()] == ["labels.json"]  # no temporary file left beside it

@@ -49,6 +49,7 @@ TOOLS: dict[str, str] = {
     "report": "stamlane.experiments.report_cli",
     "stream": "stamlane.stream.cli",
     "export": "stamlane.stream.export_cli",
+    "adapt": "stamlane.training.adapt_cli",
 }
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
@@ -64,6 +65,7 @@ SUMMARIES: dict[str, str] = {
     "show": "picture grid of clips with their targets, to check a dataset",
     "stream": "per-frame streaming inference on a video or a folder of frames",
     "export": "a checkpoint to ONNX, with the parity against PyTorch printed",
+    "adapt": "a model adapted to your camera from your own unlabelled video (docs/adapt.md)",
     "ablate": "the paper's ablation tables over seeds",
     "report": "the tables of experiment summaries (demo, ablate), the paper's tables",
 }
@@ -71,12 +73,9 @@ SUMMARIES: dict[str, str] = {
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+    import stamlane
 
-    try:
-        return version("stamlane")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        return "unknown (not installed)"
+    return str(stamlane.__version__)
 
 
 def _usage() -> str:

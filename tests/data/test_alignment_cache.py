@@ -1,9 +1,11 @@
 """``align: fly`` pays each frame pair once: a second dataset on the same frames (a later run, pass, probe, model or
-seed) reads the first one's estimates from the data root's cache and gets the same samples, bit for bit."""
+seed) reads the first one's estimates from the user's cache folder and gets the same samples, bit for bit; nothing
+is written into the data."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import shutil
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -11,13 +13,24 @@ import numpy as np
 import pytest
 import torch
 
-from stamlane.align.cache import PAIR_CACHE_DIR
+from stamlane.align.cache import pair_cache_folder
 from stamlane.align.homography import ALIGN_PRESETS
+from stamlane.align.user_cache import CACHE_ENV
 from stamlane.data import TuSimpleClips
 from stamlane.data.alignment import ClipAligner
 from stamlane.data.options import ClipOptions
 
 CLIP = ClipOptions(num_frames=4, image_size=(40, 128), crop_top=0.4, align="fly")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """This module's own cache home, empty when its first test starts."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(CACHE_ENV, str(tmp_path_factory.mktemp("cache")))
+        folder = pair_cache_folder()
+        assert folder is not None
+        yield folder
 
 
 @pytest.fixture(scope="module")
@@ -26,19 +39,24 @@ def root(tiny_synthetic: Callable[..., Path]) -> Path:
     return tiny_synthetic(320, 180, 8, train=2, val=0, test=1, challenging=0, seed=6)
 
 
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
 def _samples(ds: TuSimpleClips) -> list[dict]:
     return [ds.load(entry, np.random.default_rng(i)) for i, entry in enumerate(ds.entries)]
 
 
-def test_a_second_dataset_reads_the_pairs_and_gets_the_same_samples(root: Path) -> None:
+def test_a_second_dataset_reads_the_pairs_and_gets_the_same_samples(root: Path, cache: Path) -> None:
+    data = _files(root)
     reference = TuSimpleClips(root, "test.json", clip=CLIP)
     options = reference.aligner
     reference.aligner = ClipAligner("fly", root, pair_cache=False)  # as before the cache: estimated here
     expected = _samples(reference)
-    assert not (root / PAIR_CACHE_DIR).exists()
+    assert not list(cache.rglob("*.json"))
     first = TuSimpleClips(root, "test.json", clip=CLIP)
     got = _samples(first)
-    assert first.aligner.pair_cache.misses > 0 and (root / PAIR_CACHE_DIR).is_dir()
+    assert first.aligner.pair_cache.misses > 0 and len(list(cache.rglob("*.json"))) == first.aligner.pair_cache.misses
     second = TuSimpleClips(root, "test.json", clip=CLIP)
     again = _samples(second)
     assert second.aligner.pair_cache.hits > 0 and second.aligner.pair_cache.misses == 0
@@ -47,6 +65,16 @@ def test_a_second_dataset_reads_the_pairs_and_gets_the_same_samples(root: Path) 
         assert torch.equal(a["frames"], b["frames"]) and torch.equal(a["frames"], c["frames"])
         assert a["key_from_hist"].numpy().tobytes() == c["key_from_hist"].numpy().tobytes()
         assert not np.allclose(a["key_from_hist"][0].numpy(), np.eye(3), atol=1e-3)  # aligned, not the identity
+    assert _files(root) == data  # the data root as it was: no file added, none changed
+
+
+def test_a_copy_of_the_data_elsewhere_reads_the_same_entries(root: Path, tmp_path: Path) -> None:
+    TuSimpleClips(root, "test.json", clip=CLIP)[0]
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    moved = TuSimpleClips(copy, "test.json", clip=CLIP)
+    moved[0]
+    assert moved.aligner.pair_cache.hits > 0 and moved.aligner.pair_cache.misses == 0  # keyed by content, not path
 
 
 def test_the_probes_read_the_pairs_of_the_real_history(root: Path) -> None:

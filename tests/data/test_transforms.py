@@ -152,3 +152,19 @@ def test_crop_top_cuts_the_sky_before_any_other_crop(crop_scale: tuple[float, fl
     # no random crop: the kept band [36, 90) fills the network rows exactly (pixel edges -0.5 .. 31.5)
     edges = full.net_from_orig @ np.array([[0, 35.5, 1], [0, 89.5, 1]]).T
     np.testing.assert_allclose(edges[1], [-0.5, 31.5])
+
+
+def test_a_training_frame_takes_as_many_lanes_as_its_8_bit_ids() -> None:
+    """255 lanes get 255 ids; a 256th would share one (uint8 instance mask): refused, naming the label file."""
+    import pytest
+
+    from stamlane.data.labels import DataError
+    from stamlane.data.targets import MAX_TRAINING_LANES
+
+    def lanes(n: int) -> list[np.ndarray]:
+        return [np.array([[x + 0.5, 0.0], [x + 0.5, 9.0]]) for x in range(n)]
+
+    _, inst = draw_lane_targets(lanes(MAX_TRAINING_LANES), (10, 300), thickness=1)
+    assert inst.max() == MAX_TRAINING_LANES == len(np.unique(inst)) - 1
+    with pytest.raises(DataError, match=r"train\.json: 256 lanes in one frame; at most 255"):
+        draw_lane_targets(lanes(MAX_TRAINING_LANES + 1), (10, 300), thickness=1, source="train.json")

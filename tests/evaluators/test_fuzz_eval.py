@@ -28,6 +28,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from stamlane_eval.cli import main
+from stamlane_eval.io import MAX_LANES
 
 GOLDEN = Path(__file__).parent / "golden"
 SECRET = "the secret 12 34"
@@ -183,12 +184,11 @@ def test_fuzz_tusimple(
         folder_name, _, name = rec["raw_file"].rpartition("/")
         how_spelled = data.draw(st.sampled_from(["{}/./{}", "{}//{}", "{}/x/../{}", "./{}/{}"]))
         recs.append({**rec, "raw_file": how_spelled.format(folder_name, name)})
-    elif how == "huge":  # past the documented limits: 64 lanes, 10,000 rows
-        if data.draw(st.booleans()):
-            preds[0]["lanes"] = [preds[0]["lanes"][0]] * 65
-        else:
-            gts[0]["h_samples"] = list(range(10_001))
-            gts[0]["lanes"] = [[-2] * 10_001]
+    elif how == "huge":  # past the documented budget: more than MAX_COMPARED_CELLS (lane, lane, row) in one image
+        rows, lanes = data.draw(st.sampled_from([(16_385, 128), (65_537, 64)]))  # 128 * 128 * 16_385 > 2**28
+        gts[0]["h_samples"] = list(range(rows))
+        gts[0]["lanes"] = [[5] * rows] * lanes
+        preds[0]["lanes"] = [[5] * rows] * lanes
     pred.write_text("".join(_dumps(r) + "\n" for r in preds))
     gt.write_text("".join(_dumps(r) + "\n" for r in gts))
     argv: list[object] = ["tusimple", pred, gt, "--json"]
@@ -273,15 +273,17 @@ def test_fuzz_culane(
     elif how == "duplicate":
         entries.append(data.draw(st.sampled_from(["/d/0.jpg", "d/0.png", "/d/0.lines.txt"])))
     elif how == "huge":
-        what = data.draw(st.sampled_from(["size", "points", "lanes"]))
+        what = data.draw(st.sampled_from(["size", "points", "lanes", "too many lanes"]))
         if what == "size":  # lanes across a 16384 x 16384 frame: past the canvas budget
             lane = "".join(f"{100 + 0.9 * y:.1f} {y} " for y in range(0, 16000, 400)) + "\n"
             preds, gts = [[lane] * 6 for _ in range(3)], [[lane] * 6 for _ in range(3)]
             extra = ["--size", "16384x16384"]
         elif what == "points":  # 10,001 points in one lane: the C++ tool scores it, so do we
             preds[0][0] = " ".join(f"{100 + (i % 5)} {580 - i * 0.024:.3f}" for i in range(10_001)) + "\n"
-        else:
+        elif what == "lanes":  # 65 lanes in one image: the C++ tool scores it (#59), so do we
             preds[0] = ["10 500 20 400\n"] * 65
+        else:  # past the time budget, MAX_LANES
+            preds[0] = ["10 500 20 400\n"] * (MAX_LANES + 1)
     listing.write_text("".join(e + "\n" for e in entries))
     pred, gt = _culane_tree(folder, preds, gts)
     argv: list[object] = [command, pred, gt, "--list", listing, "--json", *extra]
@@ -296,7 +298,7 @@ def test_fuzz_culane(
     if how in ("output", "duplicate", "special"):
         assert code == 2, err
     if how == "huge":
-        assert code == (0 if what == "points" else 2), err
+        assert code == (0 if what in ("points", "lanes") else 2), err
     if how == "token" and side == "pred":  # the right numbers: those of the line as the C++ tool reads it
         assert code == 0, err
         clean = [[_cpp_reading(x) for x in lines] for lines in preds]

@@ -246,8 +246,10 @@ def test_bad_input() -> None:
         temporal.evaluate({"clip": [Frame([A], [A], size=SIZE), Frame([A], [np.zeros(3)], size=SIZE)]})
     with pytest.raises(ValueError, match="non-finite"):
         temporal.evaluate_frame([A], [np.array([[1.0, np.nan], [2.0, 3.0]])], SIZE)
-    with pytest.raises(ValueError, match="not a pixel"):
-        temporal.evaluate_frame([A], [A * 1e6], SIZE)  # a label
+    far = temporal.evaluate_frame([A], [A * 1e6], SIZE)  # a label far outside: drawn clipped, as the script (#59)
+    assert far.anno_iou.tolist() == [0.0]
+    with pytest.raises(ValueError, match="int32"):
+        temporal.evaluate_frame([A], [A * 1e8], SIZE)  # a label beyond the script's drawing, as a prediction
     with pytest.raises(ValueError, match="int32"):
         temporal.evaluate_frame([A * 1e8], [A], SIZE)  # a prediction beyond what the script's drawing can hold
     with pytest.raises(ValueError, match="no sequence"):

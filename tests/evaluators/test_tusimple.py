@@ -108,8 +108,10 @@ def test_quirks_by_hand() -> None:
 def test_format_errors() -> None:
     with pytest.raises(tusimple.TuSimpleInputError, match="Format of lanes error"):
         tusimple.evaluate_image([[300.0] * 55], [[300.0] * 56], H56)
-    with pytest.raises(tusimple.TuSimpleInputError, match="not a pixel coordinate"):
-        tusimple.evaluate_image([[300.0] * 56], [[float("nan")] * 56], H56)  # a label; a prediction's NaN is absent
+    # a gt NaN is no point on its row, as lane.py takes it (x >= 0 fails); a gt +inf makes its angle fit raise
+    assert tusimple.evaluate_image([[300.0] * 56], [[float("nan")] * 56], H56).acc == 0.0
+    with pytest.raises(tusimple.TuSimpleInputError, match=r"Format of lanes error.*angle fit"):
+        tusimple.evaluate_image([[300.0] * 56], [[float("inf")] + [300.0] * 55], H56)
     with pytest.raises(tusimple.TuSimpleInputError, match="Format of lanes error"):
         tusimple.evaluate_image([["300"] * 56], [[300.0] * 56], H56)
     with pytest.raises(tusimple.TuSimpleInputError, match="empty"):

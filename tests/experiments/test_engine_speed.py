@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from stamlane.experiments.engine import ALL_PROBES, PROBES, REVEAL_PROBES, Experiment
+from stamlane.experiments.engine import ALL_PROBES, REVEAL_PROBES, SPLIT_PROBES, Experiment
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import predicted_as
 from stamlane.training.run_record import RunRecord
@@ -32,14 +32,16 @@ def _run_folder(tmp_path: Path, align: str) -> RunRecord:
     run = tmp_path / f"run-{align}"
     run.mkdir()
     (run / "config.yaml").write_text(f"data:\n  clip:\n    align: {align}\n")
+    (run / "checkpoints").mkdir()  # a finished run (opened through the gate, which reads only its config here)
+    (run / "checkpoints" / "last.ckpt").touch()
     return RunRecord(run, run / "checkpoints" / "last.ckpt", frames=4, seed=0, train_minutes=0.0)
 
 
 def test_which_probes_each_split_gets(tmp_path: Path) -> None:
     experiment = Experiment([], Recipe("paper", steps=1), [0], tmp_path, tmp_path / "out")
     aligned, unaligned = _run_folder(tmp_path, "fly"), _run_folder(tmp_path, "none")
-    assert PROBES == ("key",) and ALL_PROBES == ("key", "other_clip")
-    assert experiment.probes_of("test", aligned) == PROBES == experiment.probes_of("challenging", unaligned)
+    assert SPLIT_PROBES == ("key",) and ALL_PROBES == ("key", "other_clip")
+    assert experiment.probes_of("test", aligned) == SPLIT_PROBES == experiment.probes_of("challenging", unaligned)
     assert experiment.probes_of("reveal", aligned) == REVEAL_PROBES
     assert experiment.probes_of("reveal-traffic", unaligned) == tuple(p for p in REVEAL_PROBES if p != "exact")
     assert experiment.probes_of("test", replace(aligned, frames=1)) == ()  # a single frame has no history

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 from stamlane.align.camera import Camera, Pose
+from stamlane.synth.bodies import BodyStyle, draw_bodies
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dashcam import Roadside, Surface
 from stamlane.synth.road import render_texture, sample_road
-from stamlane.synth.scenery import VERGE_KINDS, BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
+from stamlane.synth.scenery import VERGE_KINDS, RepairedSurface, Scenery, Sun, Verge
 from stamlane.synth.vehicles import Vehicle
 
 DASHCAM2 = SynthConfig(width=320, height=180, num_frames=3, world="dashcam2", occluder_prob=1.0)

@@ -60,3 +60,23 @@ def test_hyperparameters_of_built_objects_can_be_dropped() -> None:
     torch.save({"hyper_parameters": dict(module.hparams)}, buffer)
     buffer.seek(0)
     assert torch.load(buffer, weights_only=True)["hyper_parameters"] == dict(module.hparams)  # plain values only
+
+
+def test_a_subcommand_has_a_parser_that_dumps_its_config_and_runs_again(tmp_path) -> None:
+    """`subcommand_parser` and `run_subcommand` reach LightningCLI's ``_parser`` and ``_run_subcommand``: the config
+    that travels in a checkpoint is the parser's dump, and a subcommand runs a second time with its hooks."""
+    from stamlane.training.lightning_compat import run_subcommand, subcommand_parser
+
+    runs = []
+
+    class Counting(LightningCLI):
+        def before_validate(self) -> None:
+            runs.append("validate")
+
+    common = ["--trainer.logger=false", "--trainer.enable_progress_bar=false", "--trainer.limit_val_batches=1"]
+    cli = Counting(BoringModel, args=["validate", f"--trainer.default_root_dir={tmp_path}", *common])
+    assert runs == ["validate"]
+    dumped = subcommand_parser(cli, "validate").dump(cli.config["validate"], skip_none=False)
+    assert "limit_val_batches: 1" in dumped and "default_root_dir" in dumped
+    run_subcommand(cli, "validate")
+    assert runs == ["validate", "validate"]

@@ -256,14 +256,3 @@ def test_the_example_of_the_docs_runs(tiny_root: Path, tmp_path: Path, capsys: p
     assert frames == "4" and (tmp_path / "stam4-s0" / "run" / "checkpoints" / "last.ckpt").is_file()
     for probe in ("real", "key", "other_clip"):
         assert (tmp_path / "predictions" / f"test@{probe}" / "predictions.json").is_file()
-
-
-def test_open_model_builds_the_network_of_a_checkpoint_once_read() -> None:
-    """`stamlane stream` and `export`: the shipped 4-frame model's network, in eval mode, and its clip options."""
-    from stamlane.training.runs import open_model
-    from stamlane.weights import shipped_path
-
-    module, clip = open_model(shipped_path("stam4-synthetic"))
-    assert not module.training and clip is not None and clip.num_frames == 4
-    stored = read_checkpoint(shipped_path("stam4-synthetic"))["state_dict"]
-    assert all(torch.equal(v, stored[k]) for k, v in module.state_dict().items())

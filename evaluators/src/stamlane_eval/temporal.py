@@ -36,7 +36,7 @@ import numpy as np
 
 from stamlane_eval._long_runs import map_sequences
 from stamlane_eval.aggregate import count_update, stability_rates
-from stamlane_eval.io.limits import MAX_COORDINATE, CanvasBudget, check_image_size
+from stamlane_eval.io.limits import CanvasBudget, check_image_size
 from stamlane_eval.video import Frame
 
 __all__ = [
@@ -164,10 +164,8 @@ def _unique_points(lane: np.ndarray, protocol: str, i: int, what: str) -> list[t
         raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
-    if what == "annotated" and arr.size and np.abs(arr).max() > MAX_COORDINATE:
-        # a label, refused as the readers refuse it; a prediction far outside the image is scored as the script
-        # scores it (drawn clipped: nothing of it on the image), up to the int32 range of its drawing (_spline)
-        raise ValueError(f"{what} lane {i}: a coordinate beyond +-{MAX_COORDINATE:g} px is not a pixel of an image")
+    # a lane far outside the image, annotated or predicted (x = 150,000), is scored as the script scores it: drawn
+    # clipped, nothing of it on the image, up to the int32 range of its drawing (_spline)
     if protocol == "openlane-v":
         # load_culane_img_data / load_gt_data: 1920x1280 pixels to the 960x640 canvas, in this operation order
         arr = arr.copy()

@@ -8,7 +8,9 @@ check of the format) and the totals folded by ``stamlane_eval.aggregate`` (share
 so the per-image numbers, the dataset numbers, the CLI and the torchmetrics class cannot drift apart.
 
 What is scored and what is refused (docs/evaluators.md): every input lane.py scores to a rate is scored to
-lane.py's number, a prediction's huge, negative, fractional or non-finite x included; where lane.py crashes, or
+lane.py's number, a prediction's huge, negative, fractional or non-finite x included, and a ground truth's too
+(x = 150,000, NaN, -inf: as lane.py takes them), any lane count and length within the memory budgets
+(``stamlane_eval.io.MAX_TUSIMPLE_VALUES``, ``MAX_COMPARED_CELLS``); where lane.py crashes, or
 its numbers would not be rates (a ground truth naming an image twice; totals outside [0, 1], refused by
 :func:`check_rates`, which the command line applies), the input is refused with a `TuSimpleInputError`.
 
@@ -26,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from stamlane_eval.aggregate import TuSimpleSums, paper_f1, prf, tusimple_compute, tusimple_update
+from stamlane_eval.io.limits import MAX_COMPARED_CELLS
 from stamlane_eval.io.tusimple import TuSimpleFile, TuSimpleInputError, check_tusimple
 
 __all__ = [
@@ -168,15 +171,15 @@ def _bench(
     # Gt lane angle (LaneEval.get_angle): least-squares x = k*y + b over the rows with x >= 0 (sklearn
     # LinearRegression, centred); theta = 0 with fewer than 2 such rows.
     on = (gt >= 0) & row_ok[:, None, :]
-    cnt = on.sum(-1)
-    safe = np.maximum(cnt, 1)
-    y3 = np.broadcast_to(ys[:, None, :], gt.shape)
-    ym = np.where(on, y3, 0.0).sum(-1) / safe
-    xm = np.where(on, gt, 0.0).sum(-1) / safe
-    yc = np.where(on, y3 - ym[..., None], 0.0)
-    xc = np.where(on, gt - xm[..., None], 0.0)
-    den = (yc * yc).sum(-1)
-    k = np.where(cnt > 1, (yc * xc).sum(-1) / np.where(den > 0, den, 1.0), 0.0)
+    cnt, yc, xc = _centred(gt, np.broadcast_to(ys[:, None, :], gt.shape), on)
+    with np.errstate(over="ignore", invalid="ignore"):
+        den = (yc * yc).sum(-1)
+        k = (yc * xc).sum(-1) / np.where(den > 0, den, 1.0)
+        # a far gt x (1e308) overflows the products that lstsq never forms: the same slope with x scaled down
+        scale = np.maximum(np.abs(xc).max(-1, initial=0.0), 1.0)
+        k_scaled = (yc * (xc / scale[..., None])).sum(-1) / np.where(den > 0, den, 1.0) * scale
+        k = np.where(np.isfinite(k), k, k_scaled)
+    k = np.where(cnt > 1, k, 0.0)
     theta = np.where(cnt > 1, np.arctan(k), 0.0)
     thresh = PIXEL_THRESH / np.cos(theta)  # (n, G)
 
@@ -184,9 +187,13 @@ def _bench(
     # count as hits), strict <, divided by len(gt) = all rows.
     pred = np.where(pred >= 0, pred, _NEGATIVE_FILL)
     gt = np.where(gt >= 0, gt, _NEGATIVE_FILL)
-    hits = np.abs(pred[:, :, None, :] - gt[:, None, :, :]) < thresh[:, None, :, None]  # (n, P, G, R)
-    hits &= row_ok[:, None, None, :]
-    accs = hits.sum(-1) / n_rows[:, None, None]  # (n, P, G)
+    accs = np.empty((n, p_max, g_max))  # (n, P, G)
+    g_step = max(1, BLOCK_CELLS // (n * p_max * r_max))  # memory: a few gt lanes at a time for a large image
+    for g0 in range(0, g_max, g_step):
+        sl = slice(g0, g0 + g_step)
+        hits = np.abs(pred[:, :, None, :] - gt[:, None, sl, :]) < thresh[:, None, sl, None]  # (n, P, g, R)
+        hits &= row_ok[:, None, None, :]
+        accs[:, :, sl] = hits.sum(-1) / n_rows[:, None, None]
     accs = np.where(pred_ok[:, :, None], accs, -np.inf)
     max_acc = np.where(n_pred[:, None] > 0, accs.max(1), 0.0)  # (n, G); 0 when there is no prediction
     max_acc = np.where(gt_ok, max_acc, 0.0)
@@ -214,6 +221,19 @@ def _bench(
     fn = np.where(early, 1.0, fn)
     matched = np.where(early, 0, matched)
     return acc, fp, fn, matched
+
+
+def _centred(xs: np.ndarray, ys: np.ndarray, on: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """sklearn LinearRegression's centring of the rows ``on`` of lanes ``xs`` (``(..., R)``) with row y ``ys``
+    (same shape): the row count, and y and x minus their means over those rows (0 off them), as float64."""
+    cnt = on.sum(-1)
+    safe = np.maximum(cnt, 1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ym = np.where(on, ys, 0.0).sum(-1) / safe
+        xm = np.where(on, xs, 0.0).sum(-1) / safe
+        yc = np.where(on, ys - ym[..., None], 0.0)
+        xc = np.where(on, xs - xm[..., None], 0.0)
+    return cnt, yc, xc
 
 
 def evaluate_batch(
@@ -249,8 +269,11 @@ def evaluate_batch(
     if n == 0:
         return []
     names = [str(i) for i in range(n)]
-    gt = check_tusimple([{"raw_file": k, "lanes": g, "h_samples": h} for k, g, h in zip(names, gts, h_samples)], "gt")
-    pred = check_tusimple([{"raw_file": k, "lanes": p, "run_time": t} for k, p, t in zip(names, preds, rt)], "pred")
+    gt_records = [{"raw_file": k, "lanes": g, "h_samples": h} for k, g, h in zip(names, gts, h_samples)]
+    gt = check_tusimple(gt_records, "gt", labels="lane.py")
+    pred = check_tusimple(
+        [{"raw_file": k, "lanes": p, "run_time": t} for k, p, t in zip(names, preds, rt)], "pred", labels="lane.py"
+    )
     return _score(pred, gt, np.arange(n), pred.run_times, chunk)
 
 
@@ -268,7 +291,7 @@ def _score(
 
     Raises:
         TuSimpleInputError: lane.py's 'Format of lanes error.': a predicted lane not as long as the image's
-            ``h_samples``.
+            ``h_samples``, or a gt lane whose angle fit raises (`_unfit_gt`); an image over ``MAX_COMPARED_CELLS``.
     """
     assert gt.rows is not None and gt.h_samples is not None  # a ground truth's TuSimpleFile has both
     n = len(take)
@@ -288,25 +311,45 @@ def _score(
     rt = np.zeros(n) if run_times is None else run_times
     # Quirk (order of checks): the lane lengths are checked first, for every image; then the run_time / count rule
     early = (rt > MAX_RUN_TIME_MS) | (n_gt + EXTRA_PRED_LANES < n_pred)
+    unfit = _unfit_gt(gt)[take] & ~early  # lane.py fits the angle of an image's gt lanes only past the early return
+    if unfit.any():
+        i = int(np.argmax(unfit))
+        raise TuSimpleInputError(
+            "Format of lanes error: a gt lane has x = +inf, or a non-finite h_samples value, on a row it is on: "
+            "lane.py's angle fit (LinearRegression) raises on it",
+            "gt",
+            int(take[i]) + 1,
+        )
+    # Images scored (0, 0, 1) by the early return compare nothing: lane.py returns before looking at their lanes.
+    cmp_pred, cmp_gt = np.where(early, 0, n_pred), np.where(early, 0, n_gt)
+    cells = cmp_pred * cmp_gt * n_rows
+    if len(cells) and cells.max() > MAX_COMPARED_CELLS:  # time: lane.py compares every pair of lanes row by row
+        i = int(np.argmax(cells))
+        raise TuSimpleInputError(
+            f"{n_pred[i]} predicted x {n_gt[i]} gt lanes x {n_rows[i]} rows: more than {MAX_COMPARED_CELLS:,} "
+            f"comparisons in one image, past the time budget",
+            "pred",
+            i + 1,
+        )
     # Images with the same lane counts are scored together, so that no block pads lanes it does not have.
     p_start = np.cumsum(n_pred) - n_pred
     g_start = (np.cumsum(gt.counts) - gt.counts)[take]
     acc, fp, fn = np.zeros(n), np.zeros(n), np.zeros(n)
     matched = np.zeros(n, dtype=np.int64)
-    order = np.lexsort((n_gt, n_pred))
-    key = n_pred[order] * (int(n_gt.max()) + 1) + n_gt[order]
+    order = np.lexsort((cmp_gt, cmp_pred))
+    key = cmp_pred[order] * (int(cmp_gt.max()) + 1) + cmp_gt[order]
     bounds = np.flatnonzero(np.diff(key)) + 1
     for group in np.split(order, bounds):
         # images per block: at most `chunk`, and few enough that the (images, P, G, R) comparison stays small
-        cells = max(int(n_pred[group[0]]), 1) * max(int(n_gt[group[0]]), 1) * r_max
-        step = max(1, min(chunk, BLOCK_CELLS // cells))
+        block = max(int(cmp_pred[group[0]]), 1) * max(int(cmp_gt[group[0]]), 1) * r_max
+        step = max(1, min(chunk, BLOCK_CELLS // block))
         for s in range(0, len(group), step):
             ids = group[s : s + step]
             res = _bench(
-                pred_flat[_lane_index(p_start[ids], n_pred[ids])],
-                n_pred[ids],
-                gt_flat[_lane_index(g_start[ids], n_gt[ids])],
-                n_gt[ids],
+                pred_flat[_lane_index(p_start[ids], cmp_pred[ids])],
+                cmp_pred[ids],
+                gt_flat[_lane_index(g_start[ids], cmp_gt[ids])],
+                cmp_gt[ids],
                 n_gt[ids],
                 ys[ids],
                 n_rows[ids],
@@ -325,6 +368,27 @@ def _score(
             early.tolist(),
         )
     )
+
+
+def _unfit_gt(gt: TuSimpleFile) -> np.ndarray:
+    """``(n,)``: the gt records with a lane whose angle lane.py cannot fit. ``get_angle`` fits the rows with
+    ``x >= 0`` (NaN and -inf are not; +inf is) when there are two or more, and sklearn's LinearRegression raises on
+    an infinite x or a non-finite row y among them (an x beyond the float range, 10**400, is lane.py's
+    OverflowError: ``json_float`` reads it +inf), and scipy's lstsq on a mean or a centred value that overflows
+    (two x of 1.7e308). A lone +inf row is not fitted (theta 0) and is scored, a miss."""
+    assert gt.rows is not None and gt.h_samples is not None
+    owner = np.repeat(np.arange(len(gt.counts)), gt.counts)
+    if len(owner) == 0:
+        return np.zeros(len(gt.counts), dtype=bool)
+    r = gt.h_samples.shape[1]
+    lanes = _pad(gt.lanes, r)
+    ys = gt.h_samples[owner]
+    with np.errstate(invalid="ignore"):
+        on = (lanes >= 0) & (np.arange(r)[None, :] < gt.rows[owner][:, None])
+    cnt, yc, xc = _centred(lanes, ys, on)
+    bad = on & ~(np.isfinite(lanes) & np.isfinite(ys) & np.isfinite(yc) & np.isfinite(xc))
+    lane_unfit = (cnt > 1) & bad.any(1)
+    return np.bincount(owner, weights=lane_unfit, minlength=len(gt.counts)) > 0
 
 
 def _lane_index(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -369,12 +433,12 @@ def evaluate(
 
     Raises:
         TuSimpleInputError: where lane.py raises, where its numbers would mean nothing (a gt naming an image
-            twice, no image), and where a file breaks the format's types or a label is no pixel coordinate
-            (``stamlane_eval.io.check_tusimple``). Totals outside [0, 1] are returned as lane.py computes them;
+            twice, no image), where a file breaks the format's types (``stamlane_eval.io.check_tusimple``), and
+            past the memory budgets (``MAX_TUSIMPLE_VALUES``, ``MAX_COMPARED_CELLS``). Totals outside [0, 1] are returned as lane.py computes them;
             :func:`check_rates` refuses them, as the command line does.
 
     Warns:
-        UserWarning: once, when prediction values are no pixel coordinate (not finite, or beyond
+        UserWarning: once, when prediction or ground-truth values are no pixel coordinate (not finite, or beyond
             ``stamlane_eval.io.MAX_COORDINATE``): they are scored as lane.py scores them.
     """
     if len(gts) == 0 and len(preds) == 0:
@@ -383,8 +447,8 @@ def evaluate(
         raise TuSimpleInputError(
             f"We do not get the predictions of all the test tasks: {len(preds)} predictions for {len(gts)} gt images"
         )
-    gt = check_tusimple(gts, "gt")
-    pred = check_tusimple(preds, "pred")
+    gt = check_tusimple(gts, "gt", labels="lane.py")
+    pred = check_tusimple(preds, "pred", labels="lane.py")
     index = {name: i for i, name in enumerate(gt.names)}
     take = np.empty(len(preds), dtype=np.int64)
     seen = np.zeros(len(gts), dtype=bool)
@@ -398,11 +462,13 @@ def evaluate(
             raise TuSimpleInputError(f"duplicate prediction for raw_file {name!r}", "pred", i + 1)
         seen[j] = True
         take[i] = j
-    if pred.odd:
-        count, first = pred.odd
+    if pred.odd or gt.odd:  # one warning line for both files
+        said = [f"{o[0]} {what} value(s)" for o, what in ((pred.odd, "prediction"), (gt.odd, "ground-truth")) if o]
+        first = (pred.odd or gt.odd)[1]  # type: ignore[index]
         warnings.warn(
-            f"{count} prediction value(s) are no pixel coordinate ({first}): scored as lane.py scores them "
-            f"(a negative or NaN x: no point on that row; a huge one: a miss; run_time NaN: within the limit)",
+            f"{' and '.join(said)} are no pixel coordinate ({first}): scored as lane.py scores them "
+            f"(a negative or NaN x: no point on that row; a huge one: a miss, and a huge gt x steepens its lane's "
+            f"angle fit; run_time NaN: within the limit)",
             stacklevel=2,
         )
     per_image = _score(pred, gt, take, pred.run_times if time_limit else None)

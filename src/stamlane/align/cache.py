@@ -11,11 +11,14 @@ a dataset root that is itself a clip folder is cached as ``<cache_dir>/__root__.
 
 The data pipeline's own cache (`PairCache`, ``align: fly``) keeps ORB frame-pair estimates by CONTENT instead: one
 file per pair, named by the digest of both frames' pixels (`frame_digest`) with the estimation settings, the
-OpenCV and numpy versions and `PAIR_CACHE_VERSION` (`pair_key`), in ``<data root>/`` `PAIR_CACHE_DIR`; entries in
-the format above (`alignment_to_json`). A frame rewritten with other pixels has another digest, so a stale entry
-is never read; every training run, prediction pass, probe, model and seed on the same frames reads the pairs the
+OpenCV and numpy versions and `PAIR_CACHE_VERSION` (`pair_key`), in the user's cache folder (`pair_cache_folder`:
+``alignment/`` of `stamlane.align.user_cache`, never inside the data); entries in the format above
+(`alignment_to_json`). A frame rewritten with other pixels has another digest, so a stale entry is never read; every
+training run, prediction pass, probe, model and seed on the same frames, wherever they lie, reads the pairs the
 first one estimated (`estimate_clip_cached`), and the homographies are the estimated ones bit for bit (JSON keeps
-a float64 exactly).
+a float64 exactly). A frame has one other identity, the digest of its file's bytes (`stamlane.data.frame_store`'s
+`file_identity`): the in-memory store needs it before the frame is decoded, the pair cache the pixels whatever the
+file's encoding, so neither can serve the other.
 """
 
 from __future__ import annotations
@@ -24,7 +27,6 @@ import fcntl
 import hashlib
 import json
 import os
-import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -34,13 +36,21 @@ from typing import Any
 
 import numpy as np
 
-from stamlane.align.homography import AlignConfig, Alignment, FramePrep, estimate_prepared, resolve_horizon_row
+from stamlane.align.homography import (
+    AlignConfig,
+    Alignment,
+    FramePrep,
+    check_plausible,
+    estimate_prepared,
+    resolve_horizon_row,
+)
+from stamlane.align.user_cache import cache_folder, say_unwritable, writable_folder
 from stamlane.align.warp import Strategy
 from stamlane.safety.guard import GuardError, is_inside, read_inside, write_atomic
 
 __all__ = [
     "FRAME_SUFFIXES",
-    "PAIR_CACHE_DIR",
+    "PAIR_CACHE_NAME",
     "PAIR_CACHE_VERSION",
     "ROOT_CACHE_NAME",
     "PairCache",
@@ -53,6 +63,7 @@ __all__ = [
     "list_frames",
     "load_alignment",
     "merge_cache",
+    "pair_cache_folder",
     "pair_key",
     "read_cache",
     "write_cache",
@@ -120,15 +131,38 @@ def alignment_to_json(alignment: Alignment) -> dict[str, Any]:
     }
 
 
-def alignment_from_json(entry: dict[str, Any]) -> Alignment:
-    """Inverse of ``alignment_to_json``."""
-    return Alignment(
-        np.asarray(entry["key_from_hist"], np.float64).reshape(3, 3),
-        int(entry.get("num_matches", 0)),
-        int(entry.get("num_inliers", 0)),
-        bool(entry.get("ok", False)),
-        str(entry.get("reason", "")),
-    )
+def alignment_from_json(entry: object) -> Alignment:
+    """Inverse of ``alignment_to_json``, for an entry of the form it writes and no other.
+
+    Raises:
+        ValueError: ``entry`` is not an object with a finite 3x3 ``key_from_hist`` of numbers, a boolean ``ok``,
+            whole non-negative counts and a string ``reason`` (the last three optional): a damaged entry, which
+            every reader takes for a missing one.
+    """
+    if not isinstance(entry, dict):
+        raise ValueError(f"an alignment entry is an object, got {type(entry).__name__}")
+    rows = entry.get("key_from_hist")
+    if not (
+        isinstance(rows, list)
+        and len(rows) == 3
+        and all(isinstance(row, list) and len(row) == 3 for row in rows)
+        and all(_is_number(v) for row in rows for v in row)
+    ):
+        raise ValueError("key_from_hist is not a 3x3 matrix of numbers")
+    matrix = np.asarray(rows, np.float64)
+    if not np.all(np.isfinite(matrix)):
+        raise ValueError("key_from_hist is not finite")
+    ok, reason = entry.get("ok"), entry.get("reason", "")
+    counts = [entry.get(name, 0) for name in ("num_matches", "num_inliers")]
+    if not isinstance(ok, bool) or not isinstance(reason, str):
+        raise ValueError("ok is not true or false, or reason is not a string")
+    if not all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in counts):
+        raise ValueError("num_matches and num_inliers are not whole numbers >= 0")
+    return Alignment(matrix, counts[0], counts[1], ok, reason)
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def read_cache(path: str | os.PathLike[str]) -> CacheDict:
@@ -165,7 +199,8 @@ def merge_cache(path: str | os.PathLike[str], entries: CacheDict) -> CacheDict:
     with _locked(path):
         data = read_cache(path)
         for key, hist in entries.items():
-            data.setdefault(key, {}).update(hist)
+            kept = data.get(key)
+            data[key] = {**(kept if isinstance(kept, dict) else {}), **hist}  # a damaged key frame: written anew
         write_cache(path, data)
     return data
 
@@ -191,7 +226,8 @@ def load_alignment(
 
     Returns:
         the ``Alignment`` (``key_from_hist`` float64 ``(3, 3)``; check ``ok``), or ``None`` when the file,
-        the key frame or the history frame is missing from the cache, or the frames lie in different folders.
+        the key frame or the history frame is missing from the cache or damaged (`alignment_from_json`), or the
+        frames lie in different folders.
     """
     root = Path(root).resolve()
     key_path, hist_path = (p if p.is_absolute() else root / p for p in (Path(key_path), Path(hist_path)))
@@ -203,13 +239,17 @@ def load_alignment(
         mtime = path.stat().st_mtime_ns
     except (ValueError, OSError):
         return None
-    entry = _read_cached(str(path), mtime).get(key_path.name, {}).get(hist_path.name)
-    return None if entry is None else alignment_from_json(entry)
+    hists = _read_cached(str(path), mtime).get(key_path.name)
+    entry = hists.get(hist_path.name) if isinstance(hists, dict) else None
+    try:
+        return None if entry is None else alignment_from_json(entry)
+    except ValueError:  # a damaged entry: as a missing one, estimated on the fly
+        return None
 
 
 # ---------------------------------------------------------------------- the content-keyed pair cache (align: fly)
-PAIR_CACHE_DIR = Path(".stamlane-cache") / "alignment"
-"""Where `PairCache` keeps its entries, relative to the data root."""
+PAIR_CACHE_NAME = "alignment"
+"""`PairCache`'s folder in the cache home (`stamlane.align.user_cache.cache_folder`)."""
 PAIR_CACHE_VERSION = 1
 """Part of every `pair_key`: raise it when `stamlane.align.homography.estimate_prepared` changes what it returns for
 the same frames and settings, so that no entry of the old estimator is read."""
@@ -235,57 +275,90 @@ def pair_key(hist_digest: str, key_digest: str, horizon_row: int, config: AlignC
     return hashlib.sha256(repr(what).encode()).hexdigest()
 
 
+def pair_cache_folder() -> Path | None:
+    """Where `PairCache` keeps its entries by default: ``alignment/`` in the cache home (``$STAMLANE_CACHE_DIR``,
+    else ``$XDG_CACHE_HOME/stamlane``, else ``~/.cache/stamlane``); None where there is no home."""
+    return cache_folder(PAIR_CACHE_NAME)
+
+
 class PairCache:
-    """Frame-pair alignments kept by content under a data root (`PAIR_CACHE_DIR`), shared by every process.
+    """Frame-pair alignments kept by content in the user's cache folder, shared by every process and data set.
 
     A write goes to a temporary file of the writing process and is renamed over the entry (`write_atomic`): a
     reader sees a whole entry or none, and two processes writing one pair write the same bytes (the estimate is a
-    function of the pixels and the settings). A folder that cannot be written (a read-only data set) leaves the
-    cache read-only, with one warning; an entry that cannot be read (missing, damaged, too large, or a link leading
-    outside the data root) is a miss, estimated again and written over.
+    function of the pixels and the settings). A folder that cannot be made or written (a read-only home), or one
+    inside the data being read, is not written, said once per process (`stamlane.align.user_cache.CacheWarning`);
+    one that exists outside the data is still read (a shared cache on a read-only mount). An entry that cannot be
+    read (missing, too large, a link leading out of the folder) or is not what the estimator writes (not JSON, a
+    NaN or infinite homography, another shape or type: `alignment_from_json`; an accepted alignment that fails
+    `stamlane.align.homography.check_plausible`, a failed one that is not the identity) is a miss: estimated
+    again and written over.
 
     Args:
-        root: the data root; nothing is read or written outside it.
-        folder: the cache folder relative to ``root``.
+        folder: the cache folder (None: `pair_cache_folder`).
+        inputs: the data being read (a data root, a ``--source`` folder): a folder inside one of them is neither
+            read nor written.
     """
 
-    def __init__(self, root: str | os.PathLike[str], folder: str | os.PathLike[str] = PAIR_CACHE_DIR) -> None:
-        self.root = Path(root)
-        self.folder = self.root / folder
-        self.writable = True
+    def __init__(self, folder: str | os.PathLike[str] | None = None, inputs: tuple[Path, ...] = ()) -> None:
+        chosen = pair_cache_folder() if folder is None else Path(folder)
+        self.folder = chosen
+        inside = chosen is not None and any(is_inside(chosen, root) for root in inputs)
+        self.readable = chosen is not None and not inside
+        self.writable = writable_folder(chosen, "the alignment cache", inputs)
         self.hits = 0
         self.misses = 0
 
     def path(self, key: str) -> Path:
         """The entry file of ``key`` (two-character subfolders keep folders small)."""
+        if self.folder is None:
+            raise ValueError("this alignment cache has no folder")
         return self.folder / key[:2] / f"{key}.json"
 
     def get(self, key: str) -> Alignment | None:
-        """The cached alignment of ``key``, or None."""
-        try:
-            entry = json.loads(read_inside(self.path(key), self.root, _MAX_ENTRY_BYTES, "alignment cache entry"))
-            alignment = alignment_from_json(entry)
-        except (GuardError, json.JSONDecodeError, KeyError, TypeError, ValueError):
-            self.misses += 1
+        """The entry of ``key`` when it is whole and of the form `alignment_to_json` writes, or None (not counted:
+        `lookup` counts)."""
+        if not self.readable or self.folder is None:
             return None
-        self.hits += 1
-        return alignment
+        try:
+            text = read_inside(self.path(key), self.folder, _MAX_ENTRY_BYTES, "alignment cache entry")
+            return alignment_from_json(json.loads(text))
+        except (GuardError, json.JSONDecodeError, ValueError):
+            return None
+
+    def lookup(self, key: str, shape: tuple[int, int], horizon_row: int, config: AlignConfig) -> Alignment | None:
+        """The cached alignment of ``key`` (frames of ``shape`` ``(H, W)``, estimated with ``horizon_row`` and
+        ``config``, all three in the key) when it is one the estimator can return, or None; counted in ``hits`` or
+        ``misses``."""
+        found = self.get(key)
+        if found is not None and not _as_estimated(found, shape, horizon_row, config):
+            found = None
+        self.hits += found is not None
+        self.misses += found is None
+        return found
 
     def put(self, key: str, alignment: Alignment) -> None:
-        """Store ``alignment`` under ``key`` (atomically); a no-op once the folder proved unwritable."""
-        if not self.writable:
+        """Store ``alignment`` under ``key`` (atomically, over a damaged entry); a no-op once the folder proved
+        unwritable."""
+        if not self.writable or self.folder is None:
             return
         path = self.path(key)
         try:
-            if not is_inside(path.parent, self.root):  # a link out of the data root: nothing made or written there
-                raise OSError(f"{path.parent} leads outside {self.root}")
+            if not is_inside(path.parent, self.folder):  # a link out of the folder: nothing made or written there
+                raise OSError(f"{path.parent} leads outside it (a link?)")
             path.parent.mkdir(parents=True, exist_ok=True)
             write_atomic(path, json.dumps(alignment_to_json(alignment)))
         except OSError as err:
             self.writable = False
-            warnings.warn(
-                f"alignment cache {self.folder} cannot be written ({err}); estimating without it", stacklevel=2
-            )
+            say_unwritable("the alignment cache", self.folder, str(err))
+
+
+def _as_estimated(found: Alignment, shape: tuple[int, int], horizon_row: int, config: AlignConfig) -> bool:
+    """Whether ``found`` is what `estimate_prepared` returns: an accepted homography that passes its plausibility
+    check, or the identity of a failed estimate."""
+    if found.ok:
+        return not check_plausible(found.key_from_hist, shape, horizon_row, config)
+    return bool(np.array_equal(found.key_from_hist, np.eye(3)))
 
 
 def estimate_clip_cached(
@@ -333,7 +406,7 @@ def estimate_clip_cached(
         key = pair_key(digests[i], digests[j], row, cfg)
         found = memo.get(key)
         if found is None and cache is not None:
-            found = cache.get(key)
+            found = cache.lookup(key, shape, row, cfg)
         if found is None:
             found = estimate_prepared(prep(i), prep(j), cfg)
             if cache is not None:

@@ -31,6 +31,7 @@ from tqdm import tqdm
 
 from stamlane.align.cache import (
     CacheDict,
+    alignment_from_json,
     alignment_to_json,
     cache_file,
     find_clip_dirs,
@@ -99,10 +100,19 @@ def requested_pairs(num_frames_in_clip: int, job: AlignJob) -> dict[int, list[in
 
 
 def _covered(existing: CacheDict, frames: list[Path], pairs: dict[int, list[int]]) -> bool:
-    return all(
-        frames[k].name in existing and all(frames[i].name in existing[frames[k].name] for i in hist)
-        for k, hist in pairs.items()
-    )
+    """Whether every requested pair has a whole entry (a damaged one, `alignment_from_json`, is estimated again)."""
+
+    def whole(key: str, hist: str) -> bool:
+        entries = existing.get(key)
+        if not isinstance(entries, dict) or hist not in entries:
+            return False
+        try:
+            alignment_from_json(entries[hist])
+        except ValueError:
+            return False
+        return True
+
+    return all(whole(frames[k].name, frames[i].name) for k, hist in pairs.items() for i in hist)
 
 
 class _Clip:

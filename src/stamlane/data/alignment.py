@@ -7,9 +7,11 @@ Modes:
                 ``"direct"`` (each history frame against the key frame). On the synthetic clips (20 fps)
                 the chain aligns 100 % of the history frames 1-3 back at stride 1, direct matching 55 % of
                 those 3 back (``benchmarks/synth_align.py``, README). Each frame pair is estimated once
-                for good: kept by content in ``<root>/.stamlane-cache/alignment`` (`stamlane.align.cache.PairCache`,
-                keyed by both frames' pixel digests and the settings) and read by every later dataset, training
-                run, prediction pass, probe, model and seed on the same frames, in this process or another; a clip
+                for good: kept by content in the user's cache folder (``alignment/`` of
+                `stamlane.align.user_cache`, ``~/.cache/stamlane`` by default, never inside the data;
+                `stamlane.align.cache.PairCache`, keyed by both frames' pixel digests and the settings) and read by
+                every later dataset, training run, prediction pass, probe, model and seed on the same frames,
+                wherever they lie, in this process or another; a clip
                 is memoised inside the dataset object too (alignment happens before augmentation, so it does not
                 change per epoch). ``pair_cache=False``: estimated afresh by every dataset, as before the cache.
     ``"cache"`` read from ``stamlane align``'s cache (``stamlane.align.cache.load_alignment``); a frame
@@ -62,7 +64,7 @@ class ClipAligner:
         strategy: ``"chain"`` or ``"direct"``, for on-the-fly estimation.
         preset: the `stamlane.align.homography.ALIGN_PRESETS` settings of on-the-fly estimation (``"standard"``
             or ``"fast"``); part of every frame pair's cache key.
-        pair_cache: keep and read the on-the-fly frame-pair estimates in the data root's cache (see the module
+        pair_cache: keep and read the on-the-fly frame-pair estimates in the user's cache folder (see the module
             docstring); False: this object's memo only.
     """
 
@@ -101,7 +103,7 @@ class ClipAligner:
         if pair_cache and mode in ("fly", "cache"):
             from stamlane.align.cache import PairCache  # imported only when used
 
-            self.pair_cache = PairCache(self.root)
+            self.pair_cache = PairCache(inputs=(self.root,))  # never a cache inside the data
         self._true: dict[str, dict[str, Any]] = {}
         self._warned_cache_miss = False
         self.failures = 0

@@ -7,8 +7,12 @@ import warnings
 import cv2
 import numpy as np
 
-__all__ = ["draw_lane_targets", "left_to_right"]
+from stamlane.data.labels import DataError
 
+__all__ = ["MAX_TRAINING_LANES", "draw_lane_targets", "left_to_right"]
+
+MAX_TRAINING_LANES = 255
+"""Lanes one training frame may hold: their ids are drawn into an 8-bit instance mask (the evaluators score more)."""
 _SHIFT = 4  # sub-pixel bits for cv2 drawing: points are drawn at 1/16 px precision
 
 
@@ -53,6 +57,9 @@ def draw_lane_targets(
         ``binary`` int64 (H, W) (1 on lanes) and ``instance`` int64 (H, W) (0 background, lanes 1..n from
         left to right as seen in the network image; where two lanes touch the higher id wins). Lines are
         1-px polylines dilated by a disk of diameter ``thickness``.
+
+    Raises:
+        DataError: more than `MAX_TRAINING_LANES` lanes of two points or more.
     """
     if thickness < 1:
         raise ValueError(f"thickness must be >= 1, got {thickness}")
@@ -63,6 +70,8 @@ def draw_lane_targets(
             warnings.warn(f"{source or 'lane labels'}: lane {i} has {len(lane)} point(s); skipped", stacklevel=2)
             continue
         usable.append(lane)
+    if len(usable) > MAX_TRAINING_LANES:  # the evaluators score up to 512; ids past 255 would merge in uint8
+        raise DataError(f"{source or 'lane labels'}: {len(usable)} lanes in one frame; at most {MAX_TRAINING_LANES}")
     instance: np.ndarray = np.zeros((h, w), np.uint8)  # uint8; cv2.dilate keeps it
     for k, idx in enumerate(left_to_right(usable), start=1):
         order = np.argsort(usable[idx][:, 1])

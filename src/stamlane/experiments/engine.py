@@ -37,24 +37,24 @@ from stamlane.training.run_record import RunRecord
 
 __all__ = [
     "ALL_PROBES",
-    "PROBES",
     "REVEAL_PROBES",
     "REVEAL_SPLITS",
     "SPANS",
+    "SPLIT_PROBES",
     "Experiment",
     "oracle_subject",
 ]
 
-PROBES = (KEY.name,)
+SPLIT_PROBES = (KEY.name,)
 """The history probes of every multi-frame run on the `Experiment.splits` (`stamlane.data.probes`, where each probe is
 defined): the key frame copied into every history slot."""
 ALL_PROBES = (KEY.name, OTHER_CLIP.name)
-"""`PROBES` with ``other_clip`` (another clip's history) on the `Experiment.splits` too (``all_probes``): whether a
+"""`SPLIT_PROBES` with ``other_clip`` (another clip's history) on the `Experiment.splits` too (``all_probes``): whether a
 model leans on its history at all, on splits where the history shows little (the reveal splits always have it)."""
 REVEAL_SPLITS = ("reveal", "reveal-traffic")
 """The splits where the history reveals lanes (`stamlane.synth.config.REVEAL`), scored where the set has them."""
 REVEAL_PROBES = tuple(p.name for p in (KEY, WARPED_KEY, REVERSED, OTHER_CLIP, EXACT))
-"""The probes of a multi-frame run on `REVEAL_SPLITS`: `PROBES`, the matched null, the history in reverse order,
+"""The probes of a multi-frame run on `REVEAL_SPLITS`: `SPLIT_PROBES`, the matched null, the history in reverse order,
 another clip's history, and the real history aligned by the generator's exact homographies (runs that align on the fly
 only). A run that does not align predicts its matched null once, as ``key`` (`stamlane.data.probes.Probe.unaligned_as`)."""
 SPANS = ((2, 1), (4, 1), (8, 1), (2, 2), (4, 2), (8, 2))
@@ -78,7 +78,7 @@ class Experiment:
         probes: score multi-frame runs with their history probed too.
         reveal_probes: the probes of multi-frame runs on the reveal splits (`REVEAL_PROBES`, or some of them: the
             paper's tables need only ``key``, the history use).
-        all_probes: `ALL_PROBES` instead of `PROBES` on ``splits`` (another clip's history too: a third prediction of
+        all_probes: `ALL_PROBES` instead of `SPLIT_PROBES` on ``splits`` (another clip's history too: a third prediction of
             every clean and challenging key frame).
         temporal: predict the frames of `stamlane.synth.layout.TEMPORAL_LABELS` one after the other (each
             with its own history) and score their temporal stability, where the set has that file.
@@ -150,14 +150,14 @@ class Experiment:
 
     def probes_of(self, split: str, record: RunRecord) -> tuple[str, ...]:
         """The history probes of a run on ``split``: none for a single frame; ``reveal_probes`` on the reveal splits,
-        `PROBES` (`ALL_PROBES` with ``all_probes``) elsewhere. A run that does not align predicts neither ``exact``
+        `SPLIT_PROBES` (`ALL_PROBES` with ``all_probes``) elsewhere. A run that does not align predicts neither ``exact``
         (there is no alignment to make exact) nor ``warped_key``: without alignment the key frame warped out comes
         back unwarped, the very input of ``key`` (`stamlane.data.clips.warped_key`), so its scores are ``key``'s
         (`stamlane.data.probes.Probe.unaligned_as`)."""
         if not self.probes or record.frames < 2:
             return ()
         if split not in REVEAL_SPLITS:
-            return ALL_PROBES if self.all_probes else PROBES
+            return ALL_PROBES if self.all_probes else SPLIT_PROBES
         if aligns(record.run):
             return self.reveal_probes
         return tuple(p for p in self.reveal_probes if not Probe.of(p).exact)

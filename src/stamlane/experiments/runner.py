@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from stamlane.experiments.recipes import CONFIG_DIR, Row, Stage
 from stamlane.experiments.split_scores import (
@@ -307,39 +306,31 @@ def check_run_config(run: Path) -> None:
         raise ExperimentError(str(err)) from None
 
 
-def _run_section(run: Path, section: str) -> dict[str, Any]:
-    """A section of a run folder's config (``data``, ``model``) as a mapping."""
-    from stamlane.safety.boundary import one_line
-
-    path = run / "config.yaml"
-    try:
-        config = yaml.safe_load(run_config(run))
-    except yaml.YAMLError as err:
-        raise ExperimentError(f"{path}: not YAML ({one_line(err)}); delete the run folder") from None
-    value = config.get(section) if isinstance(config, dict) else None
-    if not isinstance(value, dict):
-        raise ExperimentError(f"{path}: its {section!r} section is not a mapping; delete the run folder")
-    return value
-
-
 def frames_of(run: Path) -> int:
-    """The clip length (T) of a run."""
-    from stamlane.training.compat import clip_options  # a run of before the data options were grouped too
-
-    try:
-        return clip_options(_run_section(run, "data")).num_frames
-    except ValueError as err:
-        raise ExperimentError(f"{run / 'config.yaml'}: {err}") from None
+    """The clip length (T) of a finished run (`stamlane.training.runs.Run.frames`, its config read through the gate)."""
+    with _opened(run) as opened:
+        return opened.frames
 
 
 def aligns(run: Path) -> bool:
-    """Whether a run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-    return bool((_run_section(run, "data").get("clip") or {}).get("align", "fly") == "fly")
+    """Whether a finished run pre-aligns its history on the fly (`stamlane.training.runs.Run.aligns`)."""
+    with _opened(run) as opened:
+        return opened.aligns
+
+
+def _opened(run: Path) -> Run:
+    """A run folder opened through `open_run` (its config checked, nothing built), its refusal an `ExperimentError`."""
+    try:
+        return open_run(run)
+    except RunError as err:
+        raise ExperimentError(f"{err}; delete the run folder") from None
 
 
 def postprocess_of(run: Path) -> dict[str, Any]:
-    """A run's post-processing options (``model.postprocess``)."""
-    return dict(_run_section(run, "model").get("postprocess") or {})
+    """A finished run's post-processing options (``model.postprocess`` of its checked config)."""
+    with _opened(run) as opened:
+        model = opened.config.get("model")
+        return dict((model.get("postprocess") if isinstance(model, dict) else None) or {})
 
 
 def _verify_checkpoint(record: RunRecord, folder: Path) -> None:

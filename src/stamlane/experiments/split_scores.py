@@ -54,17 +54,31 @@ only)."""
 
 def image_size(root: Path, split: str) -> tuple[int, int]:
     """(H, W) of the frames of a split: a synthetic set's (its ``dataset.json``), or the size of the split's first
-    labelled frame (a TuSimple-layout set of real frames)."""
-    from stamlane_eval.io import read_tusimple
+    labelled frame (a TuSimple-layout set of real frames), read only inside ``root``.
 
+    Raises:
+        ValueError: one line naming the file: a ``dataset.json`` without ``config.height`` / ``config.width``
+            (integers in ``1..MAX_IMAGE_SIDE``), a first frame outside ``root`` (``..``) or no readable image.
+    """
+    from stamlane_eval.io import check_image_size, read_tusimple
+
+    from stamlane.data.labels import resolve_inside
+    from stamlane.safety.guard import read_input
     from stamlane.safety.images import read_image
 
     info = root / "dataset.json"
     if info.is_file():
-        config = json.loads(info.read_text())["config"]
-        return int(config["height"]), int(config["width"])
+        try:
+            config = json.loads(read_input(info, 1 << 20, "dataset.json"))["config"]
+            height, width = config["height"], config["width"]
+            if type(height) is not int or type(width) is not int:
+                raise TypeError(f"config.height / config.width {height!r:.20} / {width!r:.20} are not integers")
+            return check_image_size((height, width))
+        except (KeyError, TypeError, ValueError) as err:  # GuardError and JSON's errors are ValueErrors
+            why = f"no key {err}" if isinstance(err, KeyError) else str(err)[:120]
+            raise ValueError(f"{info}: no frame size (config.height and config.width): {why}") from None
     labels = read_tusimple(root / f"{split}.json")
-    frame = root / labels[0]["raw_file"] if labels else None
+    frame = resolve_inside(root, labels[0]["raw_file"], f"{root / f'{split}.json'}: line 1") if labels else None
     image = read_image(frame) if frame is not None else None
     if image is None:
         raise ValueError(f"{root / f'{split}.json'}: its first frame {frame} is no readable image")

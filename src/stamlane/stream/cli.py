@@ -57,7 +57,7 @@ from stamlane.stream.eval_outputs import (
 from stamlane.weights import resolve
 
 if TYPE_CHECKING:
-    from stamlane.data.options import ClipOptions
+    from stamlane.training.stored import StoredModel
 
 __all__ = ["build_parser", "iter_frames", "load_predictor", "main"]
 
@@ -69,7 +69,9 @@ class StreamError(Exception):
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="stamlane stream", description=__doc__.split("\n\n")[0])
     parser.add_argument("video", help="a video file or a folder of frames (in name order, numbers compared as numbers)")
-    parser.add_argument("--ckpt", type=resolve, help="checkpoint written by `stamlane fit`, or a shipped model's name")
+    parser.add_argument(
+        "--ckpt", type=resolve, help="checkpoint written by `stamlane fit`, a run folder, or a shipped model's name"
+    )
     parser.add_argument("--config", help="training config to build the network from (weights from --ckpt if given)")
     parser.add_argument("--out", help="output folder (default outputs/stream/<VIDEO name>)")
     parser.add_argument("--num-frames", type=int, help="T, frames fused (default: as trained)")
@@ -77,7 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--image-size", type=int, nargs=2, metavar=("H", "W"), help="network input (default: as trained)"
     )
     parser.add_argument("--horizon-row", type=int, help="first ground row in original pixels, for the alignment")
-    parser.add_argument("--no-align", action="store_true", help="fuse unaligned history features")
+    parser.add_argument(
+        "--no-align", action="store_true", help="fuse unaligned history features (default: as the model was trained)"
+    )
     parser.add_argument(
         "--align-preset",
         choices=tuple(ALIGN_PRESETS),
@@ -170,38 +174,40 @@ def iter_frames(
     return read_video(), count, fps
 
 
-def _load_module(args: argparse.Namespace) -> tuple[Any, ClipOptions | None]:
-    """The LightningModule and how the clips it was trained on were read (`stamlane.data.options.ClipOptions`:
-    num_frames, image_size, horizon_row, crop_top), from the config or from the checkpoint (the flat data options
-    of an older checkpoint too); None for a checkpoint without data options."""
+def _open(args: argparse.Namespace) -> StoredModel:
+    """The model the command line names: a stored one (``--ckpt``: a checkpoint, a run folder or a shipped name,
+    opened once, `stamlane.training.stored.StoredModel`), or one built from a training config (``--config``, with
+    the weights of ``--ckpt`` when given, else untrained), its settings read as a stored model's."""
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-    from stamlane.training.runs import open_model
+    from stamlane.training.stored import ModelSettings, StoredModel
 
-    if args.config:
-        from stamlane.training.runs import run_cli
+    if not args.config:
+        if not args.ckpt:
+            raise StreamError("give --ckpt CKPT or --config CFG")
+        try:  # built from the closed registry, nothing imported; the checkpoint read once
+            return StoredModel.open(args.ckpt)
+        except CheckpointError as err:
+            raise StreamError(str(err)) from None
+    from stamlane.training.runs import run_cli
 
-        if not Path(args.config).is_file():
-            raise StreamError(f"config {args.config} does not exist")
-        # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
-        cli = run_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
-        module = cli.model
-        if args.ckpt:
-            try:
-                module.load_state_dict(read_checkpoint(args.ckpt)["state_dict"])
-            except CheckpointError as err:
-                raise StreamError(str(err)) from None
-            except RuntimeError as err:  # another network: missing / unexpected keys, other shapes
-                first = str(err).strip().splitlines()[0]
-                raise StreamError(
-                    f"checkpoint {args.ckpt} does not fit the network of {args.config}: {first}"
-                ) from None
-        return module, cli.datamodule.clip
-    if not args.ckpt:
-        raise StreamError("give --ckpt CKPT or --config CFG")
-    try:  # built from the closed registry, nothing imported; the checkpoint read once
-        return open_model(args.ckpt)
-    except CheckpointError as err:
-        raise StreamError(str(err)) from None
+    if not Path(args.config).is_file():
+        raise StreamError(f"config {args.config} does not exist")
+    # a bad config raises (one line at the boundary) instead of printing jsonargparse's usage
+    cli = run_cli(["--config", args.config], run=False, parser_kwargs={"exit_on_error": False})
+    module = cli.model
+    if args.ckpt:
+        try:
+            module.load_state_dict(read_checkpoint(args.ckpt)["state_dict"])
+        except CheckpointError as err:
+            raise StreamError(str(err)) from None
+        except RuntimeError as err:  # another network: missing / unexpected keys, other shapes
+            first = str(err).strip().splitlines()[0]
+            raise StreamError(f"checkpoint {args.ckpt} does not fit the network of {args.config}: {first}") from None
+    try:
+        settings = ModelSettings.of(module, cli.datamodule.clip)
+    except ValueError as err:
+        raise StreamError(f"config {args.config}: {err}") from None
+    return StoredModel(Path(args.ckpt or args.config), module.eval(), settings)
 
 
 def _device(name: str) -> Any:
@@ -222,33 +228,34 @@ def _device(name: str) -> Any:
 
 
 def load_predictor(args: argparse.Namespace) -> Any:
-    """The `StreamingPredictor` the command line asks for."""
-    from stamlane.stream.metadata import trained_crop_top
+    """The `StreamingPredictor` the command line asks for: the model's stored settings
+    (`stamlane.training.stored.ModelSettings`: alignment on or off, its preset and horizon row, T, size, crop,
+    decoding, bfloat16), each flag given replacing its setting."""
     from stamlane.stream.predictor import StreamingPredictor
 
-    if args.ckpt and not Path(args.ckpt).is_file():
+    if args.ckpt and not Path(args.ckpt).exists():
         raise StreamError(f"checkpoint {args.ckpt} does not exist")
     device = _device(args.device)
-    module, clip = _load_module(args)
-    module.eval().to(device)
-    overrides: dict[str, Any] = {"align": not args.no_align}
+    model = _open(args)
+    model.module.eval().to(device)
+    overrides: dict[str, Any] = {}
+    if args.no_align:
+        overrides["align"] = False
     if args.bf16 is not None:
         from stamlane.training.hardware import resolve_bf16
 
         overrides["bf16"] = resolve_bf16({"true": True, "false": False}.get(args.bf16, args.bf16), device.type)
-    num_frames = args.num_frames or getattr(module, "num_frames", None) or getattr(clip, "num_frames", None)
-    image_size = args.image_size or module.hparams.get("image_size") or getattr(clip, "image_size", None)
-    if num_frames is None or image_size is None:
-        raise StreamError("the network does not record num_frames / image_size: pass --num-frames and --image-size")
+    num_frames = args.num_frames or model.settings.num_frames
+    image_size = tuple(args.image_size or model.settings.image_size)
     check_clip(num_frames, list(image_size), "the streamed clip")  # the network's or the flags' size, one budget
-    horizon_row = args.horizon_row if args.horizon_row is not None else getattr(clip, "horizon_row", None)
-    overrides["align_config"] = align_preset(args.align_preset or getattr(clip, "align_preset", "standard"))
-    overrides["crop_top"] = trained_crop_top(module, clip)
+    overrides |= {"num_frames": int(num_frames), "image_size": image_size}
+    if args.horizon_row is not None:
+        overrides["horizon_row"] = args.horizon_row
+    if args.align_preset is not None:
+        overrides["align_config"] = align_preset(args.align_preset)
     if args.h_samples is not None:  # the lanes sampled at the benchmark's rows, as `stamlane predict` does
         overrides["y_samples"] = check_h_samples(args.h_samples)
-    return StreamingPredictor.from_module(
-        module, num_frames=int(num_frames), image_size=tuple(image_size), horizon_row=horizon_row, **overrides
-    )
+    return StreamingPredictor.from_stored(model, **overrides)
 
 
 def _lanes_json(lanes: list[np.ndarray]) -> list[list[list[float]]]:

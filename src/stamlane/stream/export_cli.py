@@ -127,11 +127,12 @@ def _write(args: Any, opset: int, outputs: list[Path]) -> int:
 
     from stamlane.stream.export import export_clip, export_encoder, export_fuse_decode
     from stamlane.stream.metadata import annotate, deployment_metadata
-    from stamlane.training.runs import open_model
+    from stamlane.training.stored import StoredModel
 
     start = time.perf_counter()
-    module, clip = open_model(args.ckpt_path)  # the checkpoint read once, the network from the closed registry
-    common = deployment_metadata(module, clip, args.ckpt_path, opset)
+    model = StoredModel.open(args.ckpt_path)  # the checkpoint read once, the network from the closed registry
+    module = model.module
+    common = deployment_metadata(module, model.settings.clip, args.ckpt_path, opset)
     num_frames, size = common["num_frames"], tuple(common["image_size"])
     net = module.net  # the buffers of tracing a clip, counted before one is made (a checkpoint's recorded size)
     shape = (net.encoder.out_channels, net.encoder.strides, int(getattr(net.decoder, "embed_dim", 4)))

@@ -157,12 +157,9 @@ def deployment_metadata(module: Any, clip: ClipOptions | None, checkpoint: str |
     Raises:
         ValueError: the module records no ``num_frames`` / ``image_size``.
     """
-    from importlib.metadata import PackageNotFoundError, version
+    import stamlane
 
-    try:
-        stamlane_version = version("stamlane")
-    except PackageNotFoundError:  # a source tree that was never installed
-        stamlane_version = "unknown (not installed)"
+    stamlane_version = str(stamlane.__version__)
     image_size = module.hparams.get("image_size")
     num_frames = module.num_frames
     if image_size is None or num_frames is None:

@@ -38,7 +38,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -53,6 +53,9 @@ from stamlane.models.feature_aligned import fuse_feature_aligned
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 from stamlane.safety.budget import check_stream_buffers
 from stamlane.types import Lanes
+
+if TYPE_CHECKING:
+    from stamlane.training.stored import StoredModel
 
 __all__ = ["READ_AHEAD", "StreamOutput", "StreamingPredictor", "fuse_feature_aligned"]
 
@@ -182,8 +185,39 @@ class StreamingPredictor:
         self.reset()
 
     @classmethod
+    def from_stored(cls, model: StoredModel, **overrides: Any) -> StreamingPredictor:
+        """A predictor for a stored model (`stamlane.training.stored.StoredModel`), with every setting it was trained
+        with (`ModelSettings`): T, the input size, the crop, the alignment (on or off, its ORB preset, the horizon
+        row), the decoding and bfloat16. The one way a stored model becomes a predictor (``stamlane stream``, the
+        benchmarks, the README's example).
+
+        Args:
+            model: the opened model; its network runs where its parameters are (move ``model.module`` first).
+            overrides: keyword arguments of the constructor that replace the stored settings (``align=False``,
+                ``align_config=ALIGN_PRESETS["fast"]``, ``horizon_row=300``, ``y_samples=...``, ``bf16=False``).
+        """
+        from stamlane.align.homography import align_preset
+
+        settings = model.settings
+        options: dict[str, Any] = {
+            "num_frames": settings.num_frames,
+            "image_size": settings.image_size,
+            "align": settings.aligns,
+            "horizon_row": settings.horizon_row,
+            "align_config": align_preset(settings.align_preset),
+            "postprocess": settings.postprocess,
+            "bf16": settings.bf16,
+            "crop_top": settings.crop_top,
+        }
+        options.update(overrides)
+        num_frames, image_size = int(options.pop("num_frames")), tuple(options.pop("image_size"))
+        return cls(model.module.net, num_frames, image_size, **options)
+
+    @classmethod
     def from_module(cls, module: Any, **kwargs: Any) -> StreamingPredictor:
-        """A predictor for a ``StamLaneModule``: its net, ``num_frames``, ``image_size``, ``crop_top``, decoding, bf16.
+        """A predictor for a ``StamLaneModule`` in memory (one just trained, say): its net, ``num_frames``,
+        ``image_size``, ``crop_top``, decoding, bf16. A module knows nothing of the data options it was trained with
+        (alignment preset, horizon row, ``align: none``): for a STORED model use `from_stored`, which has them.
 
         Keyword arguments override (e.g. ``num_frames``, ``image_size`` when the module lacks them).
         """

@@ -30,12 +30,13 @@ import cv2
 import numpy as np
 
 from stamlane.align.camera import Camera, Pose
+from stamlane.synth.bodies import BodyStyle, draw_bodies
 from stamlane.synth.config import ADJACENT_LANE_WIDTHS, SynthConfig
 from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
-from stamlane.synth.scenery import BodyStyle, RepairedSurface, Scenery, Sun, Verge, draw_bodies
+from stamlane.synth.scenery import RepairedSurface, Scenery, Sun, Verge
 from stamlane.synth.transient import KeyOccluder
 from stamlane.synth.vehicles import SUN, Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
 

@@ -40,6 +40,8 @@ __all__ = [
     "Roadside",
     "Sensor",
     "Surface",
+    "fill_world_polygon",
+    "fill_world_quad",
 ]
 
 HORIZON = (0.34, 0.62)
@@ -208,15 +210,15 @@ class Roadside:
                 foot = [(x0 + side * 0.25, 0.0), (x1 + side * 0.25, 0.0), (x1, 0.3), (x0, 0.3)]
                 wall = [(x0, 0.3), (x1, 0.3), (x1, 0.85), (x0, 0.85)]
                 g = self.barrier_grey
-                self._quad(frame, camera, pose, foot, (z0, z1, z1, z0), (g * 0.8, g * 0.82, g * 0.85))
-                self._quad(frame, camera, pose, wall, (z0, z1, z1, z0), (g * 0.92, g * 0.94, g * 0.95))
+                fill_world_quad(frame, camera, pose, foot, (z0, z1, z1, z0), (g * 0.8, g * 0.82, g * 0.85))
+                fill_world_quad(frame, camera, pose, wall, (z0, z1, z1, z0), (g * 0.92, g * 0.94, g * 0.95))
             if self.rail is not None:
                 x0, x1 = c0 + self.rail, c1 + self.rail
                 g = self.rail_grey
-                self._quad(
+                fill_world_quad(
                     frame, camera, pose, [(x0, 0.45), (x1, 0.45), (x1, 0.78), (x0, 0.78)], (z0, z1, z1, z0), (g,) * 3
                 )
-                self._quad(
+                fill_world_quad(
                     frame,
                     camera,
                     pose,
@@ -227,18 +229,7 @@ class Roadside:
                 if int(z0 / 2.0) != int(z1 / 2.0):  # a post every 2 m
                     xp = x0 + (0.15 if self.rail > 0 else -0.15)
                     post = [(xp, 0.0), (xp, 0.0), (xp, 0.7), (xp, 0.7)]
-                    self._quad(frame, camera, pose, post, (z0, z0 + 0.15, z0 + 0.15, z0), (60, 60, 65))
-
-    @staticmethod
-    def _quad(
-        frame: np.ndarray,
-        camera: Camera,
-        pose: Pose,
-        xy: list[tuple[float, float]],
-        zs: tuple[float, ...],
-        colour: tuple[float, ...],
-    ) -> None:
-        fill_world_polygon(frame, camera, pose, np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64), colour)
+                    fill_world_quad(frame, camera, pose, post, (z0, z0 + 0.15, z0 + 0.15, z0), (60, 60, 65))
 
 
 def fill_world_polygon(
@@ -374,3 +365,18 @@ class DashcamWorld:
             sky = (grey + 18 * clouds + 20 * a[..., 0])[..., None] * np.array([1.02, 1.0, 0.97], np.float32)
         sky_bgr: np.ndarray = np.clip(sky, 0, 255).astype(np.uint8)
         return sky_bgr
+
+
+def fill_world_quad(
+    frame: np.ndarray,
+    camera: Camera,
+    pose: Pose,
+    xy: list[tuple[float, float]],
+    zs: tuple[float, ...],
+    colour: tuple[float, ...],
+    mask: np.ndarray | None = None,
+) -> None:
+    """Fill the world quad of lateral and height ``(x, y)`` metres at depths ``zs`` into ``frame`` (and 255 into
+    ``mask``), as `fill_world_polygon`."""
+    world = np.array([(x, y, z) for (x, y), z in zip(xy, zs)], np.float64)
+    fill_world_polygon(frame, camera, pose, world, colour, mask)

@@ -31,7 +31,7 @@ from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
 from stamlane.training.launch import one_process_unless_asked, spawned
-from stamlane.training.lightning_compat import keep_command_line_hparams
+from stamlane.training.lightning_compat import keep_command_line_hparams, run_subcommand, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
 from stamlane.training.typed_values import refused_class
@@ -191,7 +191,7 @@ class StamLaneCLI(LightningCLI):
         callbacks_of(trainer).insert(0, ExactResume())  # --ckpt_path resume draws the data of an uninterrupted run
         callbacks_of(trainer).append(FinalCheckpoint())  # last.ckpt = the weights training ended with
         if self.subcommand == "fit":  # the run's config travels inside its checkpoints (predict from one alone)
-            config = self._parser(self.subcommand).dump(self.config[self.subcommand], skip_none=False)
+            config = subcommand_parser(self, self.subcommand).dump(self.config[self.subcommand], skip_none=False)
             callbacks_of(trainer).append(ConfigInCheckpoint(config))
             callbacks_of(trainer).append(FitReport(verbose=self.report))  # a line per validation, the true best
         elif self.subcommand is not None:  # checkpoints and learning rates are fit's: nothing to save or restore
@@ -358,7 +358,7 @@ class StamLaneCLI(LightningCLI):
             if isinstance(writer, LanePredictionWriter):
                 writer.use_output_dir(output_dir)
                 writer.given_output_dir, writer.max_overlays = True, max_overlays
-        self._run_subcommand("predict")
+        run_subcommand(self, "predict")
 
     def _name_predictions(self, source: str | None) -> None:
         """Give the prediction writer its folder when none was given, ``outputs/predict/<model>/<source>``

@@ -13,6 +13,10 @@ Each has no public equivalent; ``tests/training/test_lightning_compat.py`` fails
 - `keep_command_line_hparams`: LightningCLI's ``_parse_ckpt_path`` re-applies a checkpoint's saved model
   hyperparameters OVER ``--config`` / ``--model.*``; `stamlane.training.lightning_cli.StamLaneCLI` replaces it with this
   no-op, so that the command line stays in charge (``--model.postprocess.*`` at predict time).
+- `subcommand_parser`: the parser of one LightningCLI subcommand, whose ``dump`` writes a run's config as
+  ``stamlane fit`` would read it back (the config that travels inside every checkpoint).
+- `run_subcommand`: LightningCLI runs its subcommand once, in ``__init__``; `stamlane.training.runs.Run.predict`
+  predicts again with the model already built and loaded (another split or probe), through the same hooks.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ __all__ = [
     "fit_data_fetcher",
     "keep_command_line_hparams",
     "plain_hyperparameters",
+    "run_subcommand",
+    "subcommand_parser",
 ]
 
 CKPT_HPARAMS_METHOD = "_parse_ckpt_path"
@@ -59,3 +65,13 @@ def keep_command_line_hparams(cli: Any) -> None:
     """Replacement of LightningCLI's ``_parse_ckpt_path``: the config built from ``--config`` and the command
     line is used as it is (``stamlane predict --ckpt_path X`` without ``--config`` reads the run's config
     from the checkpoint first, see ``stamlane.cli``)."""
+
+
+def subcommand_parser(cli: Any, subcommand: str) -> Any:
+    """The jsonargparse parser of ``subcommand`` of a LightningCLI (``cli._parser``)."""
+    return cli._parser(subcommand)
+
+
+def run_subcommand(cli: Any, subcommand: str) -> None:
+    """Run ``subcommand`` of a LightningCLI again, with its ``before_``/``after_`` hooks (``cli._run_subcommand``)."""
+    cli._run_subcommand(subcommand)

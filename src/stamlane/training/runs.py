@@ -23,10 +23,13 @@ from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stamlane.data.probes import PROBES, REAL, Probe
 from stamlane.training.run_record import RecordError, RunRecord
+
+if TYPE_CHECKING:
+    from stamlane.data.options import ClipOptions
 
 __all__ = [
     "PROBES",
@@ -39,7 +42,6 @@ __all__ = [
     "RunSpec",
     "fit",
     "flags_of",
-    "open_model",
     "open_run",
     "overrides_of",
     "predict",
@@ -255,14 +257,27 @@ class Run:
     @property
     def frames(self) -> int:
         """The clip length (T) of the run."""
-        from stamlane.training.compat import clip_options
-
-        return clip_options(self.data()).num_frames
+        return self.clip.num_frames
 
     @property
     def aligns(self) -> bool:
         """Whether the run pre-aligns its history on the fly (``data.clip.align: fly``, the default)."""
-        return bool((self.data().get("clip") or {}).get("align", "fly") == "fly")
+        return self.clip.align == "fly"
+
+    @property
+    def clip(self) -> ClipOptions:
+        """How the run read its clips (`stamlane.data.options.ClipOptions`, in today's names; an older run's flat
+        data options too).
+
+        Raises:
+            RunError: data options that are no `ClipOptions`.
+        """
+        from stamlane.training.compat import clip_options
+
+        try:
+            return clip_options(self.data())
+        except ValueError as err:
+            raise RunError(f"{self.source}: {err}") from None
 
     def data_root(self) -> Path | None:
         """The data root to give the run when it recorded its root relative to the folder it was started in
@@ -332,17 +347,12 @@ class Run:
                 args = ["predict", "--config", str(self.config_file), f"--ckpt_path={self.ckpt}", *flags_of(options)]
                 self._cli = run_cli(args, parser_kwargs={"exit_on_error": False})
                 first = self._cli.datamodule
-                self._align = first.clip.align if not probe.exact else self._run_align()
+                self._align = first.clip.align if not probe.exact else self.clip.align
             else:
                 self._cli.predict_again(self._datamodule(split, probe, root), Path(out), max_overlays)
         except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
             raise RunError(f"{self.source}: {one_line(err)}") from None
         return Path(out)
-
-    def _run_align(self) -> Any:
-        from stamlane.training.compat import clip_options
-
-        return clip_options(self.data()).align
 
     def _datamodule(self, split: str, probe: Probe, root: Path | None) -> Any:
         """The first prediction's data module with another split and probe (every other option as the run's)."""
@@ -402,31 +412,6 @@ def open_run(where: str | Path) -> Run:
     except (CheckpointError, GuardError, PathError) as err:
         raise RunError(str(err)) from None
     return Run(ckpt, config, source, text, start if isinstance(start, str) else None)
-
-
-def open_model(ckpt: str | Path) -> tuple[Any, Any]:
-    """A checkpoint's network and how its clips were read, for what runs a model without a LightningCLI (``stamlane
-    stream``, ``export``): the checkpoint read once within the budget (`stamlane.safety.checkpoints`), the network built
-    from the closed registry on the CPU in eval mode (`stamlane.training.registry.build_module`), the data options
-    checked by the registry and read in today's names (`stamlane.training.compat.clip_options`).
-
-    Returns:
-        ``(module, clip)``: the `StamLaneModule` and its `stamlane.data.options.ClipOptions` (None for a checkpoint
-        without data options).
-
-    Raises:
-        CheckpointError: the checkpoint unreadable or refused, in one line.
-    """
-    from stamlane.safety.checkpoints import read_checkpoint
-    from stamlane.training.compat import clip_options
-    from stamlane.training.registry import build_module, check_data_hparams
-
-    content = read_checkpoint(ckpt)
-    module = build_module(content, ckpt)
-    data = content.get("datamodule_hyper_parameters")
-    if data is not None:
-        check_data_hparams(data, ckpt)
-    return module, clip_options(data) if isinstance(data, dict) else None
 
 
 def predict(run: Run, split: str, probe: Probe | str, out: Path, **options: Any) -> Path:

@@ -27,6 +27,7 @@ from stamlane_eval.io.culane import (
 )
 from stamlane_eval.io.files import Inside, LaneFileError, image_key, inside, read_text, write_atomic, write_jsonl
 from stamlane_eval.io.limits import (
+    MAX_COMPARED_CELLS,
     MAX_COORDINATE,
     MAX_DRAWN_PIXELS,
     MAX_FILE_BYTES,
@@ -35,10 +36,12 @@ from stamlane_eval.io.limits import (
     MAX_LANE_POINTS,
     MAX_LANE_WIDTH,
     MAX_LANES,
+    MAX_TUSIMPLE_VALUES,
     CanvasBudget,
     check_image_size,
 )
 from stamlane_eval.io.tusimple import (
+    LABEL_RULES,
     TuSimpleFile,
     TuSimpleInputError,
     check_tusimple,
@@ -68,6 +71,8 @@ from stamlane_eval.io.vil100 import read_vil100_json
 
 __all__ = [
     "IMAGE_SUFFIXES",
+    "LABEL_RULES",
+    "MAX_COMPARED_CELLS",
     "MAX_COORDINATE",
     "MAX_DRAWN_PIXELS",
     "MAX_FILE_BYTES",
@@ -76,6 +81,7 @@ __all__ = [
     "MAX_LANES",
     "MAX_LANE_POINTS",
     "MAX_LANE_WIDTH",
+    "MAX_TUSIMPLE_VALUES",
     "TUSIMPLE_SUFFIXES",
     "CanvasBudget",
     "Frame",

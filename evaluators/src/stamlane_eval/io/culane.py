@@ -73,8 +73,10 @@ def read_culane_lines(
     lines = text.split("\n")  # as the C++ getline: only "\n" ends a line; "\r" is whitespace inside one
     if lines[-1] == "":
         lines.pop()
-    if len(lines) > MAX_LANES:
-        raise LaneFileError(f"{p}: more than {MAX_LANES} lanes in one image ({len(lines)} lines)")
+    if len(lines) > MAX_LANES:  # time: the C++ tool scores any count; MAX_LANES bounds the matching's cubic cost
+        raise LaneFileError(
+            f"{p}: more than {MAX_LANES} lanes in one image ({len(lines)} lines): past the time budget of the matching"
+        )
     for i, line in enumerate(lines, 1):
         raw = line.encode()
         vals = _plain_numbers(raw)

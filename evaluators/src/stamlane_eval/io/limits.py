@@ -1,11 +1,15 @@
-"""The memory limits every reader and metric applies: sizes of files, images, lanes and the canvases lanes are drawn
-on, never coordinate values (docs/evaluators.md, "What is scored and what is refused", point 4)."""
+"""The size budgets every reader and metric applies: sizes of files, images, lanes and the canvases lanes are drawn
+on, never coordinate values (docs/evaluators.md, "What is scored and what is refused", point 4).
+
+The parity rule: what the official tool scores, stamlane scores the same. A limit here refuses only what would
+exceed a budget of memory or time (each says which, and what it costs at the limit); none refuses a value."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
 __all__ = [
+    "MAX_COMPARED_CELLS",
     "MAX_COORDINATE",
     "MAX_DRAWN_PIXELS",
     "MAX_FILE_BYTES",
@@ -14,6 +18,7 @@ __all__ = [
     "MAX_LANES",
     "MAX_LANE_POINTS",
     "MAX_LANE_WIDTH",
+    "MAX_TUSIMPLE_VALUES",
     "CanvasBudget",
     "check_image_size",
 ]
@@ -25,20 +30,39 @@ MAX_DRAWN_PIXELS = 1 << 30
 """Most pixels of canvases the lanes of one image (CULane, video) or one frame (temporal) are drawn on (1 GiB of
 uint8): each lane is drawn into a canvas cropped to it, never larger than the image; `CanvasBudget` counts them
 before each canvas is allocated."""
-MAX_LANES = 64
-"""Most lanes in one image: the CULane matching grows with the cube of the lane count (1,500 lanes: a minute)."""
+MAX_LANES = 512
+"""Most lanes in one image, either side (time): the CULane metric compares every predicted lane with every annotated
+one and matches them in time cubic in the lane count; measured with ``culane.evaluate_image`` on the shared 2-core
+AMD EPYC: 65x4 lanes 0.4 s, 256x256 1.0 s, 512x512 4.4 s (1,500x1,500: about a minute). The C++ tool scores any
+count (65 predicted lanes: 2 matched, 63 FP); real images hold at most a dozen. TuSimple files scored by lane.py's
+rule have no lane count limit: `MAX_TUSIMPLE_VALUES` and `MAX_COMPARED_CELLS` are their budgets."""
 MAX_LANE_POINTS = 10000
-"""Most points (rows) in one TuSimple or VIL-100 lane. CULane text has no limit per lane: ``MAX_IMAGE_POINTS``."""
+"""Most points (rows) in one TuSimple lane read as the frames of a sequence or by the training datasets (the padded
+arrays those readers build). lane.py's own scoring has no limit per lane (`MAX_TUSIMPLE_VALUES`); VIL-100 and
+CULane text have none either (``MAX_IMAGE_POINTS`` per image)."""
+MAX_TUSIMPLE_VALUES = 1 << 25
+"""Most values of the padded ``(lanes, longest lane)`` float64 array a TuSimple file is held in for lane.py's
+scoring (memory: 256 MiB). TuSimple's 2,782 test images take 0.8 M (5 lanes of 56 rows): any lane count and lane
+length lane.py scores fits, as long as the file's lanes padded to its longest do."""
+MAX_COMPARED_CELLS = 1 << 28
+"""Most (predicted lane, gt lane, row) comparisons of one TuSimple image that lane.py compares (time: 128 x 128
+lanes of 16,384 rows, at the limit, took 6.5 s and peaked at 0.28 GB on the shared 2-core AMD EPYC, load average
+12; memory stays bounded, the comparison runs a few gt lanes at a time; a TuSimple test image takes
+7 x 5 x 56 = 1,960). An image that lane.py's lane-count or run-time rule scores (0, 0, 1) unseen costs nothing."""
 MAX_IMAGE_POINTS = 100_000
-"""Most points in the lanes of one CULane/ApolloScape ``.lines.txt`` (the memory budget of one image, not a limit
+"""Most points in the lanes of one CULane/ApolloScape ``.lines.txt`` or VIL-100 ``.json`` (the memory budget of one image, not a limit
 per lane): the C++ metric resamples a lane at 50 points per segment, about 3 KB per input point while it is
 resampled (measured: one lane of 100,000 points, ``stamlane-eval culane``, peaks at 0.33 GB in 3.6 s); the C++
 tool's own inputs hold a few hundred points per image."""
-MAX_LANE_WIDTH = 1024
-"""Widest lane line (px) the CULane metric may draw."""
+MAX_LANE_WIDTH = 32767
+"""Widest lane line (px) the CULane metric may draw: OpenCV's ``MAX_THICKNESS``, past which the C++ tool's
+``cv::line`` raises (it scores every width up to it). Memory stays bounded by `CanvasBudget`: a lane's canvas is
+cropped to it and never larger than the image."""
 MAX_COORDINATE = 100_000.0
-"""Largest absolute pixel coordinate of a LABEL (6x ``MAX_IMAGE_SIDE``): a ground truth beyond it is refused. Not a
-limit on predictions: lane.py scores a prediction's 1e9 as a miss, and so do we (with one warning line)."""
+"""Largest absolute pixel coordinate counted as a pixel (6x ``MAX_IMAGE_SIDE``). No evaluator refuses a value beyond
+it, label or prediction: the official tools score it (lane.py: a gt x of 150,000 steepens its lane's angle fit and
+widens its threshold; the C++ tool draws it clipped), and so do we (TuSimple: with one warning line). Only the training
+datasets' labels (``tusimple_record_error``) must lie within it."""
 MAX_FILE_BYTES = 512 << 20
 """Largest input text file (512 MiB): TuSimple's 2,782 test predictions take 4 MiB, and parsed json-lines cost about
 9x their size in memory."""

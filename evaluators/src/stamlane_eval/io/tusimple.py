@@ -25,9 +25,10 @@ from typing import Any
 import numpy as np
 
 from stamlane_eval.io.files import LaneFileError, gc_paused, image_key, is_json_number, json_float, read_file
-from stamlane_eval.io.limits import MAX_COORDINATE, MAX_LANE_POINTS, MAX_LANES
+from stamlane_eval.io.limits import MAX_COORDINATE, MAX_LANE_POINTS, MAX_LANES, MAX_TUSIMPLE_VALUES
 
 __all__ = [
+    "LABEL_RULES",
     "TuSimpleFile",
     "TuSimpleInputError",
     "check_tusimple",
@@ -202,6 +203,10 @@ _KEYS = {
 }
 _SEQUENCES = (list, tuple, np.ndarray)
 _LANE_ERROR = {"pred": "Format of lanes error: ", "gt": ""}  # lane.py's message for a prediction it cannot read
+LABEL_RULES = ("pixel", "finite", "lane.py")
+"""How `check_tusimple` takes a ground truth's values: ``"pixel"`` finite and within ``MAX_COORDINATE`` (the training
+datasets' labels); ``"finite"`` any finite value (the CULane metric and the video readers: the C++ tool draws a far
+point clipped); ``"lane.py"`` every value lane.py scores (the TuSimple metric, `tusimple.evaluate`)."""
 
 
 @dataclass(frozen=True)
@@ -217,7 +222,8 @@ class TuSimpleFile:
         rows: ``(n,)`` ``len(h_samples)`` (gt), or None.
         run_times: ``(n,)`` milliseconds (pred), or None.
         odd: prediction values that are no pixel coordinate (not finite, or beyond ``MAX_COORDINATE``), which
-            are scored as lane.py scores them: ``(count, "line N: lane K has x = V")`` of the first, or None.
+            are scored as lane.py scores them: ``(count, "line N: lane K has x = V")`` of the first, or None; for a
+            ground truth read with ``labels="lane.py"``, its lane and ``h_samples`` values of that kind.
     """
 
     names: list[str]
@@ -230,17 +236,20 @@ class TuSimpleFile:
     odd: tuple[int, str] | None = None
 
 
-def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
+def check_tusimple(records: Sequence[object], role: str, *, labels: str = "pixel") -> TuSimpleFile:
     """THE check of the TuSimple format (docs/evaluators.md, "What is scored and what is refused"), shared by
     ``stamlane_eval.tusimple.evaluate``, ``stamlane-eval`` and the training datasets (per record, through
     `tusimple_record_error`).
 
     - Types are the format's: objects with the keys lane.py reads, ``raw_file`` a non-empty string, ``lanes`` a
       list of lists of numbers, ``h_samples`` (gt) a list of numbers, ``run_time`` (pred) a number.
-    - Sizes are bounded (memory): ``MAX_LANES`` lanes per image, ``MAX_LANE_POINTS`` rows.
-    - A ground truth is a label: finite pixel coordinates (``|v| <= MAX_COORDINATE``), every lane as long as a
-      non-empty ``h_samples``, and each ``raw_file`` once (lane.py would sum every line but divide by the
-      unique names: an accuracy above 1).
+    - Sizes are bounded (memory): ``MAX_LANES`` lanes per image, ``MAX_LANE_POINTS`` rows; with
+      ``labels="lane.py"`` (lane.py scores any count and length) only the padded arrays, ``MAX_TUSIMPLE_VALUES``.
+    - A ground truth has every lane as long as a non-empty ``h_samples`` and each ``raw_file`` once (lane.py
+      would sum every line but divide by the unique names: an accuracy above 1). Its values follow ``labels``
+      (`LABEL_RULES`): with ``"lane.py"`` every value is taken as lane.py takes it (NaN, -inf: no point on that
+      row; 150,000: a far point its angle fit uses) and counted in ``odd``; +inf and a non-finite ``h_samples``
+      value are refused by the scoring where lane.py's angle fit raises on them (`stamlane_eval.tusimple`).
     - A prediction's VALUES are free, as in lane.py: a huge, negative, fractional, NaN or infinite x is scored
       as lane.py scores it (NaN and negatives: no point on that row; huge: a miss); ``odd`` counts the values
       that are no pixel coordinate, for one warning. Its lane lengths are checked against the ground truth's
@@ -258,6 +267,9 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
     """
     if role not in _KEYS:
         raise ValueError(f"role must be 'gt' or 'pred', got {role!r}")
+    if labels not in LABEL_RULES:
+        raise ValueError(f"labels must be one of {LABEL_RULES}, got {labels!r}")
+    free = labels == "lane.py"  # lane.py's own sizes: no lane count or length limit, only the padded arrays
     keys, missing_message = _KEYS[role]
     names: list[str] = []
     lanes_of: list[Sequence[Any] | np.ndarray] = []
@@ -284,19 +296,19 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
         lanes_of.append(rec["lanes"])
         extra.append(rec[keys[2]])
     counts = np.fromiter(map(len, lanes_of), dtype=np.int64, count=len(lanes_of))
-    if len(counts) and counts.max() > MAX_LANES:
+    if not free and len(counts) and counts.max() > MAX_LANES:
         i = int(np.argmax(counts))
         raise TuSimpleInputError(f"{counts[i]} lanes, more than the limit of {MAX_LANES}", role, i + 1)
     if role == "gt":
-        rows = _row_lengths(extra, role, "h_samples")
-        h_samples, _ = _stack(extra, rows, np.arange(len(extra)), role, "h_samples", finite=True)
+        rows = _row_lengths(extra, role, "h_samples", limit=not free)
+        h_samples, odd_h = _stack(extra, rows, np.arange(len(extra)), role, "h_samples", labels)
         empty = np.flatnonzero(rows == 0)
         if len(empty):
             raise TuSimpleInputError("h_samples is empty: no row to score", role, int(empty[0]) + 1)
     flat = [lane for lanes in lanes_of for lane in lanes]
     owner = np.repeat(np.arange(len(lanes_of)), counts)
-    lengths = _row_lengths(flat, role, "lane", owner)
-    lanes, odd = _stack(flat, lengths, owner, role, "lane", finite=role == "gt")
+    lengths = _row_lengths(flat, role, "lane", owner, limit=not free)
+    lanes, odd = _stack(flat, lengths, owner, role, "lane", labels if role == "gt" else "lane.py")
     if role == "gt":
         bad = np.flatnonzero(lengths != rows[owner])
         if len(bad):
@@ -306,7 +318,7 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
                 role,
                 i + 1,
             )
-        return TuSimpleFile(names, lanes, lengths, counts, h_samples=h_samples, rows=rows)
+        return TuSimpleFile(names, lanes, lengths, counts, h_samples=h_samples, rows=rows, odd=_both(odd, odd_h))
     run_times = np.zeros(len(extra))
     for i, rt in enumerate(extra):
         if type(rt) not in (int, float) or not isinstance(rt, (int, float)):  # exactly int/float: no bool, no numpy
@@ -315,7 +327,7 @@ def check_tusimple(records: Sequence[object], role: str) -> TuSimpleFile:
     odd_rt = np.flatnonzero(~np.isfinite(run_times))
     if len(odd_rt):
         first_rt = f"line {odd_rt[0] + 1}: run_time {run_times[odd_rt[0]]!r}"
-        odd = (len(odd_rt) + (odd[0] if odd else 0), odd[1] if odd else first_rt)
+        odd = _both(odd, (len(odd_rt), first_rt))
     return TuSimpleFile(names, lanes, lengths, counts, run_times=run_times, odd=odd)
 
 
@@ -327,8 +339,17 @@ def duplicate_raw_file(name: str, first: str) -> str:
     )
 
 
-def _row_lengths(rows: list[object], role: str, kind: str, owner: np.ndarray | None = None) -> np.ndarray:
-    """Lengths of number lists (each a list/tuple/array), checked against ``MAX_LANE_POINTS``."""
+def _both(a: tuple[int, str] | None, b: tuple[int, str] | None) -> tuple[int, str] | None:
+    """Two counts of odd values as one: the sum, and the first one's description."""
+    if a is None or b is None:
+        return a or b
+    return a[0] + b[0], a[1]
+
+
+def _row_lengths(
+    rows: list[object], role: str, kind: str, owner: np.ndarray | None = None, *, limit: bool = True
+) -> np.ndarray:
+    """Lengths of number lists (each a list/tuple/array), checked against ``MAX_LANE_POINTS`` when ``limit``."""
     sizes: list[int] = []
     for j, row in enumerate(rows):
         if not isinstance(row, _SEQUENCES):
@@ -338,7 +359,7 @@ def _row_lengths(rows: list[object], role: str, kind: str, owner: np.ndarray | N
             )
         sizes.append(len(row))
     lengths = np.array(sizes, dtype=np.int64)
-    if len(lengths) and lengths.max() > MAX_LANE_POINTS:
+    if limit and len(lengths) and lengths.max() > MAX_LANE_POINTS:
         j = int(np.argmax(lengths))
         line = int(owner[j]) + 1 if owner is not None else j + 1
         raise TuSimpleInputError(f"{kind} of {lengths[j]} values, more than the limit of {MAX_LANE_POINTS}", role, line)
@@ -346,7 +367,7 @@ def _row_lengths(rows: list[object], role: str, kind: str, owner: np.ndarray | N
 
 
 def _stack(
-    rows: list[object], lengths: np.ndarray, owner: np.ndarray, role: str, kind: str, finite: bool
+    rows: list[object], lengths: np.ndarray, owner: np.ndarray, role: str, kind: str, values: str
 ) -> tuple[np.ndarray, tuple[int, str] | None]:
     """Number lists as one ``(len(rows), max length)`` float64 array padded with -100.
 
@@ -356,12 +377,23 @@ def _stack(
         owner: the record of each list (for messages).
         role: ``"gt"`` or ``"pred"``.
         kind: ``"lane"`` or ``"h_samples"``.
-        finite: refuse values that are no pixel coordinate (labels); else count them.
+        values: `LABEL_RULES`: refuse values that are no pixel coordinate (``"pixel"``), or not finite
+            (``"finite"``); else (``"lane.py"``) count them.
 
     Returns:
         The array and ``(count, description of the first)`` of the values that are no pixel coordinate.
+
+    Raises:
+        TuSimpleInputError: a value ``values`` refuses, or a padded array beyond ``MAX_TUSIMPLE_VALUES``.
     """
     width = int(lengths.max(initial=0))
+    if len(rows) * width > MAX_TUSIMPLE_VALUES:  # memory: the file's lanes padded to its longest, as float64
+        j = int(np.argmax(lengths))
+        raise TuSimpleInputError(
+            f"{len(rows)} {kind} lists padded to the longest ({width} values, line {int(owner[j]) + 1}) are more than "
+            f"{MAX_TUSIMPLE_VALUES:,} values: too large to score in memory",
+            role,
+        )
     out = np.full((len(rows), width), _FILL)
     uniq = np.unique(lengths)
     for length in uniq.tolist():
@@ -384,10 +416,15 @@ def _stack(
         return out, None
     j, col = (int(v[0]) for v in np.nonzero(odd_mask))
     where = f"line {owner[j] + 1}: {_name(kind, owner, j)} has {float(out[j, col])!r}"
-    if finite:
+    if values == "finite":
+        odd_mask = valid & ~np.isfinite(out)
+        if not odd_mask.any():
+            return out, None
+        j, col = (int(v[0]) for v in np.nonzero(odd_mask))
+    if values != "lane.py":
+        rule = "finite" if values == "finite" else f"finite, |v| <= {MAX_COORDINATE:g}"
         raise TuSimpleInputError(
-            f"{_name(kind, owner, j)} has {float(out[j, col])!r}: not a pixel coordinate (a label must be finite, "
-            f"|v| <= {MAX_COORDINATE:g})",
+            f"{_name(kind, owner, j)} has {float(out[j, col])!r}: not a pixel coordinate (a label here must be {rule})",
             role,
             int(owner[j]) + 1,
         )
@@ -452,7 +489,8 @@ def tusimple_lanes(
     """THE typed check of TuSimple-format files scored with the CULane metric (``stamlane-eval culane PRED.json
     GT.json``): the lanes of each ``raw_file`` as ``(x, y)`` points (rows with x < 0 dropped).
 
-    The ground truth (``h_samples`` None) passes `check_tusimple` (types, each ``raw_file`` once, labels finite).
+    The ground truth (``h_samples`` None) passes `check_tusimple` (types, each ``raw_file`` once, labels finite,
+    of any magnitude: ``labels="finite"``).
     A prediction names each ``raw_file`` once, one of the ground truth's, with lanes of JSON numbers (never a
     string nor ``true``/``false``: numpy would read ``[true, 359]`` as ``[1, 359]``), finite, one per row.
 
@@ -469,7 +507,7 @@ def tusimple_lanes(
     """
     if h_samples is None:
         try:
-            check_tusimple(records, "gt")
+            check_tusimple(records, "gt", labels="finite")  # the CULane metric draws a far point clipped
         except TuSimpleInputError as e:
             raise LaneFileError(f"{path}: line {e.line}: {e.message}") from None
         rows = {rec["raw_file"]: rec["h_samples"] for rec in records}  # type: ignore[index]
@@ -486,6 +524,8 @@ def tusimple_lanes(
             raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} is not in the ground truth")
         if name in out:  # the C++ tool reads one file per image: a second prediction has no place to be
             raise LaneFileError(f"{path}: line {i}: raw_file {name!r:.80} again: two predictions for one image")
+        if len(rec["lanes"]) > MAX_LANES:  # time: the matching's budget, as for CULane text (io.limits)
+            raise LaneFileError(f"{path}: line {i}: {len(rec['lanes'])} lanes, more than the limit of {MAX_LANES}")
         for k, lane in enumerate(rec["lanes"]):
             if not (isinstance(lane, list) and len(lane) == len(h) and all(map(is_json_number, lane))):
                 raise LaneFileError(

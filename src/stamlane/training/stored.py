@@ -1,0 +1,158 @@
+"""A stored model, opened once: the one way to run a checkpoint, a run folder or a shipped model outside training.
+
+`StoredModel.open` takes what a user names (a checkpoint file, a run folder ``RUN`` with ``RUN/checkpoints/last.ckpt``,
+or a shipped model's name, `stamlane.weights`), reads the checkpoint ONCE within the budget
+(`stamlane.safety.checkpoints.read_checkpoint`, ``weights_only=True``), builds the network from the closed registry
+(`stamlane.training.registry.build_module`: CPU, eval mode), checks the data options it carries and reads them in
+today's names (`stamlane.training.compat.clip_options`), and keeps how the model was trained to see frames as one
+typed record, `ModelSettings`. Everything that runs a stored model reads these settings, never its own defaults::
+
+    from stamlane.stream import StreamingPredictor
+    from stamlane.training.stored import StoredModel
+
+    model = StoredModel.open("stam4-dashcam")           # or "RUN/checkpoints/last.ckpt", or "RUN"
+    predictor = StreamingPredictor.from_stored(model)   # T, size, crop, alignment (on/off, preset, horizon), decoding
+    lanes = predictor(bgr_image).lanes                  # per frame, in order
+
+``stamlane stream``, ``stamlane export`` and the benchmarks open models here; the settings of one checkpoint are the
+same on every route (tests/training/test_stored.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from stamlane.data.options import ClipOptions
+    from stamlane.predict.postprocess import PostprocessConfig
+    from stamlane.training.module import StamLaneModule
+
+__all__ = ["ModelSettings", "StoredModel", "checkpoint_of"]
+
+RUN_CHECKPOINT = Path("checkpoints") / "last.ckpt"
+"""The final weights of a run folder (what ``stamlane fit`` writes and `stamlane.training.runs.open_run` opens)."""
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """How a stored model was trained to see frames and how it decodes lanes: what every route that runs it uses.
+
+    Attributes:
+        num_frames: T, frames fused (key frame last).
+        image_size: the network input ``(H, W)``, pixels, after the cut and the resize.
+        crop_top: fraction of the frame's rows cut at the top before resizing.
+        aligns: whether the history is aligned onto the key frame (False for a model trained with ``align: none``).
+        align_preset: the ORB settings of the alignment (`stamlane.align.homography.ALIGN_PRESETS`).
+        horizon_row: the first ground row of the alignment, original pixels (None: `stamlane.align`'s default).
+        bf16: whether the network runs under bfloat16 autocast, as trained.
+        postprocess: the lane decoding settings (DBSCAN and sampling).
+        clip: the data options as stored (None for a checkpoint that records none: the settings above then come from
+            the module's own record and the defaults of `stamlane.data.options.ClipOptions`).
+    """
+
+    num_frames: int
+    image_size: tuple[int, int]
+    crop_top: float
+    aligns: bool
+    align_preset: str
+    horizon_row: int | None
+    bf16: bool
+    postprocess: PostprocessConfig
+    clip: ClipOptions | None = field(default=None, compare=False)
+
+    @classmethod
+    def of(cls, module: Any, clip: ClipOptions | None) -> ModelSettings:
+        """The settings of a built module and its stored data options (the module's record of T and the size first,
+        then the data options'; the data options' crop, which cut the frames it saw, before the module's record).
+
+        Raises:
+            ValueError: neither records T or the input size.
+        """
+        from stamlane.data.options import ClipOptions
+
+        hparams = getattr(module, "hparams", {})
+        num_frames = getattr(module, "num_frames", None) or (clip.num_frames if clip is not None else None)
+        image_size = hparams.get("image_size") or (clip.image_size if clip is not None else None)
+        if num_frames is None or image_size is None:
+            raise ValueError("the model records no num_frames / image_size")
+        crop_top = clip.crop_top if clip is not None else hparams.get("crop_top") or 0.0
+        data = clip if clip is not None else ClipOptions(num_frames=int(num_frames), image_size=tuple(image_size))
+        return cls(
+            num_frames=int(num_frames),
+            image_size=(int(image_size[0]), int(image_size[1])),
+            crop_top=float(crop_top),
+            aligns=data.align != "none",
+            align_preset=data.align_preset,
+            horizon_row=data.horizon_row,
+            bf16=bool(getattr(module, "bf16", False)),
+            postprocess=module.postprocess,
+            clip=clip,
+        )
+
+
+@dataclass(frozen=True)
+class StoredModel:
+    """A model opened from storage (see the module docstring): its network and the settings it was trained with.
+
+    Attributes:
+        checkpoint: the checkpoint file that was read.
+        module: the `StamLaneModule`, built from the closed registry, on the CPU, in eval mode.
+        settings: how it sees frames and decodes lanes (`ModelSettings`).
+        config: the run's config as plain data, checked against the registry in today's names, when the checkpoint
+            carries one (None for a checkpoint of before configs travelled in them).
+    """
+
+    checkpoint: Path
+    module: StamLaneModule = field(repr=False)
+    settings: ModelSettings
+    config: dict[str, Any] | None = field(default=None, repr=False)
+
+    @classmethod
+    def open(cls, where: str | Path) -> StoredModel:
+        """Open a checkpoint file, a run folder or a shipped model's name (`checkpoint_of`), reading the file once.
+
+        Raises:
+            CheckpointError: no such checkpoint, one over the budget or unreadable, or one whose network, data
+                options or config the registry refuses (one line naming the file).
+        """
+        from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+        from stamlane.training.compat import clip_options
+        from stamlane.training.lightning_cli import CONFIG_KEY
+        from stamlane.training.registry import build_module, check_data_hparams, check_run_config
+
+        path = checkpoint_of(where)
+        content = read_checkpoint(path)
+        module = build_module(content, path)
+        data = content.get("datamodule_hyper_parameters")
+        if data is not None:
+            check_data_hparams(data, path)
+        text = content.get(CONFIG_KEY)
+        config = check_run_config(text, path) if isinstance(text, str) else None
+        if not isinstance(data, dict) and config is not None and isinstance(config.get("data"), dict):
+            data = config["data"]  # no data hyper-parameters stored: the run config's data section says the same
+        try:
+            clip = clip_options(data) if isinstance(data, dict) else None
+            settings = ModelSettings.of(module, clip)
+        except ValueError as err:
+            raise CheckpointError(f"checkpoint {path}: {err}") from None
+        return cls(path, module, settings, config)
+
+
+def checkpoint_of(where: str | Path) -> Path:
+    """The checkpoint file a user means: a run folder's ``checkpoints/last.ckpt``, a shipped model's file where
+    ``where`` is one's name and no file or folder of that name is here (`stamlane.weights.resolve`), else ``where``.
+
+    Raises:
+        CheckpointError: a folder that holds no ``checkpoints/last.ckpt``.
+    """
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.weights import resolve
+
+    path = Path(resolve(str(where)))
+    if path.is_dir():
+        if not (path / RUN_CHECKPOINT).is_file():
+            raise CheckpointError(f"{path} holds no {RUN_CHECKPOINT.as_posix()} (not a finished run folder)")
+        return path / RUN_CHECKPOINT
+    return path
