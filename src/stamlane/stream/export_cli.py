@@ -134,7 +134,7 @@ def _write(args: Any, opset: int, outputs: list[Path]) -> int:
     module = model.module
     common = deployment_metadata(module, model.settings.clip, args.ckpt_path, opset)
     num_frames, size = common["num_frames"], tuple(common["image_size"])
-    net = module.net  # the buffers of tracing a clip, counted before one is made (a checkpoint's recorded size)
+    net: Any = module.net  # the buffers of tracing a clip, counted before one is made (a checkpoint's recorded size)
     shape = (net.encoder.out_channels, net.encoder.strides, int(getattr(net.decoder, "embed_dim", 4)))
     check_stream_buffers(num_frames, size, *shape, f"export of {args.ckpt_path}", clips=True)
     writers = {
