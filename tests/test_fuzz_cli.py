@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from hypothesis import HealthCheck, currently_in_test_context, event, example, given, settings
+from hypothesis import HealthCheck, assume, currently_in_test_context, event, example, given, settings
 from hypothesis import strategies as st
 
 from stamlane.cli import main
@@ -375,6 +375,52 @@ def test_stream(
         ok = ok and preset != "quick"  # not a preset: one line, status 2
         if ok and frames in (None, 2) and size in (None, (32, 64)):
             assert code == 0 and (target / "lanes.jsonl").is_file()  # what is valid is done
+
+
+ADAPT_FLAGS = [
+    ("--steps", "99999999999"),
+    ("--steps", "0"),
+    ("--lr", "nan"),
+    ("--fusion-lr-scale", "inf"),
+    ("--real-batch", "100000"),
+    ("--synthetic-batch", "-1"),
+    ("--real-weight", "-1"),
+    ("--hi", "2"),
+    ("--min-agree", "1000000"),
+    ("--tolerance", "100000"),
+    ("--threads", "99999"),
+    ("--synthetic-clips", "10000000"),
+    ("--max-frames", "0"),
+]
+"""Flags of ``stamlane adapt`` with values that would size an endless run, a batch past memory or no number."""
+ADAPT_OUTS = ("fresh", "input", "link-to-input", "under-a-file", "a-fifo")
+
+
+@_settings(60)
+@given(
+    ckpt=st.sampled_from(["good", "huge", "fifo", "frames", "missing"]),
+    source=st.sampled_from(["frames", "video", "link", "fifo", "missing"]),
+    flags=st.lists(st.sampled_from(ADAPT_FLAGS), max_size=2),
+    out=st.sampled_from(ADAPT_OUTS),
+)
+@example(ckpt="good", source="video", flags=[("--steps", "99999999999")], out="fresh")  # an endless run, refused
+@example(ckpt="huge", source="frames", flags=[], out="fresh")  # a recorded T of 100,000
+@example(ckpt="good", source="video", flags=[], out="input")  # over the checkpoint
+def test_adapt(
+    stream_inputs: dict[str, Path], capsys: pytest.CaptureFixture[str], ckpt: str, source: str, flags: list, out: str
+) -> None:
+    """Every hostile input of ``stamlane adapt`` (a flag out of its bounds, a checkpoint or source that is no
+    checkpoint or source, an output over or under an input) is one line and exit 2 before any work, inputs unchanged.
+    A valid command trains: those are `tests/training/test_adapt.py`'s, so every example here holds a hostile part."""
+    assume(flags or out != "fresh" or ckpt != "good" or source not in ("frames", "video", "link"))
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        checkpoint = stream_inputs.get(ckpt, tmp / "missing.ckpt")
+        target = _place(out, tmp, "adapt", stream_inputs["good"], stream_inputs["frames"])
+        argv = ["adapt", "--ckpt_path", str(checkpoint), "--source", str(stream_inputs.get(source, tmp / "none.mp4"))]
+        argv += ["--out", str(target), "--no-progress", "--threads", "1", *(v for flag in flags for v in flag)]
+        inputs = [stream_inputs[k] for k in ("frames", "video", "link", "good", "huge")]
+        assert _contract(capsys, argv, inputs) == 2
 
 
 @_settings(40)

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -24,6 +26,7 @@ from typing import Any
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.safety.boundary import run_command
+from stamlane.safety.budget import MAX_FRAMES, MAX_WORKERS
 from stamlane.safety.guard import check_outputs, exclusive, temporary_name, write_atomic
 from stamlane.weights import DEFAULT, resolve
 
@@ -40,18 +43,42 @@ class AdaptError(ValueError):
     """Bad input of ``stamlane adapt`` (one line, exit status 2)."""
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text}")
+MAX_STEPS = 100_000
+"""Optimizer steps one adaptation may ask (about 6 hours at 5 steps/s on 2 CPU cores): a flag sizes no endless run."""
+MAX_BATCH = 64
+"""Real or synthetic clips in one batch: a flag sizes no batch that cannot fit in memory."""
+MAX_SYNTHETIC_CLIPS = 1000
+"""Synthetic clips generated when ``--synthetic`` is not given."""
+MAX_TOLERANCE = 64
+"""Network pixels of misregistration the agreement may allow (a dilation of that radius)."""
+
+
+def _int_in(low: int, high: int | None = None) -> Callable[[str], int]:
+    """An argparse type: an integer in ``[low, high]`` (no upper bound when ``high`` is None)."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < low or (high is not None and value > high):
+            span = f">= {low}" if high is None else f"in {low}..{high:,}"
+            raise argparse.ArgumentTypeError(f"expected an integer {span}, got {text}")
+        return value
+
+    return parse
+
+
+def _positive_float(text: str, zero: bool = False) -> float:
+    value = float(text)
+    if not math.isfinite(value) or value < 0 or (value == 0 and not zero):
+        raise argparse.ArgumentTypeError(f"expected a finite number {'>= 0' if zero else '> 0'}, got {text}")
     return value
 
 
-def _count(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
-    return value
+def _weight(text: str) -> float:
+    return _positive_float(text, zero=True)
+
+
+_positive_int = _int_in(1)
+_count = _int_in(0)
 
 
 def _probability(text: str) -> float:
@@ -76,22 +103,47 @@ def build_parser() -> argparse.ArgumentParser:
     add("--ckpt_path", required=True, help=f"the model to adapt: a checkpoint or a shipped name (e.g. {DEFAULT})")
     add("--source", required=True, help="a video file or a folder of frames of one drive (unlabelled)")
     add("--out", type=Path, help="output folder (default outputs/adapt/<model>-<source>)")
-    add("--steps", type=_positive_int, default=base.steps, help=f"optimizer steps (default {base.steps})")
+    add("--steps", type=_int_in(1, MAX_STEPS), default=base.steps, help=f"optimizer steps (default {base.steps})")
     add("--seed", type=int, default=base.seed, help="seed of the batches (default 0)")
-    add("--lr", type=float, default=base.lr, help=f"encoder and decoder learning rate (default {base.lr})")
-    add("--fusion-lr-scale", type=float, default=base.fusion_lr_scale, help="the STAM's rate / --lr (default 100)")
-    add("--real-batch", type=_positive_int, default=base.real_batch, help="real clips per batch (default 2)")
-    add("--synthetic-batch", type=_count, default=base.synthetic_batch, help="synthetic clips per batch (default 2)")
-    add("--real-weight", type=float, default=base.real_weight, help="the real clips' loss weight (default 1)")
+    add("--lr", type=_positive_float, default=base.lr, help=f"encoder and decoder learning rate (default {base.lr})")
+    add(
+        "--fusion-lr-scale",
+        type=_positive_float,
+        default=base.fusion_lr_scale,
+        help="the STAM's rate / --lr (default 100)",
+    )
+    add("--real-batch", type=_int_in(1, MAX_BATCH), default=base.real_batch, help="real clips per batch (default 2)")
+    add(
+        "--synthetic-batch",
+        type=_int_in(0, MAX_BATCH),
+        default=base.synthetic_batch,
+        help="synthetic clips per batch (default 2)",
+    )
+    add("--real-weight", type=_weight, default=base.real_weight, help="the real clips' loss weight (default 1)")
     add("--hi", type=_probability, default=pseudo.hi, help=f"lane above this probability (default {pseudo.hi})")
     add("--lo", type=_probability, default=pseudo.lo, help=f"background below it (default {pseudo.lo})")
-    add("--min-agree", type=_count, default=pseudo.min_agree, help="history frames that must agree (default 2)")
-    add("--tolerance", type=_count, default=pseudo.tolerance_px, help="network px of misregistration (default 1)")
+    add(
+        "--min-agree",
+        type=_int_in(0, MAX_FRAMES),
+        default=pseudo.min_agree,
+        help="history frames that must agree (default 2)",
+    )
+    add(
+        "--tolerance",
+        type=_int_in(0, MAX_TOLERANCE),
+        default=pseudo.tolerance_px,
+        help="network px of misregistration (default 1)",
+    )
     add("--min-lane-pixels", type=_positive_int, default=base.min_lane_pixels, help="per kept frame (default 50)")
     add("--max-frames", type=_positive_int, help="read only the first N frames of the source")
     add("--synthetic", type=Path, help="a synthetic set (its train.json) to mix in (default: 16 clips generated)")
-    add("--synthetic-clips", type=_positive_int, default=16, help="clips generated when --synthetic is not given")
-    add("--threads", type=_positive_int, default=2, help="torch threads (default 2)")
+    add(
+        "--synthetic-clips",
+        type=_int_in(1, MAX_SYNTHETIC_CLIPS),
+        default=16,
+        help="clips generated when --synthetic is not given",
+    )
+    add("--threads", type=_int_in(1, MAX_WORKERS), default=2, help="torch threads (default 2)")
     add("--no-progress", action="store_true", help="no progress bars")
     return parser
 
