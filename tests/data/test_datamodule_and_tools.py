@@ -20,7 +20,7 @@ from stamlane.data.labels import history_name
 from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
 from stamlane.synth.cli import main as synth_main
-from stamlane.synth.config import SynthConfig
+from stamlane.synth.config import SynthConfig, counts_of_total
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import SplitCounts
 
@@ -192,7 +192,7 @@ def test_history_names():
 
 
 def test_synth_tool_writes_a_set(tmp_path: Path, capsys: pytest.CaptureFixture):
-    ten, two = SplitCounts.of_total(10), SplitCounts.of_total(2)
+    ten, two = counts_of_total(10), counts_of_total(2)
     assert (ten.train, ten.val, ten.test) == (8, 1, 1) and (two.train, two.val, two.test) == (2, 0, 0)
     out = tmp_path / "s"
     assert (

@@ -12,7 +12,7 @@ import pytest
 from stamlane.align.camera import Camera, Pose
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import SynthConfig
-from stamlane.synth.dashcam import HORIZON, MARKINGS, DashcamWorld, Roadside, Sensor, Surface
+from stamlane.synth.dashcam import HORIZON, MARKINGS, Marking, Roadside, Sensor, Surface
 from stamlane.synth.road import render_texture, sample_road
 
 DASHCAM = SynthConfig(width=320, height=180, num_frames=3, world="dashcam")
@@ -49,8 +49,8 @@ def test_the_camera_spreads_the_horizon_over_dashcam_ranges_and_the_labels_follo
 
 def test_the_dashcam_road_takes_its_standards_dash_gap_and_width():
     rng = np.random.default_rng(0)
-    world = replace(DashcamWorld.sample(rng), marking=MARKINGS[0], dash=3.05, gap=9.15)
-    road, _ = sample_road(rng, (-2.0, 150.0), 16.0, world=world)
+    marking = Marking(MARKINGS[0], dash=3.05, gap=9.15)
+    road, _ = sample_road(rng, (-2.0, 150.0), 16.0, marking=marking)
     dashed = [m for m in road.marks if m.dashed]
     for mark in road.marks:
         assert (mark.dash, mark.gap) == (3.05, 9.15)
@@ -58,7 +58,7 @@ def test_the_dashcam_road_takes_its_standards_dash_gap_and_width():
     assert all(m.dots == "" for m in road.marks if not m.dashed)
     found = set()
     for seed in range(30):  # the US standard puts raised markers on some dashed marks, in the gaps or alone
-        road, _ = sample_road(np.random.default_rng(seed), (-2.0, 150.0), 16.0, world=world)
+        road, _ = sample_road(np.random.default_rng(seed), (-2.0, 150.0), 16.0, marking=marking)
         found |= {m.dots for m in road.marks if m.dashed}
     assert {"gaps", "only"} <= found and dashed is not None
 

@@ -20,6 +20,7 @@ RENDERER = (
     "tqdm",
     "stamlane.align",
     *(f"stamlane.synth.{name}" for name in ("clip", "render", "road", "vehicles", "effects", "transient")),
+    *(f"stamlane.synth.{name}" for name in ("parts", "dashcam", "scenery", "bodies")),
     *(f"stamlane.synth.{name}" for name in ("statistics", "writer", "dataset", "generator")),
 )
 """What draws and writes clips (with the package stamlane.align, which loads OpenCV)."""

@@ -103,9 +103,8 @@ def test_a_pole_casts_a_sharp_stripe_across_the_lanes_on_the_texture():
     road, _ = sample_road(rng, (-2.0, 60.0), 16.0, curved_prob=0.0, worn_prob=0.0)
     sun = Sun(azimuth=np.pi / 2, elevation=np.radians(20.0), depth=0.6)  # low, from the right
     right = max(m.offset for m in road.marks)
-    scenery = Scenery(sun, [], 0.15, 0.2, 180.0, [(right + 3.0, 30.0, 8.0)], Roadside(None, None, 0.0, 0.0))
-    shadows = scenery.shadows(road.centre, road.z_range)
-    assert len(shadows) == 1
+    shadows = sun.shadows(Roadside(None, None, 0.0, 0.0), [(right + 3.0, 30.0, 8.0)], road.centre, road.z_range)
+    assert len(shadows) == 1 and len(sun.shadows(None, [], road.centre, road.z_range)) == 0
     plain = render_texture(road, np.random.default_rng(2), shadows=0)
     shaded = render_texture(road, np.random.default_rng(2), shadows=0, cast=shadows, cast_depth=0.6)
     tex = road.texture_from_ground()
@@ -120,8 +119,7 @@ def test_curbs_stand_beside_the_road_and_poles_rise_above_the_horizon():
     camera = Camera.for_size(320, 180)
     pose = Pose(0.0, 0.0, 1.5, 0.0, 0.0)
     frame = np.zeros((180, 320, 3), np.uint8)
-    sun = Sun(0.0, 0.5, 0.5)
-    Scenery(sun, [5.0], 0.15, 0.25, 200.0, [], Roadside(None, None, 0.0, 0.0)).draw(
+    Scenery([5.0], 0.15, 0.25, 200.0, []).draw(
         frame, STRAIGHT.centre, camera, pose, 80.0
     )
     drawn = frame.max(axis=2) > 0
@@ -129,7 +127,7 @@ def test_curbs_stand_beside_the_road_and_poles_rise_above_the_horizon():
     horizon = int(camera.horizon_row(pose))
     assert not drawn[: horizon - 2].any()  # a curb is low
     frame[:] = 0
-    Scenery(sun, [], 0.15, 0.25, 200.0, [(-6.0, 20.0, 9.0)], Roadside(None, None, 0.0, 0.0)).draw(
+    Scenery([], 0.15, 0.25, 200.0, [(-6.0, 20.0, 9.0)]).draw(
         frame, STRAIGHT.centre, camera, pose, 80.0
     )
     drawn = frame.max(axis=2) > 0

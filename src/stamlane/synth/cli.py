@@ -13,16 +13,19 @@ from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import check_workers
 from stamlane.safety.guard import check_outputs
 from stamlane.safety.owner import claim, mark
-from stamlane.synth.config import FACTORS, LABEL_LANES, WORLDS, SynthConfig
+from stamlane.synth.config import FACTORS, LABEL_LANES, SynthConfig, counts_of_total
 from stamlane.synth.dataset import generate_dataset
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, REVEAL_FRAMES, TRAIN_KEY_STEP, SplitCounts
 from stamlane.synth.tusimple_layout import LAYOUTS
+from stamlane.synth.worlds import WORLDS
 
 SYNTH_OWNER = {"command": "synth"}
 """What ``synth --out``'s owner file says: a folder synth wrote (`stamlane.safety.owner`); with the layout and the
 set it writes (`_owner`)."""
 
 __all__ = ["build_parser", "main"]
+_RANDOMISABLE = tuple(name for name, world in WORLDS.items() if world.randomisable)
+"""The worlds ``--randomise`` takes (their sensor draws the colour cast)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,13 +91,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--world",
-        choices=WORLDS,
+        choices=tuple(WORLDS),
         default="classic",
-        help="classic: the world of formats 1-6 (default); dashcam: format 7's camera, markings, surfaces, barriers, "
-        "skies and sensor effects; dashcam2: the dashcam world plus sun shadows, curbs, poles, surface repairs and "
-        "vehicles with bodies; dashcam3: dashcam2 with dirt, dry grass or gravel verges (docs/data.md)",
+        help="; ".join(f"{name}: {world.description}" for name, world in WORLDS.items())
+        + " (default classic; docs/data.md)",
     )
-    p.add_argument("--randomise", action="store_true", help="dashcam worlds: a random colour cast per clip")
+    p.add_argument(
+        "--randomise", action="store_true", help=f"worlds {', '.join(_RANDOMISABLE)}: a random colour cast per clip"
+    )
     p.add_argument(
         "--label-lanes",
         choices=LABEL_LANES,
@@ -132,9 +136,7 @@ def _synth(args: argparse.Namespace) -> int:
             print(f"stamlane synth: --{flag} must be >= 0, got {n}", file=sys.stderr)
             return 2
     # by default every factor has a clip: a small set's challenging-<factor>.json files are never empty
-    counts = SplitCounts.of_total(
-        args.clips, **{f.removesuffix("-clips").replace("-", "_"): n for f, n in flags.items()}
-    )
+    counts = counts_of_total(args.clips, **{f.removesuffix("-clips").replace("-", "_"): n for f, n in flags.items()})
     # never written over: a folder holding anything synth did not write (its owner file), whatever the names; one of
     # synth's own holding a whole set (an interrupted one is written again)
     if (Path(args.out) / "dataset.json").exists():  # written last by either layout: a whole set
@@ -166,9 +168,9 @@ def _synth(args: argparse.Namespace) -> int:
         print(f"stamlane synth: --workers must be >= 1, got {args.workers}", file=sys.stderr)
         return 2
     check_workers(args.workers, "--workers", minimum=1)
-    if args.randomise and not args.world.startswith("dashcam"):
+    if args.randomise and not WORLDS[args.world].randomisable:
         print(
-            "stamlane synth: --randomise is an option of the dashcam worlds (--world dashcam, dashcam2, dashcam3)",
+            f"stamlane synth: --randomise is an option of the dashcam worlds (--world {', '.join(_RANDOMISABLE)})",
             file=sys.stderr,
         )
         return 2

@@ -24,21 +24,20 @@ state; `stamlane.synth.writer.write_clip` stores it.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from stamlane.align.camera import Camera, Pose
-from stamlane.synth.bodies import BodyStyle, draw_bodies
 from stamlane.synth.config import ADJACENT_LANE_WIDTHS, SynthConfig
-from stamlane.synth.dashcam import DashcamWorld, Roadside, Surface
 from stamlane.synth.effects import NightLight, Windscreen, glare, night
+from stamlane.synth.parts import Parts
 from stamlane.synth.render import GrainLayer, GroundRenderer
 from stamlane.synth.road import Road, render_texture, sample_road
-from stamlane.synth.scenery import RepairedSurface, Scenery, Sun, Verge
 from stamlane.synth.transient import KeyOccluder
-from stamlane.synth.vehicles import SUN, Vehicle, draw_vehicles, sample_vehicles, shadow_polygons
+from stamlane.synth.vehicles import Vehicle, sample_vehicles, shadow_polygons
+from stamlane.synth.worlds import WORLDS
 
 __all__ = ["FAR_M", "HAZE_PX", "SynthClip", "generate_clip"]
 
@@ -181,9 +180,9 @@ def generate_clip(
     Returns:
         the clip with labels of every frame and the true ``image_from_ground`` of every frame.
     """
-    world = DashcamWorld.sample(rng, cfg.randomise) if cfg.world.startswith("dashcam") else None
-    if world is not None:  # the clip's own camera: its labels' rows and homographies follow from it
-        cfg = replace(cfg, horizon=world.horizon, hfov_deg=world.hfov_deg, cam_height=world.cam_height)
+    parts = Parts.of(WORLDS[cfg.world])
+    look = parts.look(rng, cfg)  # the camera, markings, sky and sensor of the clip's world
+    cfg = look.config  # the clip's own camera: its labels' rows and homographies follow from it
     camera = cfg.camera()
     duration = (cfg.num_frames - 1) / cfg.fps
     z_far = cfg.speed[1] * 1.1 * duration + FAR_M
@@ -197,24 +196,11 @@ def generate_clip(
         worn_stretches=cfg.worn_stretches,
         worn_strength=cfg.worn_strength,
         dash_gap=cfg.dash_gap,
-        world=world,
+        marking=look.marking,
     )
     poses, track = _ego_poses(cfg, rng, road, ego_lane)
     n_shadows = int(rng.integers(cfg.static_shadows[0], cfg.static_shadows[1] + 1))
-    surface: Surface | RepairedSurface | None = None
-    roadside = scenery = None
-    if world is not None:
-        offsets = [m.offset for m in road.marks]
-        surface = Surface.sample(rng, road.z_range, max(np.abs(offsets)))
-        roadside = Roadside.sample(rng, min(offsets), max(offsets))
-    verge = None
-    if world is not None and cfg.world in ("dashcam2", "dashcam3"):  # its draws after the dashcam world's
-        sun = Sun.sample(rng, world.clear_sky)
-        assert roadside is not None and isinstance(surface, Surface)  # both drawn just above for every dashcam world
-        scenery = Scenery.sample(rng, sun, roadside, min(offsets), max(offsets), road.z_range)
-        surface = RepairedSurface.sample(rng, surface, road.z_range, offsets)
-        if cfg.world == "dashcam3":  # its one draw after dashcam2's (the verge's texture has a seed of its own)
-            verge = Verge.sample(rng)
+    scene = parts.scene(rng, road, look)  # the surface, barriers, light, curbs and poles, verges
     # the unpainted texture is a by-product of the same draws: the painted one is what it always was
     textures = render_texture(
         road,
@@ -222,10 +208,10 @@ def generate_clip(
         shadows=n_shadows,
         shadow_depth=cfg.shadow_depth,
         unpainted=paint_contrast,
-        surface=surface,
-        cast=scenery.shadows(road.centre, road.z_range) if scenery is not None else None,
-        cast_depth=scenery.sun.depth if scenery is not None else 0.0,
-        verge=verge,
+        surface=scene.surface,
+        cast=scene.cast(road),
+        cast_depth=scene.light.depth,
+        verge=scene.verge,
     )
     texture, bare = textures if isinstance(textures, tuple) else (textures, None)  # a pair with paint_contrast
     vehicles: list[Vehicle] = []
@@ -245,16 +231,12 @@ def generate_clip(
             ahead=cfg.vehicle_ahead,
             speed_ratio=cfg.vehicle_speed,
         )
-    styles = [BodyStyle.sample(rng, v.height > 1.6) for v in vehicles] if scenery is not None else []
-    sun_shift = scenery.sun.displacement() if scenery is not None else SUN
-    moving_depth = scenery.sun.depth if scenery is not None else cfg.moving_shadow_depth
-    sky, ridge = _sky(cfg, rng)
-    hills = 0.04
-    if world is not None:
-        sky, hills = world.sky(rng, cfg.height, cfg.width), world.hills
-    haze = tuple(float(c) for c in sky[-1, 0])
-    if world is not None:  # the land beyond the texture's sides: a dull roadside colour, not the sky's
-        haze = world.land(haze)
+    paint_vehicles = parts.vehicles(rng, vehicles)  # their bodies' draws where the world has them
+    classic_sky, ridge = _sky(cfg, rng)  # the tree line's draws for every world
+    sky = parts.sky.paint(rng, look.sky, classic_sky)
+    # the land beyond the texture's sides: in the dashcam worlds a dull roadside colour, not the sky's
+    haze = look.sky.land(tuple(float(c) for c in sky[-1, 0]))
+    beside = scene.beside()
     grain = GrainLayer(rng, cfg.grain) if cfg.grain > 0 else None
     levels = 7 if cfg.prefilter else 1
     renderer = GroundRenderer(texture, road.texture_from_ground(), grain, levels=levels)
@@ -282,26 +264,21 @@ def generate_clip(
         frame = ground.render(img_from_ground, (cfg.height, cfg.width), sky_rows, haze)
         frame[:sky_rows] = sky[:sky_rows]
         _haze(frame, sky_rows, haze)
-        _draw_ridge(frame, ridge, horizon, pose, camera, hills)
-        if roadside is not None:
-            roadside.draw(frame, road.centre, camera, pose, FAR_M)
-        if scenery is not None:
-            scenery.draw(frame, road.centre, camera, pose, FAR_M)
+        _draw_ridge(frame, ridge, horizon, pose, camera, look.sky.hills)
+        for thing in beside:
+            thing.draw(frame, road.centre, camera, pose, FAR_M)
         if vehicles:
             shade: np.ndarray = np.zeros((cfg.height, cfg.width), np.uint8)
             for v in vehicles:
-                for poly in shadow_polygons(v, road, t, sun_shift):
+                for poly in shadow_polygons(v, road, t, scene.light.shift):
                     pix = camera.project_polygon(pose, poly)
                     if pix is not None:
                         cv2.fillPoly(shade, [np.round(pix * 16).astype(np.int32)], 255, lineType=cv2.LINE_AA, shift=4)
             shade = cv2.blur(shade, (5, 5))
-            factor = 1.0 - moving_depth * shade.astype(np.float32) / 255.0
+            factor = 1.0 - scene.light.depth * shade.astype(np.float32) / 255.0
             frame = (frame * factor[..., None]).astype(np.uint8)
         mask = np.zeros((cfg.height, cfg.width), np.uint8)
-        if styles:
-            draw_bodies(frame, mask, vehicles, styles, road, camera, pose, t)
-        else:
-            draw_vehicles(frame, mask, vehicles, road, camera, pose, t)
+        paint_vehicles(frame, mask, road, camera, pose, t)
         if night_light is not None:
             frame = night(frame, frame_rng, night_light, horizon)
         if cfg.glare_prob > 0 and frame_rng.random() < cfg.glare_prob:
@@ -312,8 +289,8 @@ def generate_clip(
             frame = occluder.apply(frame)
             if occluder.mask is not None:
                 mask |= occluder.mask
-        if world is not None:
-            frame = world.sensor.apply(frame, frame_rng)
+        if look.sensor is not None:
+            frame = look.sensor.apply(frame, frame_rng)
         return cv2.convertScaleAbs(frame, alpha=float(gains[i])), mask
 
     rows = h_samples if label_rows is None else list(label_rows)  # after the occluder's draws: the same frames

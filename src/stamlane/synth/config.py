@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from stamlane.synth.layout import REVEAL_FRAMES
+from stamlane.synth.layout import REVEAL_FRAMES, SplitCounts
+from stamlane.synth.worlds import WORLDS
 
 if TYPE_CHECKING:
     from stamlane.align.camera import Camera
@@ -27,17 +28,13 @@ __all__ = [
     "REVEAL_MOTION",
     "REVEAL_TRAFFIC",
     "TRAIN_MOTION",
-    "WORLDS",
     "Factor",
     "SynthConfig",
     "challenging_factor",
     "clip_kinds",
+    "counts_of_total",
 ]
 
-WORLDS = ("classic", "dashcam", "dashcam2", "dashcam3")
-"""What ``SynthConfig.world`` takes: the classic world of formats 1-6, the dashcam world of format 7, the dashcam2
-world (the dashcam world plus the sun's shadows, curbs, poles, surface repairs and vehicles with bodies,
-`stamlane.synth.scenery`), or the dashcam3 world (dashcam2 with verges of grass, dirt, dry grass or gravel)."""
 LABEL_LANES = ("all", "adjacent")
 """Which lane marks a frame's labels hold (``SynthConfig.label_lanes``): "all", every mark of the road in view (the
 set as every format has made it); "adjacent", TuSimple's convention, the marks of the ego lane and of the lanes beside
@@ -241,7 +238,7 @@ class SynthConfig:
     key_occluder_frames: int = 1
     """How many of the last frames carry ``key_occluder`` (1: the key frame alone)."""
     world: str = "classic"
-    """What the clips show (`WORLDS`): "classic", the world of formats 1-6 (a camera with its horizon at
+    """What the clips show, a name of `stamlane.synth.worlds.WORLDS` (each world a choice of scene parts): "classic", the world of formats 1-6 (a camera with its horizon at
     ``horizon``, 2-4 m dashes, box vehicles); "dashcam" (format 7, `stamlane.synth.dashcam`): per clip a camera
     spread over dashcam ranges (its horizon, field of view and height replace ``horizon``, ``hfov_deg`` and
     ``cam_height``), the dash and gap lengths of a marking standard with raised pavement markers, concrete or asphalt
@@ -284,12 +281,13 @@ class SynthConfig:
         if self.key_occluder and self.key_occluder not in KEY_OCCLUDERS:
             raise ValueError(f"key_occluder must be one of {KEY_OCCLUDERS} or empty, got {self.key_occluder!r}")
         if self.world not in WORLDS:
-            raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
+            raise ValueError(f"world must be one of {tuple(WORLDS)}, got {self.world!r}")
         if self.label_lanes not in LABEL_LANES:
             raise ValueError(f"label_lanes must be one of {LABEL_LANES}, got {self.label_lanes!r}")
-        if self.randomise and not self.world.startswith("dashcam"):
+        if self.randomise and not WORLDS[self.world].randomisable:
+            names = ", ".join(repr(name) for name, world in WORLDS.items() if world.randomisable)
             raise ValueError(
-                "randomise is an option of the dashcam worlds: set world='dashcam', 'dashcam2' or 'dashcam3'"
+                f"randomise is an option of the worlds with the dashcam sensor: set world to one of {names}"
             )
         if not 1 <= self.key_occluder_frames <= self.num_frames:
             raise ValueError(f"key_occluder_frames must be in [1, num_frames], got {self.key_occluder_frames}")
@@ -332,3 +330,35 @@ def clip_kinds(split: str, index: int, clean: int) -> tuple[str, Factor] | None:
         return None
     name = challenging_factor(index - clean)
     return name, FACTORS[name]
+
+
+def counts_of_total(
+    clips: int,
+    *,
+    challenging: int | None = None,
+    reveal: int | None = None,
+    reveal_traffic: int | None = None,
+    train_factors: int = 0,
+    val_factors: int = 0,
+    train_motion: int = 0,
+) -> SplitCounts:
+    """``stamlane synth --clips N``'s rule: train+val+test = ``clips`` (10 % each for val and test, >= 1 when
+    ``clips`` >= 3); by default ``clips // 10`` challenging clips but at least one per factor (`FACTORS`), 3 reveal
+    and 2 reveal-traffic clips per 10 (at least 3 and 2).
+
+    >>> counts_of_total(10).as_dict()["train"], counts_of_total(2).val, counts_of_total(10).challenging
+    (8, 0, 8)
+    """
+    val = test = 0 if clips < 3 else max(1, round(clips * 0.1))
+    tenths = max(1, clips // 10)
+    return SplitCounts(
+        train=clips - val - test,
+        val=val,
+        test=test,
+        challenging=max(clips // 10, len(FACTORS)) if challenging is None else challenging,
+        reveal=3 * tenths if reveal is None else reveal,
+        reveal_traffic=2 * tenths if reveal_traffic is None else reveal_traffic,
+        train_factors=train_factors,
+        val_factors=val_factors,
+        train_motion=train_motion,
+    )

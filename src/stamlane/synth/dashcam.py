@@ -1,23 +1,24 @@
-"""The dashcam world (``SynthConfig(world="dashcam")``, generator format 7): the changes the real-road check asked for.
+"""The parts of the dashcam world (``SynthConfig(world="dashcam")``, generator format 7): what the real-road check asked for.
 
 `benchmarks/real_roads.py` ran the models trained on the classic world on a real highway video and six labelled real
 frames (docs/results/real-roads/). What went wrong, and what this world draws for it, per clip:
 
 - **the lanes ran on above the vanishing point** (the classic camera always has its horizon at 42 % of the frame, a
-  real dashcam's sat at 38 % and 56 %): `DashcamWorld` spreads the camera over dashcam ranges (`HORIZON`, `HFOV_DEG`,
-  `CAM_HEIGHT_M`), so the network sees sky, roadside and far road at every height;
+  real dashcam's sat at 38 % and 56 %): the ``dashcam`` camera spreads it over dashcam ranges (`HORIZON`,
+  `HFOV_DEG`, `CAM_HEIGHT_M`), so the network sees sky, roadside and far road at every height;
 - **lanes came and went with the dashes** (one US dash cycle, a 3 m line and a 9 m gap, lost the dashed line while
   no dash was near): `MARKINGS`, the dash and gap lengths and widths of common standards, and raised pavement
-  markers (Botts' dots) in the gaps or instead of the paint;
+  markers (Botts' dots) in the gaps or instead of the paint (`Marking`);
 - **lines followed the foot of a concrete barrier and ran across the left lanes**: `Roadside` stands concrete
   barriers and guard rails beside the road (3-D, drawn per frame), and `Surface` paints what a detector mistakes for
   paint on the ground: concrete slabs with transverse and longitudinal joints, tar-sealed cracks, a shoulder of
   another shade with its seam, darker wheel paths;
-- **sunny and overcast skies, sensor effects** (`Sensor`: defocus blur, noise, exposure and gamma, vignetting, the
+- **sunny and overcast skies** (`Sky`), **sensor effects** (`Sensor`: defocus blur, noise, exposure and gamma, vignetting, the
   camera's own JPEG compression) and, with ``SynthConfig.randomise``, random colour casts (domain randomisation).
 
-Every draw comes from the clip's generator in the dashcam world only, so the classic world's clips stay as they were,
-byte for byte (``tests/synth/test_splits_frozen.py``).
+Each is a variant of a scene part (`stamlane.synth.worlds`; `stamlane.synth.parts` draws them): it draws from the
+clip's generator only in a world that picks it, so the classic world's clips stay as they were, byte for byte
+(``tests/synth/test_splits_frozen.py``).
 """
 
 from __future__ import annotations
@@ -35,10 +36,11 @@ __all__ = [
     "HFOV_DEG",
     "HORIZON",
     "MARKINGS",
-    "DashcamWorld",
+    "Marking",
     "MarkingStandard",
     "Roadside",
     "Sensor",
+    "Sky",
     "Surface",
     "fill_world_polygon",
     "fill_world_quad",
@@ -304,55 +306,66 @@ class Sensor:
 
 
 @dataclass(frozen=True)
-class DashcamWorld:
-    """Everything the dashcam world draws for one clip before the classic world's draws (see the module docstring).
+class Marking:
+    """The clip's marking standard (the ``standards`` markings, `stamlane.synth.parts`) with its dash and gap lengths
+    drawn (±10 %): every dashed mark of the clip's road has them (`stamlane.synth.road.sample_road`)."""
 
-    Attributes:
-        horizon, hfov_deg, cam_height: the clip's camera (they replace ``SynthConfig``'s for the clip).
-        marking: the clip's marking standard, with its dash and gap lengths drawn (±10 %).
-        dash, gap: metres of a dash and a gap of the clip's dashed marks.
-        clear_sky: a clear blue sky (else overcast grey with clouds).
-        hills: height of the tree line / hills above the horizon, as a fraction of the frame height.
-        sensor: the camera's `Sensor`.
-        land_colour: BGR of the land beside the road beyond the verge (dry grass to green).
-    """
-
-    horizon: float
-    hfov_deg: float
-    cam_height: float
-    marking: MarkingStandard
+    standard: MarkingStandard
     dash: float
     gap: float
-    clear_sky: bool
-    hills: float
-    sensor: Sensor
-    land_colour: tuple[float, float, float] = (70.0, 110.0, 110.0)
 
     @classmethod
-    def sample(cls, rng: np.random.Generator, randomise: bool = False) -> DashcamWorld:
-        marking = MARKINGS[int(rng.integers(0, len(MARKINGS)))]
-        return cls(
-            float(rng.uniform(*HORIZON)),
-            float(rng.uniform(*HFOV_DEG)),
-            float(rng.uniform(*CAM_HEIGHT_M)),
-            marking,
-            marking.dash * float(rng.uniform(0.9, 1.1)),
-            marking.gap * float(rng.uniform(0.9, 1.1)),
-            bool(rng.random() < 0.5),
-            float(rng.uniform(0.02, 0.12)),
-            Sensor.sample(rng, randomise),
-            (float(rng.uniform(40, 90)), float(rng.uniform(80, 130)), float(rng.uniform(80, 150))),
-        )
+    def sample(cls, rng: np.random.Generator, standard: MarkingStandard) -> Marking:
+        return cls(standard, standard.dash * float(rng.uniform(0.9, 1.1)), standard.gap * float(rng.uniform(0.9, 1.1)))
+
+    def restyle(self, rng: np.random.Generator, dashed: bool) -> tuple[float, str]:
+        """One mark's width (metres) and raised pavement markers (`stamlane.synth.road.LaneMark.dots`), drawn after
+        the classic mark's draws."""
+        width = float(rng.uniform(*self.standard.width))
+        r = rng.random()
+        if dashed and r < self.standard.dots_only_prob:
+            return width, "only"
+        if dashed and r < self.standard.dots_only_prob + self.standard.dots_prob:
+            return width, "gaps"
+        return width, ""
+
+
+@dataclass(frozen=True)
+class Sky:
+    """The clip's sky and what lies at the horizon.
+
+    Attributes:
+        clear: a clear sky (the sun's shadows are deep, `stamlane.synth.scenery.Sun`), else overcast.
+        hills: height of the tree line / hills above the horizon, as a fraction of the frame height.
+        land_colour: BGR of the land beside the road beyond the texture's sides (dry grass to green); None: the
+            classic world's, the sky's own colour at the horizon.
+    """
+
+    clear: bool = True
+    hills: float = 0.04
+    land_colour: tuple[float, float, float] | None = None
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator) -> Sky:
+        """A clear (50 %) or overcast sky and the hills' height; the land's colour comes later (`with_land`)."""
+        return cls(bool(rng.random() < 0.5), float(rng.uniform(0.02, 0.12)))
+
+    def with_land(self, rng: np.random.Generator) -> Sky:
+        """This sky with the land's colour drawn (after the sensor's draws: the order of format 7)."""
+        land = (float(rng.uniform(40, 90)), float(rng.uniform(80, 130)), float(rng.uniform(80, 150)))
+        return Sky(self.clear, self.hills, land)
 
     def land(self, sky: tuple[float, ...]) -> tuple[float, ...]:
         """The colour of the land beyond the road texture's sides (BGR), given the sky's colour at the horizon: the
-        clip's `land_colour` seen through a little haze."""
+        clip's `land_colour` seen through a little haze (the sky's colour where it has none)."""
+        if self.land_colour is None:
+            return sky
         return tuple(0.75 * c + 0.25 * s for c, s in zip(self.land_colour, sky))
 
-    def sky(self, rng: np.random.Generator, height: int, width: int) -> np.ndarray:
+    def paint(self, rng: np.random.Generator, height: int, width: int) -> np.ndarray:
         """The clip's sky, BGR uint8 ``(height, width, 3)``: clear blue to a pale horizon, or overcast with clouds."""
         a = np.linspace(0, 1, height, dtype=np.float32)[:, None, None]
-        if self.clear_sky:
+        if self.clear:
             top = np.array([210, 140, 70], np.float32) * float(rng.uniform(0.8, 1.1))
             bottom = np.array([235, 215, 195], np.float32) * float(rng.uniform(0.85, 1.05))
             sky = np.broadcast_to(top * (1 - a) + bottom * a, (height, width, 3)).copy()

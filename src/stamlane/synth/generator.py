@@ -1,6 +1,7 @@
 """The generator's names as ``stamlane.synth.generator`` offered them before it was split by job.
 
-Each lives in one module now; this one only gathers them, for code written against the old path:
+Each lives in one module now; this one only offers every name of those modules (their ``__all__``), for code
+written against the old path:
 
 - `stamlane.synth.layout`: the splits, files, format version and key frames of a set (standard library only);
 - `stamlane.synth.config`: `SynthConfig`, the challenging factors and reveal kinds (no OpenCV);
@@ -13,69 +14,18 @@ Importing it loads the renderer (OpenCV); ``stamlane.synth.layout`` and ``config
 
 from __future__ import annotations
 
-from stamlane.synth.clip import FAR_M, HAZE_PX, SynthClip, generate_clip
-from stamlane.synth.config import (
-    FACTORS,
-    REVEAL,
-    REVEAL_MOTION,
-    REVEAL_TRAFFIC,
-    TRAIN_MOTION,
-    Factor,
-    SynthConfig,
-    challenging_factor,
-    clip_kinds,
-)
-from stamlane.synth.dataset import generate_dataset, write_temporal_labels
-from stamlane.synth.layout import (
-    DEFAULT_SYNTHETIC_ROOT,
-    DEMO_SPLITS,
-    EVAL_KEY_STEP,
-    FIRST_KEY,
-    FORMAT_VERSION,
-    KIND_SPLITS,
-    REVEAL_FRAMES,
-    SPLITS,
-    TEMPORAL_CLIPS_PER_FACTOR,
-    TEMPORAL_LABELS,
-    TRAIN_KEY_STEP,
-    VISIBILITY_DIR,
-    SplitCounts,
-    key_frames,
-)
-from stamlane.synth.statistics import clip_statistics, key_frame_visibility
-from stamlane.synth.writer import write_clip
+from types import ModuleType
 
-__all__ = [
-    "DEFAULT_SYNTHETIC_ROOT",
-    "DEMO_SPLITS",
-    "EVAL_KEY_STEP",
-    "FACTORS",
-    "FAR_M",
-    "FIRST_KEY",
-    "FORMAT_VERSION",
-    "HAZE_PX",
-    "KIND_SPLITS",
-    "REVEAL",
-    "REVEAL_FRAMES",
-    "REVEAL_MOTION",
-    "REVEAL_TRAFFIC",
-    "SPLITS",
-    "TEMPORAL_CLIPS_PER_FACTOR",
-    "TEMPORAL_LABELS",
-    "TRAIN_KEY_STEP",
-    "TRAIN_MOTION",
-    "VISIBILITY_DIR",
-    "Factor",
-    "SplitCounts",
-    "SynthClip",
-    "SynthConfig",
-    "challenging_factor",
-    "clip_kinds",
-    "clip_statistics",
-    "generate_clip",
-    "generate_dataset",
-    "key_frame_visibility",
-    "key_frames",
-    "write_clip",
-    "write_temporal_labels",
-]
+from stamlane.synth import clip, config, dataset, layout, statistics, writer
+
+_HOMES: tuple[ModuleType, ...] = (layout, config, clip, statistics, writer, dataset)
+"""The modules the old path's names live in (each name in one of them)."""
+
+__all__ = sorted(name for home in _HOMES for name in home.__all__)
+
+
+def __getattr__(name: str) -> object:
+    for home in _HOMES:
+        if name in home.__all__:
+            return getattr(home, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

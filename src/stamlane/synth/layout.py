@@ -78,7 +78,8 @@ overwrites) an older set."""
 @dataclass(frozen=True)
 class SplitCounts:
     """Clips per split of a synthetic set: the one place that names the splits' counts, read by the generator
-    (`stamlane.synth.dataset.generate_dataset`), ``data.synth``'s options and ``stamlane synth``.
+    (`stamlane.synth.dataset.generate_dataset`), ``data.synth``'s options and ``stamlane synth`` (``--clips N``'s rule:
+    `stamlane.synth.config.counts_of_total`).
 
     Attributes:
         train, val, test: clean clips of each split.
@@ -104,41 +105,6 @@ class SplitCounts:
         for name, n in self.as_dict().items():
             if not isinstance(n, int) or isinstance(n, bool) or n < 0:
                 raise ValueError(f"clip count of split {name!r} must be an int >= 0, got {n!r}")
-
-    @classmethod
-    def of_total(
-        cls,
-        clips: int,
-        *,
-        challenging: int | None = None,
-        reveal: int | None = None,
-        reveal_traffic: int | None = None,
-        train_factors: int = 0,
-        val_factors: int = 0,
-        train_motion: int = 0,
-    ) -> SplitCounts:
-        """``stamlane synth --clips N``'s rule: train+val+test = ``clips`` (10 % each for val and test, >= 1 when
-        ``clips`` >= 3); by default ``clips // 10`` challenging clips but at least one per factor, 3 reveal and 2
-        reveal-traffic clips per 10 (at least 3 and 2).
-
-        >>> SplitCounts.of_total(10).as_dict()["train"], SplitCounts.of_total(2).val
-        (8, 0)
-        """
-        from stamlane.synth.config import FACTORS
-
-        val = test = 0 if clips < 3 else max(1, round(clips * 0.1))
-        tenths = max(1, clips // 10)
-        return cls(
-            train=clips - val - test,
-            val=val,
-            test=test,
-            challenging=max(clips // 10, len(FACTORS)) if challenging is None else challenging,
-            reveal=3 * tenths if reveal is None else reveal,
-            reveal_traffic=2 * tenths if reveal_traffic is None else reveal_traffic,
-            train_factors=train_factors,
-            val_factors=val_factors,
-            train_motion=train_motion,
-        )
 
     def as_dict(self) -> dict[str, int]:
         """The counts by field name, as ``dataset.json`` records them."""

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 if TYPE_CHECKING:
-    from stamlane.synth.dashcam import DashcamWorld, Surface
+    from stamlane.synth.dashcam import Marking, Surface
     from stamlane.synth.scenery import RepairedSurface, Verge
 
 __all__ = ["LaneMark", "Road", "render_texture", "sample_road"]
@@ -126,7 +126,7 @@ def sample_road(
     worn_stretches: tuple[int, int] = (1, 3),
     worn_strength: tuple[float, float] = (0.4, 0.9),
     dash_gap: tuple[float, float] = (4.0, 8.0),
-    world: DashcamWorld | None = None,
+    marking: Marking | None = None,
 ) -> tuple[Road, int]:
     """Draw a road of 2-5 lane marks.
 
@@ -134,9 +134,9 @@ def sample_road(
         worn_prob: chance of a mark to be worn in ``worn_stretches`` (inclusive range) stretches of 5-30 m
             whose paint is ``worn_strength`` gone.
         dash_gap: range of the metres between dashes (the dashes are 2-4 m).
-        world: the dashcam world's clip (`stamlane.synth.dashcam.DashcamWorld`): its marking standard's dash, gap
-            and widths replace the classic ones, and its dashed marks may have raised pavement markers; None: the
-            classic road, draw for draw.
+        marking: the clip's marking standard (`stamlane.synth.dashcam.Marking`, the ``standards`` markings): its
+            dash, gap and widths replace the classic ones, and its dashed marks may have raised pavement markers;
+            None: the classic marks, draw for draw.
 
     Returns:
         the road and the index of the ego lane (0 = between marks 0 and 1).
@@ -152,8 +152,8 @@ def sample_road(
     dkappa = float(rng.uniform(-1, 1) * max_kappa / 200.0) if curved else 0.0
     marks = []
     dash, gap = float(rng.uniform(2.0, 4.0)), float(rng.uniform(*dash_gap))
-    if world is not None:
-        dash, gap = world.dash, world.gap
+    if marking is not None:
+        dash, gap = marking.dash, marking.gap
     for i, off in enumerate(offsets):
         outer = i in (0, n_marks - 1)
         dashed = (not outer) and rng.random() < 0.8
@@ -166,13 +166,8 @@ def sample_road(
         width = float(rng.uniform(0.12, 0.2))
         phase = float(rng.uniform(0, dash + gap))
         dots = ""
-        if world is not None:  # draws of the dashcam world only, after the classic ones: the classic road stays
-            width = float(rng.uniform(*world.marking.width))
-            r = rng.random()
-            if dashed and r < world.marking.dots_only_prob:
-                dots = "only"
-            elif dashed and r < world.marking.dots_only_prob + world.marking.dots_prob:
-                dots = "gaps"
+        if marking is not None:  # the standard's draws, after the classic ones: the classic road stays
+            width, dots = marking.restyle(rng, dashed)
         marks.append(
             LaneMark(
                 offset=float(off),
@@ -211,13 +206,14 @@ def render_texture(
         unpainted: also return the same texture without the lane paint (same asphalt, same shadows, the same
             draws from ``rng``): rendered beside the painted one, it shows where the paint is visible
             (`stamlane.synth.visibility`).
-        surface: the dashcam world's road surface (`stamlane.synth.dashcam.Surface`: concrete or asphalt with
-            joints, seams, a shoulder of another shade, wheel paths), drawn over the asphalt before the paint.
-        cast: ground polygons ``(N, 2)`` metres ``(X, Z)`` of sharp sun shadows (the dashcam2 world's barrier, rail
-            and poles, `stamlane.synth.scenery.Scenery.shadows`), darkening the ground and its paint by
-            ``cast_depth``; None: none (no draws either way).
-        verge: the ground beyond the shoulders (the dashcam3 world, `stamlane.synth.scenery.Verge`), drawn from its
-            own seed; None: the classic green verge.
+        surface: the road surface of a world's ``surface`` part (`stamlane.synth.dashcam.Surface`: concrete or
+            asphalt with joints, seams, a shoulder of another shade, wheel paths; or it repaired,
+            `stamlane.synth.scenery.RepairedSurface`), drawn over the asphalt before the paint; None: the asphalt.
+        cast: ground polygons ``(N, 2)`` metres ``(X, Z)`` of sharp sun shadows (of the barrier, rail and poles,
+            `stamlane.synth.scenery.Sun.shadows`), darkening the ground and its paint by ``cast_depth``; None: none
+            (no draws either way).
+        verge: the ground beyond the shoulders (the ``kinds`` verges, `stamlane.synth.scenery.Verge`), drawn from
+            its own seed; None: the classic green verge.
 
     Returns:
         BGR uint8 image ``(height, width, 3)`` of ``road.texture_size()``; pixel ``texture_from_ground @ (X, Z, 1)``;

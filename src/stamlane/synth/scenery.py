@@ -1,20 +1,24 @@
-"""The dashcam2 world (``SynthConfig(world="dashcam2")``): the dashcam world plus what a detector mistakes for paint.
+"""The parts of the dashcam2 world (``SynthConfig(world="dashcam2")``): the dashcam world plus what a detector mistakes
+for paint.
 
 The real-road check (docs/results/real-roads/) found the models following a concrete barrier's foot and drawing lines
 through cars. The dashcam world (format 7, `stamlane.synth.dashcam`) added barriers, guard rails, joints and seams;
 this world keeps all of it and adds, per clip:
 
-- **the sun** (`Sun`): a direction and height, so every shadow falls the same way: the vehicles' moving shadows,
+- **the sun** (`Sun`, the ``sun`` lights): a direction and height, so every shadow falls the same way: the vehicles' moving shadows,
   and static shadows on the road cast by the barrier, the guard rail and lamp or sign poles (long thin dark stripes
   across the lanes when the sun is low and to the side); weak, soft shadows under an overcast sky;
-- **curbs and poles** (`Scenery`): a raised curb (a vertical face and a light top, two long edges parallel to the
+- **curbs and poles** (`Scenery`, the ``curbs_poles`` furniture): a raised curb (a vertical face and a light top, two long edges parallel to the
   lanes) on a side without a barrier, poles beside the road;
-- **surface repairs** (`RepairedSurface`): long strips of newer or older asphalt along a lane with straight edges,
+- **surface repairs** (`RepairedSurface`, the ``repaired`` surface): long strips of newer or older asphalt along a lane with straight edges,
   straight tar-sealed joints beside the marks, sealed transverse cracks: bright or dark lines the paint is not;
-- **vehicles with bodies** (`stamlane.synth.bodies`: `BodyStyle`, `draw_bodies`), drawn over all of it.
+- **vehicles with bodies** (`stamlane.synth.bodies`: `BodyStyle`, `draw_bodies`; the ``bodies`` vehicles), drawn
+  over all of it;
 
-Every draw comes from the clip's generator in this world only (after the dashcam world's own draws), so the classic
-world and the dashcam world of format 7 draw what they drew, byte for byte (``tests/synth/test_scenery.py``).
+and the dashcam3 world's **verges** (`Verge`, the ``kinds`` verges). Each is a variant of a scene part
+(`stamlane.synth.worlds`): it draws from the clip's generator only in a world that picks it, at its part's place in
+the order (`stamlane.synth.parts`), so the classic world and the dashcam world of format 7 draw what they drew, byte
+for byte (``tests/synth/test_scenery.py``).
 """
 
 from __future__ import annotations
@@ -68,6 +72,40 @@ class Sun:
         long (`stamlane.synth.vehicles.shadow_polygons` takes it as ``sun``)."""
         shift: np.ndarray = -np.array([np.sin(self.azimuth), np.cos(self.azimuth)]) / np.tan(self.elevation)
         return shift
+
+    def shadows(
+        self,
+        roadside: Roadside | None,
+        poles: list[tuple[float, float, float]],
+        centre: Callable[[np.ndarray], np.ndarray],
+        z_range: tuple[float, float],
+    ) -> list[np.ndarray]:
+        """Ground polygons ``(N, 2)`` metres ``(X, Z)`` of the static shadows cast on the road by the barrier and the
+        rail of ``roadside`` and by the ``poles`` (`Scenery.poles`), for `stamlane.synth.road.render_texture`'s
+        ``cast`` (darkened by `depth`)."""
+        d = self.displacement()
+        polys = []
+        zs = np.arange(z_range[0], z_range[1] + 10.0, 10.0)
+        for z0, z1 in itertools.pairwise(zs):
+            c0, c1 = float(centre(np.asarray(z0))), float(centre(np.asarray(z1)))
+            bands = []
+            if roadside is not None and roadside.barrier is not None:
+                out = -0.6 if roadside.barrier < 0 else 0.6  # the barrier's thickness, away from the road
+                bands.append((roadside.barrier, out, 0.0, 0.85))
+            if roadside is not None and roadside.rail is not None:
+                bands.append((roadside.rail, 0.0, 0.45, 0.78))
+            for lateral, thick, low, high in bands:
+                foot = np.array(
+                    [[c0 + lateral, z0], [c1 + lateral, z1], [c1 + lateral + thick, z1], [c0 + lateral + thick, z0]]
+                )
+                hull = cv2.convexHull(np.concatenate([foot + low * d, foot + high * d]).astype(np.float32))[:, 0]
+                polys.append(hull.astype(np.float64))
+        for lateral, z, height in poles:
+            x = float(centre(np.asarray(z))) + lateral
+            side = np.array([d[1], -d[0]]) / max(float(np.hypot(*d)), 1e-6) * 0.12
+            base = np.array([x, z])
+            polys.append(np.array([base - side, base + side, base + side + height * d, base - side + height * d]))
+        return polys
 
 
 VERGE_KINDS = ("grass", "dirt", "dry grass", "gravel")
@@ -230,37 +268,29 @@ class RepairedSurface:
 
 @dataclass(frozen=True)
 class Scenery:
-    """What this world stands beside the road and the shadows cast on it.
+    """The curbs and poles beside the road (the ``curbs_poles`` furniture; the sun casts the poles' shadows,
+    `Sun.shadows`).
 
     Attributes:
-        sun: the clip's `Sun`.
         curbs: lateral metres (from the road centre) of each curb's face, with ``curb_height`` and a top ``curb_top``
             metres wide, away from the road; ``curb_grey`` its concrete.
         poles: ``(lateral, z, height)`` of each pole (0.2 m thick, grey).
-        roadside: the dashcam world's barrier and rail (their shadows).
     """
 
-    sun: Sun
     curbs: list[float]
     curb_height: float
     curb_top: float
     curb_grey: float
     poles: list[tuple[float, float, float]]
-    roadside: Roadside
 
     @classmethod
     def sample(
-        cls,
-        rng: np.random.Generator,
-        sun: Sun,
-        roadside: Roadside,
-        left: float,
-        right: float,
-        z_range: tuple[float, float],
+        cls, rng: np.random.Generator, barrier: float | None, left: float, right: float, z_range: tuple[float, float]
     ) -> Scenery:
-        """Curbs (50 % per side without a barrier) 0.3-2.5 m beyond the outer marks (``left``, ``right``: their
-        lateral metres), poles every `POLE_SPACING_M` on one or both sides."""
-        barrier_side = float(np.sign(roadside.barrier)) if roadside.barrier is not None else 0.0
+        """Curbs (50 % per side without a barrier: ``barrier``, the lateral metres of one, `Roadside.barrier`)
+        0.3-2.5 m beyond the outer marks (``left``, ``right``: their lateral metres), poles every `POLE_SPACING_M` on
+        one or both sides."""
+        barrier_side = float(np.sign(barrier)) if barrier is not None else 0.0
         curbs = [
             mark + side * float(rng.uniform(0.3, 2.5))
             for mark, side in ((left, -1.0), (right, 1.0))
@@ -276,41 +306,8 @@ class Scenery:
                     poles.append((lateral, z, float(rng.uniform(6.0, 11.0))))
                     z += spacing * float(rng.uniform(0.9, 1.1))
         return cls(
-            sun,
-            curbs,
-            float(rng.uniform(0.10, 0.18)),
-            float(rng.uniform(0.15, 0.3)),
-            float(rng.uniform(140, 215)),
-            poles,
-            roadside,
+            curbs, float(rng.uniform(0.10, 0.18)), float(rng.uniform(0.15, 0.3)), float(rng.uniform(140, 215)), poles
         )
-
-    def shadows(self, centre: Callable[[np.ndarray], np.ndarray], z_range: tuple[float, float]) -> list[np.ndarray]:
-        """Ground polygons ``(N, 2)`` metres ``(X, Z)`` of the static shadows cast on the road by the barrier, the rail
-        and the poles (for `stamlane.synth.road.render_texture`'s ``cast``, darkened by ``sun.depth``)."""
-        d = self.sun.displacement()
-        polys = []
-        zs = np.arange(z_range[0], z_range[1] + 10.0, 10.0)
-        for z0, z1 in itertools.pairwise(zs):
-            c0, c1 = float(centre(np.asarray(z0))), float(centre(np.asarray(z1)))
-            bands = []
-            if self.roadside.barrier is not None:
-                out = -0.6 if self.roadside.barrier < 0 else 0.6  # the barrier's thickness, away from the road
-                bands.append((self.roadside.barrier, out, 0.0, 0.85))
-            if self.roadside.rail is not None:
-                bands.append((self.roadside.rail, 0.0, 0.45, 0.78))
-            for lateral, thick, low, high in bands:
-                foot = np.array(
-                    [[c0 + lateral, z0], [c1 + lateral, z1], [c1 + lateral + thick, z1], [c0 + lateral + thick, z0]]
-                )
-                hull = cv2.convexHull(np.concatenate([foot + low * d, foot + high * d]).astype(np.float32))[:, 0]
-                polys.append(hull.astype(np.float64))
-        for lateral, z, height in self.poles:
-            x = float(centre(np.asarray(z))) + lateral
-            side = np.array([d[1], -d[0]]) / max(float(np.hypot(*d)), 1e-6) * 0.12
-            base = np.array([x, z])
-            polys.append(np.array([base - side, base + side, base + side + height * d, base - side + height * d]))
-        return polys
 
     def draw(
         self, frame: np.ndarray, centre: Callable[[np.ndarray], np.ndarray], camera: Camera, pose: Pose, far: float
