@@ -119,17 +119,13 @@ def test_curbs_stand_beside_the_road_and_poles_rise_above_the_horizon():
     camera = Camera.for_size(320, 180)
     pose = Pose(0.0, 0.0, 1.5, 0.0, 0.0)
     frame = np.zeros((180, 320, 3), np.uint8)
-    Scenery([5.0], 0.15, 0.25, 200.0, []).draw(
-        frame, STRAIGHT.centre, camera, pose, 80.0
-    )
+    Scenery([5.0], 0.15, 0.25, 200.0, []).draw(frame, STRAIGHT.centre, camera, pose, 80.0)
     drawn = frame.max(axis=2) > 0
     assert drawn[:, 170:].sum() > 100 and drawn[:, :150].sum() == 0  # right of the image centre only
     horizon = int(camera.horizon_row(pose))
     assert not drawn[: horizon - 2].any()  # a curb is low
     frame[:] = 0
-    Scenery([], 0.15, 0.25, 200.0, [(-6.0, 20.0, 9.0)]).draw(
-        frame, STRAIGHT.centre, camera, pose, 80.0
-    )
+    Scenery([], 0.15, 0.25, 200.0, [(-6.0, 20.0, 9.0)]).draw(frame, STRAIGHT.centre, camera, pose, 80.0)
     drawn = frame.max(axis=2) > 0
     assert drawn[: horizon - 10, :160].any() and not drawn[:, 160:].any()  # a tall pole on the left
 

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import stamlane.synth
-from stamlane.synth import worlds
 from stamlane.synth.cli import build_parser
 from stamlane.synth.clip import generate_clip
 from stamlane.synth.config import SynthConfig

@@ -7,9 +7,11 @@ One module per job:
 - ``clip``: `generate_clip` draws a clip: a flat road (``road``) seen by a pinhole camera (`stamlane.align.camera`)
   that drives along it, box vehicles (``vehicles``), the ground texture rendered once per clip and sampled through
   each frame's exact ground homography (``render``), the challenging factors' image effects (``effects``) and the
-  reveal splits' transient occluders (``transient``); ``dashcam``: what the dashcam world (format 7) adds: the camera
-  spread, marking standards, road surfaces, barriers and rails, skies, sensor effects; ``scenery``: what the dashcam2
-  world adds to it: the sun and its shadows, curbs, poles, surface repairs, vehicles with bodies;
+  reveal splits' transient occluders (``transient``);
+- ``worlds``: every world (`WORLDS`), each a choice of a variant of each scene part (the standard library only);
+  ``parts``: every variant of every part and the one order they draw in; ``dashcam``, ``scenery`` and ``bodies``: the
+  variants of the dashcam worlds (the camera spread, marking standards, surfaces, barriers and rails, skies, sensor
+  effects; the sun and its shadows, curbs, poles, surface repairs, verges, vehicles with bodies);
 - ``visibility`` and ``statistics``: where the paint of a labelled point is visible, what a clip offers the history;
 - ``writer``: `write_clip` stores a clip; ``dataset``: `generate_dataset` writes a whole set; ``cli``:
   ``stamlane synth``.

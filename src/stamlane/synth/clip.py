@@ -6,7 +6,9 @@ the road at their own speeds, change lanes, occlude lane marks and cast moving s
 rendered once per clip and each frame samples it through the frame's ground homography (``render``: averaged along
 the road as far as one image row spans, with ground-anchored asphalt grain near the camera), so the ground-plane
 homography of every frame is known exactly; the challenging factors' image effects (``effects``) and the reveal
-splits' transient occluders (``transient``) come last. Defaults follow TuSimple: 20 frames at 20 fps (0.6-1.4 m of
+splits' transient occluders (``transient``) come last. What the world of the settings adds (its camera, markings, sky,
+sensor, surface, barriers, light, curbs and poles, verges and vehicles' bodies) its scene parts draw
+(`stamlane.synth.parts`, at fixed places in this order: ``generate_clip`` knows no world by name). Defaults follow TuSimple: 20 frames at 20 fps (0.6-1.4 m of
 forward motion per frame).
 
 What each effect tests (see docs/data.md):
