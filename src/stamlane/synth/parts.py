@@ -222,11 +222,6 @@ SensorPart = Callable[[np.random.Generator, bool], Sensor | None]
 """The clip's sensor (the flag: ``SynthConfig.randomise``, a random colour cast); None: the frames as rendered."""
 
 
-def no_sensor(rng: np.random.Generator, randomise: bool) -> Sensor | None:
-    """The frames as rendered; no draws."""
-    return None
-
-
 class SurfacePart(Protocol):
     def sample(self, rng: np.random.Generator, road: Road) -> Surface | None:
         """The road's surface (drawn first after the drive)."""
