@@ -33,6 +33,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
 
 from stamlane.align import AlignConfig, align_clip, detect_plain_orb, detect_spread_features, estimate_homography
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -262,8 +263,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "align.json")
     parser.add_argument("--example", type=Path, default=None, help="only write the synthetic example picture here")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("align.py", args.out)) is not None:  # before any work
         return refused

@@ -23,18 +23,16 @@ import argparse
 import json
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
+from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
 from stamlane.align.homography import ALIGN_PRESETS, default_horizon_row, estimate_homography
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -78,8 +76,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "align_presets.json")
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("align_presets.py", args.out)) is not None:  # before any work
         return refused

@@ -27,8 +27,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import clips_of, fail
 from stamlane_eval import culane
 from stamlane_eval.cli_tools import parse_wxh

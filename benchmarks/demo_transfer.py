@@ -24,6 +24,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
 
 from stamlane.experiments.demo import MODELS
 from stamlane.experiments.store import RunStore
@@ -119,8 +120,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=Path, default=None, help="a folder of real road frames")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/transfer"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("demo_transfer.py", args.out, folder=True)) is not None:  # before any work
         return refused

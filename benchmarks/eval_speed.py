@@ -52,6 +52,7 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
+from _harness import guard_out
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
@@ -516,8 +517,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/eval_speed.json"), help="figures as JSON")
     ap.add_argument("--run-reference", nargs=2, metavar=("PRED", "GT"), help=argparse.SUPPRESS)  # the e2e child
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("eval_speed.py", args.out)) is not None:  # before any work
         return refused

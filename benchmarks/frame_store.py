@@ -31,6 +31,8 @@ import time
 import warnings
 from pathlib import Path
 
+from _harness import guard_out
+
 
 def predict(root: Path, out: Path, memory_mb: int) -> tuple[float, list[dict]]:
     """One ``stamlane predict`` pass in this process: seconds and the lanes (without the timings)."""
@@ -88,8 +90,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--passes", type=int, default=3, help="whole prediction passes of each kind")
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/frame_store.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("frame_store.py", args.out)) is not None:  # before any work
         return refused

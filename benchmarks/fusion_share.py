@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 import torch
 import yaml
+from _harness import guard_out
 
 from stamlane.data.layouts import make_clips
 from stamlane.data.options import ClipOptions
@@ -71,8 +71,6 @@ def main() -> None:
     p.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     p.add_argument("--out", type=Path)
     args = p.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("fusion_share.py", args.out)) is not None:  # before any work
         raise SystemExit(refused)

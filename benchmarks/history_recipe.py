@@ -28,10 +28,11 @@ import argparse
 import csv
 import hashlib
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+from _harness import guard_out
 
 from stamlane.experiments.recipes import PRETRAIN, Recipe, Row
 from stamlane.experiments.runner import Runner
@@ -260,8 +261,6 @@ def main() -> None:
     add_bf16_argument(parser)
     parser.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("history_recipe.py", args.out, folder=True)) is not None:  # before any work
         raise SystemExit(refused)

@@ -39,7 +39,6 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import BenchInputError, check_out_folder, fail, read_json_object
 
 REPO = Path(__file__).resolve().parents[1]

@@ -35,6 +35,8 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
+from _harness import BenchInputError, fail, guard_out, read_json_object
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -132,8 +134,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/pipeline_side_by_side.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import BenchInputError, fail, guard_out, read_json_object
 
     if (refused := guard_out("pipeline_side_by_side.py", args.out)) is not None:  # before any work
         return refused

@@ -14,11 +14,11 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _harness import guard_out
 
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 
@@ -60,8 +60,6 @@ def main() -> None:
     parser.add_argument("--max-points", type=int, nargs="+", default=[1000, 2000, 3000])
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/postprocess.json"))
     args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("postprocess.py", args.out)) is not None:  # before any work
         raise SystemExit(refused)

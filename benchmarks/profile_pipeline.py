@@ -54,6 +54,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _harness import guard_out
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_STAGES = ("decode", "digest", "align ORB", "align cached", "augment", "resize", "stored sample")
@@ -260,8 +261,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--runs", type=int, default=2, help="with --check: profiles made now, each compared")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("profile_pipeline.py", args.out)) is not None:  # before any work
         return refused

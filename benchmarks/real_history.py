@@ -43,8 +43,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_roads  # a benchmark script beside this one
 
 from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption

@@ -58,8 +58,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_frames  # a benchmark module beside this one: label files, the split, the numbers by lane position
 from real_roads_tables import dev_lanes_rows, lanes_table, sealed_table, table
 from real_video_stats import crossings, stability

@@ -23,6 +23,8 @@ import sys
 import time
 from pathlib import Path
 
+from _harness import guard_out
+
 SPLITS = {"test": ("key", "other_clip", "warped_key", "exact"), "val": ("key",)}
 
 
@@ -69,8 +71,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--src", type=Path, default=None, help="another checkout's src folder, timed alternately")
     parser.add_argument("--one", nargs=2, type=Path, metavar=("ROOT", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("run_passes.py", args.out, folder=True)) is not None:  # before any work
         return refused

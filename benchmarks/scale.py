@@ -48,12 +48,10 @@ import math
 import multiprocessing
 import resource
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import BenchInputError, check_out_file, fail, read_json_object
 
 PAPER = {"width": 1.0, "frames": 4, "size": (256, 512), "batch": 1}

@@ -32,6 +32,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _harness import BenchInputError, fail, guard_out, read_json_object
+
 
 def rss_mib() -> float:
     """Current resident memory of this process (MiB), from /proc/self/status."""
@@ -90,7 +92,6 @@ def _peak_child(code: str) -> tuple[float, float]:
 
 
 def soak_eval(args: argparse.Namespace) -> dict:
-    sys.path.insert(0, str(Path(__file__).parent))
     from eval_speed import make_culane, make_tusimple
 
     report: dict = {}
@@ -146,8 +147,6 @@ def main(argv: list[str] | None = None) -> int:
     for sp in (s, e):
         sp.add_argument("--out", type=Path, default=Path("outputs/bench/soak.json"))
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import BenchInputError, fail, guard_out, read_json_object
 
     if (refused := guard_out("soak.py", args.out)) is not None:  # before any work
         return refused

@@ -53,6 +53,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
+from _harness import guard_out
 from tqdm import tqdm
 
 from stamlane.data.clips import frame_order
@@ -348,8 +349,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames-dir", type=Path, help="real frames for the end-to-end timing (default: first clip)")
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "stream.json")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("stream.py", args.out)) is not None:  # before any work
         return refused

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
 
 REPO = Path(__file__).resolve().parents[1]
 VIDEO = REPO.parent / "shared" / "data" / "real" / "solidWhiteRight.mp4"
@@ -61,8 +62,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/stream_overlap.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("stream_overlap.py", args.out)) is not None:  # before any work
         return refused

@@ -15,18 +15,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _harness import guard_out
 from stamlane_eval.cli_tools import parse_wxh
+from synth_align import parse_overrides
 
 from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synth_align import parse_overrides
 
 
 def content(clips: list, stride: int) -> dict[str, float]:
@@ -48,8 +46,6 @@ def main() -> None:
     p.add_argument("--out", default=None)
     p.add_argument("--set", nargs="*", default=[], help="SynthConfig overrides, e.g. fps=10 grain=0")
     args = p.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("synth.py", args.out)) is not None:  # before any work
         raise SystemExit(refused)

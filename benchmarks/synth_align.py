@@ -27,6 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
 
 from stamlane.align import AlignConfig, estimate_clip
 from stamlane.align.homography import ALIGN_PRESETS, align_preset, default_horizon_row, ground_corners
@@ -95,8 +96,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dump", type=Path, default=None, help="write the frames of the first clip here (PNG)")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("synth_align.py", args.out)) is not None:  # before any work
         return refused

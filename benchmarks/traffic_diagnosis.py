@@ -44,8 +44,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synth_align import corner_error, jpeg  # a benchmark script beside this one
 
 from stamlane.synth.clip import SynthClip, generate_clip

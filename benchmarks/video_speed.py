@@ -48,6 +48,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out
 from stamlane_eval import temporal
 from stamlane_eval.io import read_culane_lines
 from stamlane_eval.video import Frame
@@ -247,8 +248,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reference-frames", type=int, default=100, help="frames the (slow) reference scores")
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/video_speed.json"), help="figures as JSON")
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("video_speed.py", args.out)) is not None:  # before any work
         return refused

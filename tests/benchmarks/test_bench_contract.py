@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.benchmark_modules import REPO, benchmark_module
+from tests.benchmarks.scripts import REPO, benchmark_module
 
 H = [200, 210, 220, 230]
 LANES = [[100, 110, 120, 130], [300, 310, 320, 330]]
