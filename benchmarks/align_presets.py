@@ -12,7 +12,7 @@ to the history frame by the truth and back by the estimate, mean distance in key
 error < 3 px. Time: CPU time of the working thread per pair, the median over pairs, per ``--repeats``.
 
     python benchmarks/align_presets.py [--pairs-per-frame 20] [--repeats 3] [--size 640 360]
-        [--out benchmarks/results/align_presets.json]
+        [--out docs/results/speed/align_presets.json]
 
 Skips (exit 0, with a reason) where ``../shared/data/frames`` is absent.
 """
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=3, help="timed passes over every pair (accuracy: the first)")
     p.add_argument("--size", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "align_presets.json")
+    p.add_argument("--out", type=Path, default=REPO / "docs" / "results" / "speed" / "align_presets.json")
     args = p.parse_args(argv)
 
     if (refused := guard_out("align_presets.py", args.out)) is not None:  # before any work

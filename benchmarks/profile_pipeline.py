@@ -1,7 +1,7 @@
 """Where a training step and a prediction pass of the demo's recipe spend their time, stage by stage.
 
-    python benchmarks/profile_pipeline.py [--repeats 15] [--threads 2] [--out benchmarks/results/profile_pipeline.json]
-    python benchmarks/profile_pipeline.py --check benchmarks/results/profile_pipeline.json [--runs 2]  # the guard
+    python benchmarks/profile_pipeline.py [--repeats 15] [--threads 2] [--out docs/results/speed/profile_pipeline.json]
+    python benchmarks/profile_pipeline.py --check docs/results/speed/profile_pipeline.json [--runs 2]  # the guard
 
 On a small synthetic set of the demo's frame size (640x360, 20-frame clips, rendered first into a temporary
 folder), with the demo's configs (`configs/demo.yaml`: 4 frames, ORB alignment ``fly``, 80x256; the CPU recipe's
