@@ -24,8 +24,6 @@ top-N), and chaining vs direct estimation for frames 1-3 back.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
 import sys
 import time
@@ -33,7 +31,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out
+from _harness import guard_out, machine, write_result
 
 from stamlane.align import AlignConfig, align_clip, detect_plain_orb, detect_spread_features, estimate_homography
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -281,9 +279,8 @@ def main(argv: list[str] | None = None) -> int:
     sets["synthetic road"] = synthetic_pairs(args.synthetic_pairs, 1.0, rng)
     sets["synthetic weak texture"] = synthetic_pairs(args.synthetic_pairs, 0.3, rng)
 
-    machine = {"opencv": cv2.__version__, "cpus": os.cpu_count(), "loadavg_at_start": os.getloadavg()}
     results: dict = {
-        "machine": machine,
+        "machine": {**machine(), "opencv": cv2.__version__},
         "config": repr(cfg),
         "accuracy": {},
         "ablation": {},
@@ -328,9 +325,8 @@ def main(argv: list[str] | None = None) -> int:
         for strategy, per_back in rows.items():
             for back, row in per_back.items():
                 print(f"| {name} | {strategy} | {back} | {fmt(row, keys3)} |")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=2))
-    print(f"\nwrote {args.out}")
+    print()
+    write_result(args.out, results, indent=2)
     return 0
 
 

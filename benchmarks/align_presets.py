@@ -20,15 +20,13 @@ Skips (exit 0, with a reason) where ``../shared/data/frames`` is absent.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out
+from _harness import guard_out, machine, write_result
 from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -84,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: no real frames in {args.frames_dir} (../shared absent)")
         return 0
     cv2.setNumThreads(1)
+    record: dict = machine()
     pairs = make_pairs(paths, tuple(args.size), args.pairs_per_frame, args.seed)
     presets = list(ALIGN_PRESETS)
     runs = [measure(pairs, presets) for _ in range(args.repeats)]
@@ -108,27 +107,15 @@ def main(argv: list[str] | None = None) -> int:
             f"| {name} | {s['median_px']:.3f} | {s['p95_px']:.3f} | {100 * s['success']:.1f} % | "
             f"{s['ms_per_pair']:.1f} | {s['speedup']:.2f} |"
         )
-    record = {
-        "cpu": _cpu(),
-        "cores": os.cpu_count(),
-        "load_1min_at_start": round(os.getloadavg()[0], 1),
+    record |= {
         "size": list(args.size),
         "pairs": len(pairs),
         "repeats": args.repeats,
         "presets": {name: repr(ALIGN_PRESETS[name]) for name in presets},
         "summary": summary,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=1) + "\n")
-    tmp.replace(args.out)
+    write_result(args.out, record)
     return 0
-
-
-def _cpu() -> str:
-    from stamlane.training.hardware import cpu_name
-
-    return cpu_name()
 
 
 if __name__ == "__main__":

@@ -52,7 +52,7 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
-from _harness import guard_out
+from _harness import guard_out, machine, write_result
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
@@ -533,7 +533,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"eval_speed: error: {args.cpp}: not an executable file", file=sys.stderr)
         return 2
     refs = {("lane" if "LaneEval" in r.read_text() else "lanedet"): r for r in args.reference}
-    results: dict[str, float | str] = {}
+    results: dict[str, float | str] = machine()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -553,9 +553,7 @@ def main(argv: list[str] | None = None) -> int:
         same_s = {True: "yes", False: "NO", None: "-"}[same]
         print(f"{name:<16} {n:>6} {t:>15.3f}  {label[:58]:<58} {tr_s} {ratio_s}  {same_s}")
     print(f"(goals: TuSimple >= {TUSIMPLE_GOAL:g}x lane.py end to end; CULane >= {CULANE_GOAL:g}x the C++ tool)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write_result(args.out, results)
     return 0
 
 

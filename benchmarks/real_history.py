@@ -44,6 +44,7 @@ from typing import Any
 import cv2
 import numpy as np
 import real_roads  # a benchmark script beside this one
+from _harness import Within, fail, option_problem, write_result
 
 from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption
 
@@ -549,18 +550,8 @@ def main(argv: list[str] | None = None) -> int:
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
-    unknown = [k for k in args.kinds if k not in KINDS]
-    problem = (
-        f"--kinds: {' '.join(unknown)} not of {' '.join(KINDS)}"
-        if unknown
-        else f"--draws must be in 1..{MAX_DRAWS}, got {args.draws}"
-        if not 1 <= args.draws <= MAX_DRAWS
-        else f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}"
-        if not 100 <= args.resamples <= MAX_RESAMPLES
-        else f"--frames must be >= 1, got {args.frames}"
-        if args.frames is not None and args.frames < 1
-        else None
-    )
+    ranges = {"draws": Within(1, MAX_DRAWS), "resamples": Within(100, MAX_RESAMPLES), "frames": Within(1)}
+    problem = option_problem(vars(args), choices={"kinds": KINDS}, ranges=ranges)
     video = args.shared / real_roads.VIDEO
     if problem is None and not video.is_file():
         problem = f"{video} does not exist (the real video lives in ../shared beside the project)"
@@ -571,17 +562,14 @@ def main(argv: list[str] | None = None) -> int:
         except GuardError as err:
             problem = str(err)
     if problem is not None:
-        print(f"real_history: error: {problem}", file=sys.stderr)
-        return 2
+        return fail("real_history", problem)
     kinds = list(dict.fromkeys(args.kinds))
     try:
         patches = read_patches(args.shared) if set(kinds) & set(VEHICLE_KINDS) else []
         out, cells = run(args.ckpt, video, kinds, args.draws, args.resamples, args.frames, patches)
     except real_roads.RealRoadsError as err:
-        print(f"real_history: error: {err}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_atomic(args.out / "real-history.json", json.dumps(out, indent=1) + "\n")
+        return fail("real_history", err)
+    write_result(args.out / "real-history.json", out, quiet=True)
     summary = table(out)
     write_atomic(args.out / "summary.md", summary)
     picture = sheet_picture(cells, out["kinds"])

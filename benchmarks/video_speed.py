@@ -35,7 +35,6 @@ import argparse
 import contextlib
 import gc
 import io
-import json
 import os
 import pickle
 import statistics
@@ -48,7 +47,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out
+from _harness import guard_out, machine, write_result
 from stamlane_eval import temporal
 from stamlane_eval.io import read_culane_lines
 from stamlane_eval.video import Frame
@@ -258,7 +257,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.reference is not None and not args.reference.is_file():
         print(f"video_speed: error: {args.reference}: no such file", file=sys.stderr)
         return 2
-    results: dict[str, object] = {"frames": args.frames, "size": args.size, "pred_points": args.pred_points}
+    results: dict[str, object] = machine() | {"frames": args.frames, "size": args.size, "pred_points": args.pred_points}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         print(f"generating {args.frames} frames ...", file=sys.stderr)
@@ -318,9 +317,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{'equal' if same else 'DIFFERENT'} (RVLD Ns {ref['Ns']} Nj {ref['Nj']} Nm {ref['Nm']} Rs {ref['Rs']}; "
                 f"stamlane-eval {m.ns} {m.nj} {m.nm} {m.rs})"
             )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write_result(args.out, results)
     return 0
 
 
