@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any, TypeVar
 
-from stamlane.safety.guard import GuardError, check_outputs, read_input, temporary_name, write_atomic
+from stamlane.safety.guard import GuardError, atomic_path, check_outputs, read_input, temporary_name, write_atomic
 
 __all__ = [
     "MAX_JSON_BYTES",
@@ -41,6 +41,8 @@ __all__ = [
     "ratio",
     "read_json_object",
     "timed",
+    "write_figure",
+    "write_image",
     "write_result",
 ]
 
@@ -185,10 +187,32 @@ def write_result(path: Path, result: object, *, indent: int = 1, allow_nan: bool
     """Write a script's results as JSON to ``path`` (its folder made), atomically (`stamlane.safety.guard`'s one
     writer: a reader never sees half a file, an interrupted run leaves the earlier one), then say so on stdout
     unless ``quiet``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, json.dumps(result, indent=indent, allow_nan=allow_nan) + "\n")
     if not quiet:
         print(f"wrote {path}")
+
+
+def write_image(path: Path, image: Any, params: Sequence[int] = ()) -> None:
+    """Write a picture (an OpenCV BGR array; the format by the suffix of ``path``, ``params`` OpenCV's
+    ``IMWRITE_*`` pairs) atomically, its folder made.
+
+    Raises:
+        OSError: OpenCV could not encode or write it (nothing is left at ``path``).
+    """
+    import cv2  # only the scripts that draw pay for it
+
+    with atomic_path(path) as tmp:  # the temporary name keeps the suffix: OpenCV picks the format by it
+        if not cv2.imwrite(str(tmp), image, list(params)):
+            raise OSError(f"could not write the picture {path}")
+
+
+def write_figure(figure: Any, path: Path, dpi: int) -> None:
+    """Save a matplotlib figure (the format by the suffix of ``path``) atomically, its folder made, and close it."""
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
+        figure.savefig(tmp, dpi=dpi)
+    plt.close(figure)
 
 
 # --- the machine -----------------------------------------------------------------------------------------------
@@ -217,16 +241,19 @@ def timed(run: Callable[[], T]) -> tuple[float, T]:
     return time.perf_counter() - start, value
 
 
-def in_turn(measure: Callable[[str, int], float], variants: Sequence[str], repeats: int) -> dict[str, list[float]]:
+def in_turn(
+    measure: Callable[[str, int], float], variants: Sequence[str], repeats: int, *, alternate: bool = False
+) -> dict[str, list[float]]:
     """Every variant measured ``repeats`` times, the variants taking turns (repeat 0 of each, then repeat 1, ..) so
     that the load of a shared machine falls on all of them alike; ``measure(variant, repeat)`` returns one timing.
+    With ``alternate`` every other repeat runs them in reverse order (ABBA: a load that rises or falls evens out).
 
     Returns:
         each variant's timings in the order measured.
     """
     times: dict[str, list[float]] = {v: [] for v in variants}
     for r in range(repeats):
-        for variant in variants:
+        for variant in reversed(variants) if alternate and r % 2 else variants:
             times[variant].append(measure(variant, r))
     return times
 
@@ -236,7 +263,9 @@ def medians(times: Mapping[str, Sequence[float]]) -> dict[str, float]:
     return {k: statistics.median(v) for k, v in times.items()}
 
 
-def ratio(times: Mapping[str, Sequence[float]], slow: str, fast: str, digits: int = 3) -> float:
-    """How many times ``fast`` is faster than ``slow``: the ratio of their medians, rounded to ``digits``."""
+def ratio(times: Mapping[str, Sequence[float]], slow: str, fast: str, digits: int | None = 3) -> float:
+    """How many times ``fast`` is faster than ``slow``: the ratio of their medians, rounded to ``digits`` (None: not
+    rounded)."""
     med = medians({k: times[k] for k in (slow, fast)})
-    return round(med[slow] / med[fast], digits)
+    value = med[slow] / med[fast]
+    return value if digits is None else round(value, digits)

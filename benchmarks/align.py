@@ -31,7 +31,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out, machine, write_result
+from _harness import guard_out, machine, write_image, write_result
 
 from stamlane.align import AlignConfig, align_clip, detect_plain_orb, detect_spread_features, estimate_homography
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -239,8 +239,7 @@ def write_example(path: Path) -> None:
     hist = render_road(tex, CAMERA)
     key = render_road(tex, CAMERA, forward=1.5, yaw=np.radians(1.5), pitch=np.radians(0.3))
     picture = draw_alignment(hist, key, estimate_homography(hist, key), HORIZON, scale=0.3)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), picture, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    write_image(path, picture, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     print(f"wrote {path}")
 
 

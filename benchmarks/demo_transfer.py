@@ -23,7 +23,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import fail, guard_out, write_result
+from _harness import fail, guard_out, write_image, write_result
 
 from stamlane.experiments.demo import MODELS
 from stamlane.experiments.store import RunStore
@@ -107,7 +107,7 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
             cells.append(cv2.resize(cell, (640, 360), interpolation=cv2.INTER_AREA))
         rows.append(np.concatenate(cells, axis=1))
     path = out / "real_frames.jpg"
-    cv2.imwrite(str(path), np.concatenate(rows, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    write_image(path, np.concatenate(rows, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
     return path
 
 

@@ -32,7 +32,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from _harness import guard_out
+from _harness import guard_out, write_figure
 
 from stamlane.experiments.recipes import PRETRAIN, Recipe, Row
 from stamlane.experiments.runner import Runner
@@ -241,8 +241,7 @@ def _plot(results: list[dict], path: Path) -> None:
     axes[1].legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))  # beside the curves, not on them
     fig.suptitle("4 frames, pre-aligned STAM: what makes the fusion read its history (synthetic val split)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    write_figure(fig, path, dpi=110)
 
 
 def _say(line: str) -> None:

@@ -43,7 +43,6 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning OpenMP threads starve a shared CPU
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
@@ -54,7 +53,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _harness import guard_out
+from _harness import BenchInputError, fail, guard_out, machine, read_json_object, write_result
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_STAGES = ("decode", "digest", "align ORB", "align cached", "augment", "resize", "stored sample")
@@ -265,16 +264,18 @@ def main(argv: list[str] | None = None) -> int:
     if (refused := guard_out("profile_pipeline.py", args.out)) is not None:  # before any work
         return refused
     if args.check:
-        reference = json.loads(args.check.read_text())["summary"]
+        try:  # the results compared: read (and checked) before any profile runs
+            reference = read_json_object(args.check, "--check", keys=("summary",))["summary"]
+            given = [read_json_object(path, "--result", keys=("summary",))["summary"] for path in args.result or ()]
+        except BenchInputError as err:
+            return fail("profile_pipeline.py", err)
         if args.result:
-            nows = [json.loads(path.read_text())["summary"] for path in args.result]
+            nows = given
         else:
             nows = [_profile_now(args)[0] for _ in range(max(1, args.runs))]
         return _verdict([check(now, reference, args.tolerance, args.min_share) for now in nows], args.check)
     _, result = _profile_now(args)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    write_result(args.out, result)
     return 0
 
 
@@ -282,9 +283,8 @@ def _profile_now(args: argparse.Namespace) -> tuple[dict, dict]:
     """A profile made now: its summary and the result written to ``--out``."""
     import torch
 
-    from stamlane.training.hardware import cpu_name
-
     torch.set_num_threads(args.threads)
+    info = machine()
     warnings.filterwarnings("ignore")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"
@@ -293,8 +293,7 @@ def _profile_now(args: argparse.Namespace) -> tuple[dict, dict]:
     summary = summarise(times)
     print(table(summary))
     result = {
-        "cpu": cpu_name(),
-        "cores": os.cpu_count(),
+        **info,
         "threads": args.threads,
         "torch": torch.__version__,
         "bf16": bool(_cli_bf16()),

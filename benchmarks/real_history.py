@@ -44,7 +44,7 @@ from typing import Any
 import cv2
 import numpy as np
 import real_roads  # a benchmark script beside this one
-from _harness import Within, fail, option_problem, write_result
+from _harness import Within, fail, option_problem, write_image, write_result
 
 from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption
 
@@ -546,7 +546,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--shared", type=Path, default=real_roads.REPO.parent / "shared", help="the folder of data/")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/real-history"))
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
+    from stamlane.safety.guard import GuardError, check_outputs, write_atomic
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
@@ -574,8 +574,7 @@ def main(argv: list[str] | None = None) -> int:
     write_atomic(args.out / "summary.md", summary)
     picture = sheet_picture(cells, out["kinds"])
     if picture is not None:
-        with atomic_path(args.out / "sheet.jpg") as tmp:
-            cv2.imwrite(str(tmp), picture, [cv2.IMWRITE_JPEG_QUALITY, real_roads.STRIP_QUALITY])
+        write_image(args.out / "sheet.jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, real_roads.STRIP_QUALITY])
     print(summary, end="")
     print(f"wrote {args.out}/: real-history.json, summary.md" + (", sheet.jpg" if picture is not None else ""))
     return 0
