@@ -224,11 +224,15 @@ def load_1min() -> float:
 
 
 def machine() -> dict[str, Any]:
-    """What a result says it came from: the CPU's model name (`stamlane.training.hardware.cpu_name`), its cores and
-    the load at the start (``load_1min_at_start``; a script that times adds ``load_1min_at_end`` with `load_1min`)."""
-    from stamlane.training.hardware import cpu_name  # imports torch: not before a script's options are checked
+    """What a result says it came from: ``cpu``, the CPU's model name (`stamlane.training.hardware.cpu_name`, what a
+    run record says too), and ``cores``. A script that times on a shared machine adds the load (`load_1min`) at the
+    start and the end.
 
-    return {"cpu": cpu_name(), "cores": os.cpu_count(), "load_1min_at_start": load_1min()}
+    It imports torch: a script that times code without torch calls it after its timings.
+    """
+    from stamlane.training.hardware import cpu_name
+
+    return {"cpu": cpu_name(), "cores": os.cpu_count()}
 
 
 # --- side-by-side timing ---------------------------------------------------------------------------------------

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out, machine, write_result
+from _harness import guard_out, load_1min, machine, write_result
 from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: no real frames in {args.frames_dir} (../shared absent)")
         return 0
     cv2.setNumThreads(1)
-    record: dict = machine()
+    record: dict = {"load_1min_at_start": load_1min()}
     pairs = make_pairs(paths, tuple(args.size), args.pairs_per_frame, args.seed)
     presets = list(ALIGN_PRESETS)
     runs = [measure(pairs, presets) for _ in range(args.repeats)]
@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         "presets": {name: repr(ALIGN_PRESETS[name]) for name in presets},
         "summary": summary,
     }
-    write_result(args.out, record)
+    write_result(args.out, machine() | record)  # after the timings: machine() imports torch
     return 0
 
 

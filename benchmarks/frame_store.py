@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
     warnings.filterwarnings("ignore")
-    result: dict = machine()
+    result: dict = machine() | {"load_1min_at_start": load_1min()}
     memory = {"afresh": 0, "stored": 1024}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"

@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(max(1, os.cpu_count() or 1))
     model = StoredModel.open("stam4-synthetic")
     model.module.to(args.device)
-    result: dict = machine() | {"device": args.device, "video": VIDEO.is_file()}
+    result: dict = machine() | {"device": args.device, "video": VIDEO.is_file(), "load_1min_at_start": load_1min()}
     outputs: dict[str, list] = {}
     ways: dict[str, Callable[[StreamingPredictor], list]] = {
         "serial": lambda predictor: [predictor(image) for image in frames(args.frames)],
