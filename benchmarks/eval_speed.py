@@ -52,7 +52,7 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
-from _harness import guard_out, machine, write_result
+from _harness import fail, guard_out, machine, write_result
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
@@ -527,11 +527,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     for ref in args.reference:
         if not ref.is_file():
-            print(f"eval_speed: error: {ref}: no such file", file=sys.stderr)
-            return 2
+            return fail("eval_speed", f"{ref}: no such file")
     if args.cpp is not None and not os.access(args.cpp, os.X_OK):
-        print(f"eval_speed: error: {args.cpp}: not an executable file", file=sys.stderr)
-        return 2
+        return fail("eval_speed", f"{args.cpp}: not an executable file")
     refs = {("lane" if "LaneEval" in r.read_text() else "lanedet"): r for r in args.reference}
     results: dict[str, float | str] = {}
     rows = []

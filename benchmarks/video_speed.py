@@ -47,7 +47,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _harness import guard_out, machine, write_result
+from _harness import fail, guard_out, machine, write_result
 from stamlane_eval import temporal
 from stamlane_eval.io import read_culane_lines
 from stamlane_eval.video import Frame
@@ -255,8 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     w, h = (int(v) for v in args.size.lower().split("x"))
     size = (h, w)
     if args.reference is not None and not args.reference.is_file():
-        print(f"video_speed: error: {args.reference}: no such file", file=sys.stderr)
-        return 2
+        return fail("video_speed", f"{args.reference}: no such file")
     results: dict[str, object] = {"frames": args.frames, "size": args.size, "pred_points": args.pred_points}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
