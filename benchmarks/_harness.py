@@ -202,7 +202,11 @@ def write_image(path: Path, image: Any, params: Sequence[int] = ()) -> None:
     import cv2  # only the scripts that draw pay for it
 
     with atomic_path(path) as tmp:  # the temporary name keeps the suffix: OpenCV picks the format by it
-        if not cv2.imwrite(str(tmp), image, list(params)):
+        try:
+            written = cv2.imwrite(str(tmp), image, list(params))
+        except cv2.error as err:  # no encoder for the suffix, an image it cannot encode
+            raise OSError(f"could not write the picture {path}: {str(err).strip().splitlines()[-1]}") from None
+        if not written:
             raise OSError(f"could not write the picture {path}")
 
 
