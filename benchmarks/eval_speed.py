@@ -33,8 +33,8 @@ process with its interpreter start and imports):
   ``--core`` like ours: the goal's ratio, one core against one core) and with OpenMP's default threads on every
   core (for information). Its TP/FP/FN and its printed precision / recall / F (6 significant digits) must equal
   ``stamlane_eval.culane.evaluate`` on the same files, and its ``-o`` file our ``--format official`` output;
-  the table's "same" column says so. Without ``--cpp``, the figure measured before on this machine (about 20 s
-  for 2000 images on 2 threads) is printed for comparison instead.
+  the table's "same" column says so. Without ``--cpp``, the C++ tool's figure measured before (`CPP_SECONDS_2000`,
+  docs/results/speed/README.md) is printed for comparison instead, marked as not run here.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ from _harness import fail, guard_out, machine, write_result
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
-CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine (no --cpp)
+CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads: docs/results/speed/README.md
 TUSIMPLE_GOAL = 40.0  # x lane.py, end to end: the project's goal
 CULANE_GOAL = 5.0  # x the C++ tool: the project's goal
 H_SAMPLES = list(range(160, 720, 10))

@@ -1,4 +1,4 @@
-"""Time ``stamlane.predict.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5: tens of ms).
+"""Time ``stamlane.predict.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5).
 
 Synthetic heads: ``--lanes`` curved lanes ``--width`` px wide over the lower part of an H x W frame,
 embeddings drawn around cluster means 3.0 apart (the loss's ``2 * delta_d``) with spread ``--spread``,

@@ -28,12 +28,8 @@ cost; the JSON keeps every repeat. ``--check FILE`` profiles again ``--runs`` ti
 stage, the ratio of its share now to its share in FILE (a stage that became slower relative to the others shows
 there); it exits 1 when a stage's share grew more than ``--tolerance`` (default 1.5x) to at least ``--min-share``
 (default 10 %) in every run; ``--result NEW [NEW ...]`` compares results written before instead of profiling now.
-A guard, not a timed test: run it before and after a change of the data path. Two runs of the same code on the
-shared 2-core machine at load 4 and 10 moved every share of 10 % or more by at most 1.06x; at load 17-20 one run
-moved the training augmentation from 7.8 % to 12.5 % (1.61x, the data stages running single-threaded beside a
-2-thread network on 2 busy cores), hence a stage is flagged only when every run shows it (a sample read afresh instead of from the frame store
-would be 30-40 % of an image by its parts, against 1-2 %; a missing alignment cache took the alignment's share from
-1-7 % to 20-45 %).
+A guard, not a timed test: run it before and after a change of the data path. A busy machine moves the shares of a
+single run (docs/results/speed/README.md says by how much), hence a stage is flagged only when every run shows it.
 """
 
 from __future__ import annotations

@@ -4,8 +4,8 @@ step fed.
 
 Usage::
 
-    python benchmarks/scale.py                       # the full sweep on the CPU (about 15 minutes on 2 cores)
-    python benchmarks/scale.py --quick               # every measurement, tiny (CI-like; under 30 s)
+    python benchmarks/scale.py                       # the full sweep on the CPU
+    python benchmarks/scale.py --quick               # every measurement, tiny (a smoke test, as CI runs it)
     python benchmarks/scale.py --device cuda --batch 4 8   # on a GPU (GPU memory, steps per second)
 
 Writes ``--out`` (default ``outputs/bench/scale.json``) and a markdown table beside it (``.md``). What is measured:
@@ -232,7 +232,7 @@ def _table(rows: list[dict], centre: dict) -> str:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="every measurement, tiny (a smoke test; < 30 s)")
+    parser.add_argument("--quick", action="store_true", help="every measurement, tiny (a smoke test)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="where the steps run")
     parser.add_argument("--batch", type=int, nargs="+", default=None, help="batch sizes besides 1 (default 2)")
     parser.add_argument("--steps", type=int, default=2, help="timed steps per configuration (median)")
