@@ -1,36 +1,55 @@
-"""What the benchmark scripts share about their inputs and outputs: stamlane's contract for a command (one line on
-stderr naming the file or option and the problem, exit status 2, nothing written), through stamlane's own guards
-(`stamlane.safety.guard`: the output checks, bounded reading, the atomic writer).
+"""What the benchmark scripts share: their options and inputs checked by stamlane's contract for a command (one line
+on stderr naming the file or option and the problem, exit status 2, nothing written), the machine a result came
+from, the result files written atomically, and timings of variants run side by side.
 
-A script imports it after putting its folder on ``sys.path`` (``python benchmarks/x.py`` does; a test loading the
-script by its path does too, through the script's own line)::
+A script runs as ``python benchmarks/<name>.py`` (Python puts the script's folder on ``sys.path``) and imports it::
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from _harness import BenchInputError, check_out_file, fail, read_json_object
+    from _harness import BenchInputError, fail, guard_out, machine, write_result
+
+The tests load a script through ``tests/benchmarks/scripts.py``, which finds this module and the script's siblings
+the same way.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import statistics
 import sys
-from collections.abc import Iterable, Sequence
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import Any, TypeVar
 
-from stamlane.safety.guard import GuardError, check_outputs, read_input, temporary_name
+from stamlane.safety.guard import GuardError, atomic_path, check_outputs, read_input, temporary_name, write_atomic
 
 __all__ = [
     "MAX_JSON_BYTES",
     "BenchInputError",
+    "Within",
     "check_out_file",
     "check_out_folder",
     "clips_of",
     "fail",
     "guard_out",
+    "in_turn",
+    "load_1min",
+    "machine",
+    "medians",
+    "option_problem",
+    "ratio",
     "read_json_object",
+    "timed",
+    "write_figure",
+    "write_image",
+    "write_result",
 ]
 
 MAX_JSON_BYTES = 64 << 20
 """Largest JSON file a benchmark reads back (its own results, a run's file): 64 MiB."""
+
+T = TypeVar("T")
 
 
 class BenchInputError(ValueError):
@@ -42,6 +61,53 @@ def fail(prog: str, err: object) -> int:
     line = " ".join(str(err).split())  # one line whatever the message held
     print(f"{prog}: error: {line}", file=sys.stderr)
     return 2
+
+
+# --- options ---------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Within:
+    """The values an integer option may take: ``low`` to ``high`` (both included), or ``low`` and above where
+    ``high`` is None; ``why`` follows the range in the message (``" (the intervals resample clips)"``)."""
+
+    low: int
+    high: int | None = None
+    why: str = ""
+
+    def problem(self, option: str, value: int | None) -> str | None:
+        """The one-line message for ``value`` of ``option`` out of range; None where it is inside (or not given)."""
+        if value is None:
+            return None
+        if self.high is None:
+            return None if value >= self.low else f"{option} must be >= {self.low}{self.why}, got {value}"
+        inside = self.low <= value <= self.high
+        return None if inside else f"{option} must be in {self.low}..{self.high}{self.why}, got {value}"
+
+
+def option_problem(
+    values: Mapping[str, Any],
+    choices: Mapping[str, Sequence[str]] | None = None,
+    ranges: Mapping[str, Within] | None = None,
+) -> str | None:
+    """The first problem of a script's parsed options (``vars(args)``), in the order given: a value of a list option
+    not among its ``choices`` (``--kinds: x not of a b``), then an integer option outside its range; None where
+    every option can be used. An option is named by its destination (``--resamples`` for ``resamples``)."""
+    for dest, allowed in (choices or {}).items():
+        unknown = [v for v in values[dest] if v not in allowed]
+        if unknown:
+            return f"{_flag(dest)}: {' '.join(unknown)} not of {' '.join(allowed)}"
+    for dest, within in (ranges or {}).items():
+        if (problem := within.problem(_flag(dest), values[dest])) is not None:
+            return problem
+    return None
+
+
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+# --- inputs and outputs ----------------------------------------------------------------------------------------
 
 
 def read_json_object(path: Path, what: str, keys: Sequence[str] = ()) -> dict:
@@ -115,3 +181,99 @@ def guard_out(prog: str, out: str | Path | None, *, folder: bool = False, side: 
     except GuardError as err:
         return fail(prog, err)
     return None
+
+
+def write_result(path: Path, result: object, *, indent: int = 1, allow_nan: bool = True, quiet: bool = False) -> None:
+    """Write a script's results as JSON to ``path`` (its folder made), atomically (`stamlane.safety.guard`'s one
+    writer: a reader never sees half a file, an interrupted run leaves the earlier one), then say so on stdout
+    unless ``quiet``."""
+    write_atomic(path, json.dumps(result, indent=indent, allow_nan=allow_nan) + "\n")
+    if not quiet:
+        print(f"wrote {path}")
+
+
+def write_image(path: Path, image: Any, params: Sequence[int] = ()) -> None:
+    """Write a picture (an OpenCV BGR array; the format by the suffix of ``path``, ``params`` OpenCV's
+    ``IMWRITE_*`` pairs) atomically, its folder made.
+
+    Raises:
+        OSError: OpenCV could not encode or write it (nothing is left at ``path``).
+    """
+    import cv2  # only the scripts that draw pay for it
+
+    with atomic_path(path) as tmp:  # the temporary name keeps the suffix: OpenCV picks the format by it
+        try:
+            written = cv2.imwrite(str(tmp), image, list(params))
+        except cv2.error as err:  # no encoder for the suffix, an image it cannot encode
+            raise OSError(f"could not write the picture {path}: {str(err).strip().splitlines()[-1]}") from None
+        if not written:
+            raise OSError(f"could not write the picture {path}")
+
+
+def write_figure(figure: Any, path: Path, dpi: int) -> None:
+    """Save a matplotlib figure (the format by the suffix of ``path``) atomically, its folder made, and close it."""
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
+        figure.savefig(tmp, dpi=dpi)
+    plt.close(figure)
+
+
+# --- the machine -----------------------------------------------------------------------------------------------
+
+
+def load_1min() -> float:
+    """The machine's load average over the last minute, rounded to 0.1: what a timing on a shared machine shared."""
+    return round(os.getloadavg()[0], 1)
+
+
+def machine() -> dict[str, Any]:
+    """What a result says it came from: ``cpu``, the CPU's model name (`stamlane.training.hardware.cpu_name`, what a
+    run record says too), and ``cores``. A script that times on a shared machine adds the load (`load_1min`) at the
+    start and the end.
+
+    It imports torch: a script that times code without torch calls it after its timings.
+    """
+    from stamlane.training.hardware import cpu_name
+
+    return {"cpu": cpu_name(), "cores": os.cpu_count()}
+
+
+# --- side-by-side timing ---------------------------------------------------------------------------------------
+
+
+def timed(run: Callable[[], T]) -> tuple[float, T]:
+    """``run()``'s wall time in seconds (``time.perf_counter``) and its value."""
+    start = time.perf_counter()
+    value = run()
+    return time.perf_counter() - start, value
+
+
+def in_turn(
+    measure: Callable[[str, int], float], variants: Sequence[str], repeats: int, *, alternate: bool = False
+) -> dict[str, list[float]]:
+    """Every variant measured ``repeats`` times, the variants taking turns (repeat 0 of each, then repeat 1, ..) so
+    that the load of a shared machine falls on all of them alike; ``measure(variant, repeat)`` returns one timing.
+    With ``alternate`` every other repeat runs them in reverse order (ABBA: a load that rises or falls evens out).
+
+    Returns:
+        each variant's timings in the order measured.
+    """
+    times: dict[str, list[float]] = {v: [] for v in variants}
+    for r in range(repeats):
+        for variant in reversed(variants) if alternate and r % 2 else variants:
+            times[variant].append(measure(variant, r))
+    return times
+
+
+def medians(times: Mapping[str, Sequence[float]]) -> dict[str, float]:
+    """The median of each variant's timings."""
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
+def ratio(times: Mapping[str, Sequence[float]], slow: str, fast: str, digits: int | None = 3) -> float:
+    """How many times ``fast`` is faster than ``slow``: the ratio of their medians, rounded to ``digits`` (None: not
+    rounded)."""
+    med = medians({k: times[k] for k in (slow, fast)})
+    value = med[slow] / med[fast]
+    return value if digits is None else round(value, digits)

@@ -14,13 +14,13 @@ paired bootstrap interval over the frames (the seeds averaged per frame first). 
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _harness import BenchInputError, fail, guard_out, read_json_object, write_result
 
 SETS = {"photos": ("labelled_frames",), "video": ("video", "labelled_frames")}
 
@@ -43,7 +43,7 @@ def _table(before: list[dict[str, Any]], after: list[list[dict[str, Any]]], resa
     names = [r["raw_file"] for r in before]
     runs = [{r["raw_file"]: r for r in run} for run in after]
     if any(set(run) != set(names) for run in runs):
-        raise SystemExit("adapt_intervals: the checkpoints were scored on other frames")
+        raise BenchInputError("the checkpoints were scored on other frames")
 
     def arrays(records: list[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return (
@@ -92,12 +92,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resamples", type=int, default=10000)
     parser.add_argument("--out", type=Path, help="write the table as json here too")
     args = parser.parse_args(argv)
+    if (refused := guard_out("adapt_intervals", args.out)) is not None:  # before any work
+        return refused
     try:
-        records = [json.loads(p.read_text()) for p in (args.before, *args.after)]
+        records = [read_json_object(p, "a real_roads.py file") for p in (args.before, *args.after)]
         keep = set(args.only.read_text().split()) if args.only else None
-    except (OSError, ValueError) as err:
-        print(f"adapt_intervals: {err}", file=sys.stderr)
-        return 2
+        tables = _tables(records, keep, args.resamples)
+    except (OSError, ValueError) as err:  # BenchInputError is a ValueError
+        return fail("adapt_intervals", err)
+    if args.out:
+        write_result(args.out, tables, indent=2, quiet=True)
+    return 0
+
+
+def _tables(records: list[dict[str, Any]], keep: set[str] | None, resamples: int) -> dict[str, Any]:
+    """Each set's table (`_table`), printed as it is made."""
     tables = {}
     for name, path in SETS.items():
         frames = [_frames(r, path) for r in records]
@@ -105,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
             frames = [[f for f in run if f["raw_file"] in keep] for run in frames]
         if not frames[0]:
             continue
-        table = tables[name] = _table(frames[0], frames[1:], args.resamples)
+        table = tables[name] = _table(frames[0], frames[1:], resamples)
         lo, hi = table["diff_f1_interval"]
         alo, ahi = table["diff_accuracy_interval"]
         print(
@@ -117,9 +126,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{100 * table['after_accuracy_std']:.1f}, {100 * table['diff_accuracy']:+.1f} "
             f"[{100 * alo:+.1f}, {100 * ahi:+.1f}]"
         )
-    if args.out:
-        args.out.write_text(json.dumps(tables, indent=2) + "\n")
-    return 0
+    return tables
 
 
 if __name__ == "__main__":

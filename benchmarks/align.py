@@ -24,8 +24,6 @@ top-N), and chaining vs direct estimation for frames 1-3 back.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
 import sys
 import time
@@ -33,6 +31,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out, load_1min, machine, write_image, write_result
 
 from stamlane.align import AlignConfig, align_clip, detect_plain_orb, detect_spread_features, estimate_homography
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
@@ -240,8 +239,7 @@ def write_example(path: Path) -> None:
     hist = render_road(tex, CAMERA)
     key = render_road(tex, CAMERA, forward=1.5, yaw=np.radians(1.5), pitch=np.radians(0.3))
     picture = draw_alignment(hist, key, estimate_homography(hist, key), HORIZON, scale=0.3)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), picture, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    write_image(path, picture, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     print(f"wrote {path}")
 
 
@@ -262,8 +260,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "align.json")
     parser.add_argument("--example", type=Path, default=None, help="only write the synthetic example picture here")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("align.py", args.out)) is not None:  # before any work
         return refused
@@ -282,9 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     sets["synthetic road"] = synthetic_pairs(args.synthetic_pairs, 1.0, rng)
     sets["synthetic weak texture"] = synthetic_pairs(args.synthetic_pairs, 0.3, rng)
 
-    machine = {"opencv": cv2.__version__, "cpus": os.cpu_count(), "loadavg_at_start": os.getloadavg()}
     results: dict = {
-        "machine": machine,
+        "machine": {"opencv": cv2.__version__, "load_1min_at_start": load_1min()},
         "config": repr(cfg),
         "accuracy": {},
         "ablation": {},
@@ -329,9 +324,9 @@ def main(argv: list[str] | None = None) -> int:
         for strategy, per_back in rows.items():
             for back, row in per_back.items():
                 print(f"| {name} | {strategy} | {back} | {fmt(row, keys3)} |")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=2))
-    print(f"\nwrote {args.out}")
+    print()
+    results["machine"] |= machine()  # after the timings: it imports torch
+    write_result(args.out, results, indent=2)
     return 0
 
 

@@ -12,7 +12,7 @@ to the history frame by the truth and back by the estimate, mean distance in key
 error < 3 px. Time: CPU time of the working thread per pair, the median over pairs, per ``--repeats``.
 
     python benchmarks/align_presets.py [--pairs-per-frame 20] [--repeats 3] [--size 640 360]
-        [--out benchmarks/results/align_presets.json]
+        [--out docs/results/speed/align_presets.json]
 
 Skips (exit 0, with a reason) where ``../shared/data/frames`` is absent.
 """
@@ -20,21 +20,17 @@ Skips (exit 0, with a reason) where ``../shared/data/frames`` is absent.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out, load_1min, machine, write_result
+from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 from stamlane.align.egomotion import RoadCamera, key_from_hist_motion
 from stamlane.align.homography import ALIGN_PRESETS, default_horizon_row, estimate_homography
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from align import FRAMES, SUCCESS_PX, corner_error, degrade, random_motion
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -76,10 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=3, help="timed passes over every pair (accuracy: the first)")
     p.add_argument("--size", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "align_presets.json")
+    p.add_argument("--out", type=Path, default=REPO / "docs" / "results" / "speed" / "align_presets.json")
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("align_presets.py", args.out)) is not None:  # before any work
         return refused
@@ -88,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: no real frames in {args.frames_dir} (../shared absent)")
         return 0
     cv2.setNumThreads(1)
+    record: dict = {"load_1min_at_start": load_1min()}
     pairs = make_pairs(paths, tuple(args.size), args.pairs_per_frame, args.seed)
     presets = list(ALIGN_PRESETS)
     runs = [measure(pairs, presets) for _ in range(args.repeats)]
@@ -112,27 +107,15 @@ def main(argv: list[str] | None = None) -> int:
             f"| {name} | {s['median_px']:.3f} | {s['p95_px']:.3f} | {100 * s['success']:.1f} % | "
             f"{s['ms_per_pair']:.1f} | {s['speedup']:.2f} |"
         )
-    record = {
-        "cpu": _cpu(),
-        "cores": os.cpu_count(),
-        "load_1min_at_start": round(os.getloadavg()[0], 1),
+    record |= {
         "size": list(args.size),
         "pairs": len(pairs),
         "repeats": args.repeats,
         "presets": {name: repr(ALIGN_PRESETS[name]) for name in presets},
         "summary": summary,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=1) + "\n")
-    tmp.replace(args.out)
+    write_result(args.out, machine() | record)  # after the timings: machine() imports torch
     return 0
-
-
-def _cpu() -> str:
-    from stamlane.training.hardware import cpu_name
-
-    return cpu_name()
 
 
 if __name__ == "__main__":

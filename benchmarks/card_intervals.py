@@ -27,9 +27,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _harness import clips_of, fail
+from _harness import Within, clips_of, fail, option_problem
 from stamlane_eval import culane
 from stamlane_eval.cli_tools import parse_wxh
 from stamlane_eval.io import MAX_IMAGE_SIDE, read_tusimple, tusimple_points
@@ -112,8 +110,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iou", type=float, help="score the IoU F1 at this threshold (0.5, 0.3) instead")
     parser.add_argument("--size", help="the frames' WxH for --iou (default: the set's dataset.json or first frame)")
     args = parser.parse_args(argv)
-    if not 100 <= args.resamples <= MAX_RESAMPLES:  # stamlane_eval.stats' floor; the ceiling bounds its weights
-        return fail("card_intervals", f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}")
+    # stamlane_eval.stats' floor; the ceiling bounds its weights
+    if (problem := option_problem(vars(args), ranges={"resamples": Within(100, MAX_RESAMPLES)})) is not None:
+        return fail("card_intervals", problem)
     if args.iou is not None and not 0 <= args.iou < 1:
         return fail("card_intervals", f"--iou must be in [0, 1), got {args.iou}")
     names = args.names or [path.parent.name for path in args.preds]

@@ -18,12 +18,12 @@ Writes ``<out>/transfer.json`` and prints a table.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import fail, guard_out, write_image, write_result
 
 from stamlane.experiments.demo import MODELS
 from stamlane.experiments.store import RunStore
@@ -107,7 +107,7 @@ def real_frames(demo: Path, frames: Path, out: Path) -> Path:
             cells.append(cv2.resize(cell, (640, 360), interpolation=cv2.INTER_AREA))
         rows.append(np.concatenate(cells, axis=1))
     path = out / "real_frames.jpg"
-    cv2.imwrite(str(path), np.concatenate(rows, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    write_image(path, np.concatenate(rows, axis=0), [cv2.IMWRITE_JPEG_QUALITY, 85])
     return path
 
 
@@ -119,15 +119,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=Path, default=None, help="a folder of real road frames")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/transfer"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("demo_transfer.py", args.out, folder=True)) is not None:  # before any work
         return refused
     if not _runs(args.demo):
-        print(f"demo_transfer: no demo runs under {args.demo} (run `stamlane demo` first)", file=sys.stderr)
-        return 2
-    from stamlane.safety.guard import write_atomic
+        return fail("demo_transfer", f"no demo runs under {args.demo} (run `stamlane demo` first)")
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()  # as the demo: Lightning's per-call chatter would bury the progress lines
@@ -135,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     results = unseen_seed(args.demo, args.out, args.seed, args.clips)
     if args.frames is not None:
         results["real_frames"] = str(real_frames(args.demo, args.frames, args.out))
-    write_atomic(args.out / "transfer.json", json.dumps(results, indent=2))
+    write_result(args.out / "transfer.json", results, indent=2, quiet=True)
     print(f"clips of generator seed {args.seed} (never seen in training): TuSimple F1 %, [95 % interval]")
     for name, values in results["models"].items():
         cells = [

@@ -33,8 +33,8 @@ process with its interpreter start and imports):
   ``--core`` like ours: the goal's ratio, one core against one core) and with OpenMP's default threads on every
   core (for information). Its TP/FP/FN and its printed precision / recall / F (6 significant digits) must equal
   ``stamlane_eval.culane.evaluate`` on the same files, and its ``-o`` file our ``--format official`` output;
-  the table's "same" column says so. Without ``--cpp``, the figure measured before on this machine (about 20 s
-  for 2000 images on 2 threads) is printed for comparison instead.
+  the table's "same" column says so. Without ``--cpp``, the C++ tool's figure measured before (`CPP_SECONDS_2000`,
+  docs/results/speed/README.md) is printed for comparison instead, marked as not run here.
 """
 
 from __future__ import annotations
@@ -52,10 +52,11 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
+from _harness import fail, guard_out, machine, write_result
 from stamlane_eval import culane, tusimple
 from stamlane_eval.io import culane_entries, culane_lines_path, read_culane_lines, read_tusimple
 
-CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads, measured on this machine (no --cpp)
+CPP_SECONDS_2000 = 20.0  # official C++ evaluator, 2000 images @0.5, 2 threads: docs/results/speed/README.md
 TUSIMPLE_GOAL = 40.0  # x lane.py, end to end: the project's goal
 CULANE_GOAL = 5.0  # x the C++ tool: the project's goal
 H_SAMPLES = list(range(160, 720, 10))
@@ -516,8 +517,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/eval_speed.json"), help="figures as JSON")
     ap.add_argument("--run-reference", nargs=2, metavar=("PRED", "GT"), help=argparse.SUPPRESS)  # the e2e child
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("eval_speed.py", args.out)) is not None:  # before any work
         return refused
@@ -528,11 +527,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     for ref in args.reference:
         if not ref.is_file():
-            print(f"eval_speed: error: {ref}: no such file", file=sys.stderr)
-            return 2
+            return fail("eval_speed", f"{ref}: no such file")
     if args.cpp is not None and not os.access(args.cpp, os.X_OK):
-        print(f"eval_speed: error: {args.cpp}: not an executable file", file=sys.stderr)
-        return 2
+        return fail("eval_speed", f"{args.cpp}: not an executable file")
     refs = {("lane" if "LaneEval" in r.read_text() else "lanedet"): r for r in args.reference}
     results: dict[str, float | str] = {}
     rows = []
@@ -554,9 +551,7 @@ def main(argv: list[str] | None = None) -> int:
         same_s = {True: "yes", False: "NO", None: "-"}[same]
         print(f"{name:<16} {n:>6} {t:>15.3f}  {label[:58]:<58} {tr_s} {ratio_s}  {same_s}")
     print(f"(goals: TuSimple >= {TUSIMPLE_GOAL:g}x lane.py end to end; CULane >= {CULANE_GOAL:g}x the C++ tool)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write_result(args.out, results | machine())  # after the timings: machine() imports torch
     return 0
 
 

@@ -24,12 +24,13 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
+
+from _harness import guard_out, in_turn, load_1min, machine, medians, ratio, write_result
 
 
 def predict(root: Path, out: Path, memory_mb: int) -> tuple[float, list[dict]]:
@@ -88,8 +89,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--passes", type=int, default=3, help="whole prediction passes of each kind")
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/frame_store.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("frame_store.py", args.out)) is not None:  # before any work
         return refused
@@ -98,49 +97,48 @@ def main(argv: list[str] | None = None) -> int:
     from stamlane.data.frame_store import FRAME_STORE
     from stamlane.synth import generate_dataset
     from stamlane.synth.layout import SplitCounts
-    from stamlane.training.hardware import cpu_name
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
     warnings.filterwarnings("ignore")
-    result: dict = {"cpu": cpu_name(), "cores": os.cpu_count(), "load_1min_at_start": round(os.getloadavg()[0], 1)}
+    result: dict = machine() | {"load_1min_at_start": load_1min()}
+    memory = {"afresh": 0, "stored": 1024}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"
         generate_dataset(root, SplitCounts(test=args.test), seed=0, progress=False)
         _, lanes = predict(root, Path(tmp) / "warm-up", 0)  # imports, first calls and the alignment cache out
         FRAME_STORE.clear()
-        first, reference = data_pass(root, 1024)  # fills the store
-        data: dict[str, list[float]] = {"afresh": [], "stored": []}
-        same = True
-        for _ in range(args.repeats):
-            for mode, memory in (("afresh", 0), ("stored", 1024)):
-                seconds, batches = data_pass(root, memory)
-                data[mode].append(round(seconds, 3))
-                same = same and _same(batches, reference)
-        passes: dict[str, list[float]] = {"afresh": [], "stored": []}
-        same_lanes = True
-        for r in range(args.passes):
-            for mode, memory in (("afresh", 0), ("stored", 1024)):
-                seconds, got = predict(root, Path(tmp) / f"{mode}-{r}", memory)
-                passes[mode].append(round(seconds, 3))
-                same_lanes = same_lanes and got == lanes
+        first, reference = data_pass(root, memory["stored"])  # fills the store
+        same = same_lanes = True
+
+        def data(mode: str, _: int) -> float:
+            nonlocal same
+            seconds, batches = data_pass(root, memory[mode])
+            same = same and _same(batches, reference)
+            return round(seconds, 3)
+
+        def whole(mode: str, r: int) -> float:
+            nonlocal same_lanes
+            seconds, got = predict(root, Path(tmp) / f"{mode}-{r}", memory[mode])
+            same_lanes = same_lanes and got == lanes
+            return round(seconds, 3)
+
+        times = {"data": in_turn(data, list(memory), args.repeats), "pass": in_turn(whole, list(memory), args.passes)}
     result |= {"images": len(lanes), "stored_mb": round(FRAME_STORE.used / 2**20, 1)}
-    for name, times, count in (("data", data, args.repeats), ("pass", passes, args.passes)):
-        med = {k: statistics.median(v) for k, v in times.items()}
-        result[name] = {"times_s": times, "median_s": med, "ratio": round(med["afresh"] / med["stored"], 3)}
+    for name, count in (("data", args.repeats), ("pass", args.passes)):
+        med = medians(times[name])
+        result[name] = {"times_s": times[name], "median_s": med, "ratio": ratio(times[name], "afresh", "stored")}
         what = "the data of a prediction pass" if name == "data" else "a whole prediction pass"
         print(
             f"{what} ({len(lanes)} images): afresh {med['afresh']:.2f} s, from the store {med['stored']:.2f} s "
             f"(x{result[name]['ratio']:.2f}; medians of {count} in turn)"
         )
     result |= {"first_stored_data_s": round(first, 3), "same_batches": same, "same_lanes": same_lanes}
-    result["load_1min_at_end"] = round(os.getloadavg()[0], 1)
+    result["load_1min_at_end"] = load_1min()
     print(
         f"the first stored data pass (filling the store) {first:.2f} s; the same batches: {same}, the same lanes: "
         f"{same_lanes}; load {result['load_1min_at_start']} -> {result['load_1min_at_end']}"
     )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    write_result(args.out, result)
     return 0
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 import yaml
+from _harness import guard_out, write_result
 
 from stamlane.data.layouts import make_clips
 from stamlane.data.options import ClipOptions
@@ -62,7 +63,7 @@ def shares(run: Path, root: Path, split: str, source: str) -> dict[str, list[tup
     return found
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -70,12 +71,10 @@ def main() -> None:
     p.add_argument("--split", default="challenging")
     p.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     p.add_argument("--out", type=Path)
-    args = p.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
+    args = p.parse_args(argv)
 
     if (refused := guard_out("fusion_share.py", args.out)) is not None:  # before any work
-        raise SystemExit(refused)
+        return refused
     torch.set_num_threads(2)
     results: dict[str, dict[str, list]] = {s: defaultdict(list) for s in SOURCES}
     for run in args.run:
@@ -93,10 +92,9 @@ def main() -> None:
         print(f"| {factor} | " + " | ".join(cells) + " |")
     if args.out:
         summary = {s: {f: np.mean(v, axis=0).tolist() for f, v in r.items()} for s, r in results.items()}
-        args.out.write_text(
-            json.dumps({"runs": [str(r) for r in args.run], "split": args.split, "shares": summary}, indent=2)
-        )
+        write_result(args.out, {"runs": [str(r) for r in args.run], "split": args.split, "shares": summary}, indent=2)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -33,6 +33,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from _harness import fail, guard_out, write_figure, write_result
+
 from stamlane.experiments.recipes import PRETRAIN, Recipe, Row
 from stamlane.experiments.runner import Runner
 from stamlane.training.runs import RunRecord, flags_of
@@ -240,15 +242,14 @@ def _plot(results: list[dict], path: Path) -> None:
     axes[1].legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))  # beside the curves, not on them
     fig.suptitle("4 frames, pre-aligned STAM: what makes the fusion read its history (synthetic val split)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    write_figure(fig, path, dpi=110)
 
 
 def _say(line: str) -> None:
     print(f"[history_recipe] {line}", flush=True)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     from stamlane.experiments.store import RunStore
     from stamlane.experiments.workspace import add_bf16_argument, bf16_of
     from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
@@ -259,18 +260,19 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     add_bf16_argument(parser)
     parser.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
-    args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
+    args = parser.parse_args(argv)
 
     if (refused := guard_out("history_recipe.py", args.out, folder=True)) is not None:  # before any work
-        raise SystemExit(refused)
+        return refused
     if not (args.data / "train-clean.json").is_file():
-        parser.error(f"{args.data} is not a synthetic set of format 5 (no train-clean.json); generate it first")
+        return fail(
+            "history_recipe.py",
+            f"{args.data} is not a synthetic set of format 5 (no train-clean.json); generate it first",
+        )
     args.out.mkdir(parents=True, exist_ok=True)
     runner = Runner(RunStore(args.out), args.data, bf16=bf16_of(args.bf16), progress=False, max_overlays=0, say=_say)
     results = [run_variant(runner, VARIANTS[v], args.seed) for v in args.variants]
-    (args.out / "history_recipe.json").write_text(json.dumps(results, indent=2))
+    write_result(args.out / "history_recipe.json", results, indent=2, quiet=True)
     _plot(results, args.out / "history_recipe.png")
     print(
         f"{'variant':<24} {'minutes':>7} {'step':>5} {'val F1':>7} {'key copied':>10} {'history use':>11} {'loss gap':>9}"
@@ -282,7 +284,8 @@ def main() -> None:
             f"{100 * last.get('keycopy_f1', 0):>10.1f} {100 * last.get('history_use_f1', 0):>+11.1f} "
             f"{last.get('history_use_seg_loss', 0):>+9.4f}"
         )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -20,15 +20,13 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 
 import argparse
 import functools
-import json
-import platform
 import statistics
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import torch
+from _harness import fail, guard_out, machine, option_problem, write_result
 from torch import nn
 from torch.utils.flop_counter import FlopCounterMode
 from tqdm import tqdm
@@ -201,30 +199,23 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("model.py", args.out)) is not None:  # before any work
         return refused
-    unknown = [f for f in args.fusions if f not in FUSIONS]
-    if unknown:
-        print(f"error: unknown fusion {unknown[0]!r}; choose from {', '.join(FUSIONS)}", file=sys.stderr)
-        return 2
+    if (problem := option_problem(vars(args), choices={"fusions": list(FUSIONS)})) is not None:
+        return fail("model.py", problem)
     t, c, h, w = args.clip
     if c != 3 or h % 16 or w % 16 or t < 1 or args.repeats < 1 or min(args.widths) <= 0:
-        print(
-            f"error: need --clip T 3 H W with H, W multiples of 16, --repeats >= 1, widths > 0; got {args.clip}",
-            file=sys.stderr,
+        return fail(
+            "model.py", f"need --clip T 3 H W with H, W multiples of 16, --repeats >= 1, widths > 0; got {args.clip}"
         )
-        return 2
     torch.set_num_threads(args.threads)
+    info = machine()
     rows = []
     jobs = [(width, fusion) for width in args.widths for fusion in args.fusions]
     for width, fusion in tqdm(jobs, desc="forward", unit="model"):
         rows.append(measure_forward(width, fusion, (1, t, c, h, w), args.repeats))
-    print(
-        f"\nLaneNet, one {t}x{c}x{h}x{w} clip, fp32 eval, {args.threads} threads, {platform.processor() or platform.machine()}\n"
-    )
+    print(f"\nLaneNet, one {t}x{c}x{h}x{w} clip, fp32 eval, {args.threads} threads, {info['cpu']}\n")
     print(_table(rows))
     train = None
     if args.train_repeats > 0:
@@ -235,17 +226,16 @@ def main(argv: list[str] | None = None) -> int:
             f"\ntraining step (median of {args.train_repeats}), width {args.train_width:g}, "
             f"clip {'x'.join(map(str, args.train_clip))}, {fusion}: {steps}; fp32 / bf16+channels_last = {train['speedup']:.2f}x"
         )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     payload = {
+        **info,
         "torch": torch.__version__,
         "threads": args.threads,
-        "machine": platform.machine(),
         "clip": [1, t, c, h, w],
         "forward": rows,
         "train_step": train,
     }
-    args.out.write_text(json.dumps(payload, indent=2))
-    print(f"\nwrote {args.out}")
+    print()
+    write_result(args.out, payload, indent=2)
     return 0
 
 

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import os
 import subprocess
@@ -39,8 +38,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _harness import BenchInputError, check_out_folder, fail, read_json_object
+from _harness import BenchInputError, check_out_folder, fail, machine, read_json_object, write_figure, write_result
 
 REPO = Path(__file__).resolve().parents[1]
 STAMLANE = [sys.executable, "-c", "import sys; from stamlane.cli import main; sys.exit(main())"]
@@ -218,11 +216,7 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
         ax.legend()
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    from stamlane.safety.guard import atomic_path
-
-    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
+    write_figure(fig, path, dpi=90)
 
 
 RUNS = {
@@ -281,11 +275,7 @@ def run(name: str, args: argparse.Namespace, env: dict[str, str]) -> dict:
         "seconds": seconds,
         **summarise(rows),
     }
-    from stamlane.safety.guard import write_atomic
-
-    write_atomic(
-        args.out / f"{name}.json", json.dumps(finite({"summary": summary, "rows": rows}), indent=1, allow_nan=False)
-    )
+    write_result(args.out / f"{name}.json", finite({"summary": summary, "rows": rows}), allow_nan=False, quiet=True)
     val = ", ".join(f"step {v['step']}: loss {v['loss']:.3g} F1 {v['tusimple_f1']:.3f}" for v in summary["val"])
     print(
         f"{name}: {summary['steps']} steps in {seconds:.0f} s; train loss {summary['train_loss_first_fifth']:.3g} -> "
@@ -348,7 +338,7 @@ def combine(out: Path, info: dict) -> None:
     writer.writeheader()
     writer.writerows(rows)
     write_atomic(out / "curve.csv", text.getvalue())
-    write_atomic(out / "paper-learns.json", json.dumps(finite({**info, "runs": runs}), indent=2, allow_nan=False))
+    write_result(out / "paper-learns.json", finite({**info, "runs": runs}), indent=2, allow_nan=False, quiet=True)
     title = (
         f"configs/tusimple_stam4.yaml from scratch (width 1.0, 4 frames, SGD lr 0.05), batch {info['batch']}, "
         f"synthetic TuSimple-layout set ({info['set']['size']}), seed {info['seed']} (one seed), {info['cpu']}"
@@ -361,7 +351,6 @@ def main(argv: list[str] | None = None) -> int:
     from stamlane_eval.io import MAX_IMAGE_SIDE
 
     from stamlane.safety.guard import GuardError
-    from stamlane.training.hardware import cpu_name
 
     args = _parser().parse_args(argv)
     if args.quick:
@@ -385,8 +374,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     info = {
-        "cpu": cpu_name(),
-        "cores": os.cpu_count(),
+        **machine(),
         "seed": args.seed,
         "batch": args.batch,
         "set": {"clips": args.clips, "size": args.size, "frames": args.frames, "layout": "tusimple"},

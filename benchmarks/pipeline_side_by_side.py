@@ -27,7 +27,6 @@ import argparse
 import contextlib
 import json
 import shutil
-import statistics
 import sys
 import tempfile
 import time
@@ -35,7 +34,20 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
+from _harness import (
+    BenchInputError,
+    fail,
+    guard_out,
+    in_turn,
+    load_1min,
+    machine,
+    medians,
+    read_json_object,
+    write_result,
+)
+
 REPO = Path(__file__).resolve().parents[1]
+MODES = ("afresh", "cached")  # the alignment cache switched off, and read from the cache the first pass filled
 
 
 @contextlib.contextmanager
@@ -132,8 +144,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/pipeline_side_by_side.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import BenchInputError, fail, guard_out, read_json_object
 
     if (refused := guard_out("pipeline_side_by_side.py", args.out)) is not None:  # before any work
         return refused
@@ -145,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(max(1, os.cpu_count() or 1))  # as the demo
     warnings.filterwarnings("ignore")
-    result: dict = {"cpu_count": os.cpu_count(), "load_average_1min_at_start": round(os.getloadavg()[0], 1)}
+    result: dict = machine() | {"load_1min_at_start": load_1min()}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         root = tmp / "one"
@@ -163,15 +173,16 @@ def main(argv: list[str] | None = None) -> int:
             with cache_off():  # imports and first-call costs out of the timings
                 predict(root, tmp / "pred-warm-up")
             cold, first = predict(root, tmp / "pred-cold")  # fills the cache
-            times: dict[str, list[float]] = {"afresh": [], "cached": []}
             lanes = {}
-            for r in range(args.repeats):
-                for mode in ("afresh", "cached"):
-                    with cache_off() if mode == "afresh" else contextlib.nullcontext():
-                        seconds, lanes[mode] = predict(root, tmp / f"pred-{mode}-{r}")
-                    times[mode].append(seconds)
+
+            def pass_(mode: str, r: int) -> float:
+                with cache_off() if mode == "afresh" else contextlib.nullcontext():
+                    seconds, lanes[mode] = predict(root, tmp / f"pred-{mode}-{r}")
+                return seconds
+
+            times = in_turn(pass_, MODES, args.repeats)
             same = lanes["afresh"] == lanes["cached"] == first
-            med = {k: statistics.median(v) for k, v in times.items()}
+            med = medians(times)
             result["predict"] = {"images": len(first), "repeats": args.repeats, "cold_s": round(cold, 2)}
             result["predict"] |= {"times_s": times, "same_lanes": same}
             print(
@@ -181,15 +192,16 @@ def main(argv: list[str] | None = None) -> int:
             )
         if "fit" not in args.skip:
             cold, _ = fit(root, tmp / "fit-cold", args.steps)  # fills the cache with the train split's pairs
-            times = {"afresh": [], "cached": []}
             weights = {}
-            for r in range(max(1, args.repeats - 1)):
-                for mode in ("afresh", "cached"):
-                    with cache_off() if mode == "afresh" else contextlib.nullcontext():
-                        seconds, weights[mode] = fit(root, tmp / f"fit-{mode}-{r}", args.steps)
-                    times[mode].append(seconds)
+
+            def run(mode: str, r: int) -> float:
+                with cache_off() if mode == "afresh" else contextlib.nullcontext():
+                    seconds, weights[mode] = fit(root, tmp / f"fit-{mode}-{r}", args.steps)
+                return seconds
+
+            times = in_turn(run, MODES, max(1, args.repeats - 1))
             same = all(torch.equal(weights["afresh"][k], weights["cached"][k]) for k in weights["afresh"])
-            med = {k: statistics.median(v) for k, v in times.items()}
+            med = medians(times)
             result["fit"] = {"steps": args.steps, "train_clips": args.train, "cold_s": round(cold, 2)}
             result["fit"] |= {"times_s": times, "same_weights": same}
             print(
@@ -197,10 +209,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"(x{med['afresh'] / med['cached']:.2f}), first run into the empty cache {cold:.1f} s; the same final "
                 f"weights, bit for bit: {same}"
             )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    result = earlier | result  # the parts skipped keep their earlier results
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    write_result(args.out, earlier | result)  # the parts skipped keep their earlier results
     return 0
 
 

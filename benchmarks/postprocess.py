@@ -1,4 +1,4 @@
-"""Time ``stamlane.predict.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5: tens of ms).
+"""Time ``stamlane.predict.postprocess.decode_lanes`` per frame at the network resolution (docs/method.md §5).
 
 Synthetic heads: ``--lanes`` curved lanes ``--width`` px wide over the lower part of an H x W frame,
 embeddings drawn around cluster means 3.0 apart (the loss's ``2 * delta_d``) with spread ``--spread``,
@@ -12,13 +12,12 @@ machine is shared) per frame and writes
 from __future__ import annotations
 
 import argparse
-import json
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _harness import guard_out, machine, write_result
 
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
 
@@ -49,7 +48,7 @@ def synthetic_heads(
     return prob, emb
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--size", type=int, nargs=2, default=(256, 512), metavar=("H", "W"))
     parser.add_argument("--lanes", type=int, default=4)
@@ -59,12 +58,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=50)
     parser.add_argument("--max-points", type=int, nargs="+", default=[1000, 2000, 3000])
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/postprocess.json"))
-    args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
+    args = parser.parse_args(argv)
 
     if (refused := guard_out("postprocess.py", args.out)) is not None:  # before any work
-        raise SystemExit(refused)
+        return refused
 
     height, width = args.size
     prob, emb = synthetic_heads(height, width, args.lanes, args.width, args.spread, args.noise, seed=0)
@@ -95,17 +92,10 @@ def main() -> None:
             f"{row['max_points']:>10} {row['median_ms']:>10.1f} {row['p90_ms']:>8.1f} "
             f"{row['median_cpu_ms']:>7.1f} {row['lanes_found']:>6}"
         )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    result = {
-        "size": [height, width],
-        "lane_pixels": n_pixels,
-        "lanes": args.lanes,
-        "machine": platform.processor() or platform.machine(),
-        "rows": rows,
-    }
-    args.out.write_text(json.dumps(result, indent=2))
-    print(f"wrote {args.out}")
+    result = {**machine(), "size": [height, width], "lane_pixels": n_pixels, "lanes": args.lanes, "rows": rows}
+    write_result(args.out, result, indent=2)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

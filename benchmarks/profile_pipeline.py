@@ -1,7 +1,7 @@
 """Where a training step and a prediction pass of the demo's recipe spend their time, stage by stage.
 
-    python benchmarks/profile_pipeline.py [--repeats 15] [--threads 2] [--out benchmarks/results/profile_pipeline.json]
-    python benchmarks/profile_pipeline.py --check benchmarks/results/profile_pipeline.json [--runs 2]  # the guard
+    python benchmarks/profile_pipeline.py [--repeats 15] [--threads 2] [--out docs/results/speed/profile_pipeline.json]
+    python benchmarks/profile_pipeline.py --check docs/results/speed/profile_pipeline.json [--runs 2]  # the guard
 
 On a small synthetic set of the demo's frame size (640x360, 20-frame clips, rendered first into a temporary
 folder), with the demo's configs (`configs/demo.yaml`: 4 frames, ORB alignment ``fly``, 80x256; the CPU recipe's
@@ -28,12 +28,8 @@ cost; the JSON keeps every repeat. ``--check FILE`` profiles again ``--runs`` ti
 stage, the ratio of its share now to its share in FILE (a stage that became slower relative to the others shows
 there); it exits 1 when a stage's share grew more than ``--tolerance`` (default 1.5x) to at least ``--min-share``
 (default 10 %) in every run; ``--result NEW [NEW ...]`` compares results written before instead of profiling now.
-A guard, not a timed test: run it before and after a change of the data path. Two runs of the same code on the
-shared 2-core machine at load 4 and 10 moved every share of 10 % or more by at most 1.06x; at load 17-20 one run
-moved the training augmentation from 7.8 % to 12.5 % (1.61x, the data stages running single-threaded beside a
-2-thread network on 2 busy cores), hence a stage is flagged only when every run shows it (a sample read afresh instead of from the frame store
-would be 30-40 % of an image by its parts, against 1-2 %; a missing alignment cache took the alignment's share from
-1-7 % to 20-45 %).
+A guard, not a timed test: run it before and after a change of the data path. A busy machine moves the shares of a
+single run (docs/results/speed/README.md says by how much), hence a stage is flagged only when every run shows it.
 """
 
 from __future__ import annotations
@@ -43,7 +39,6 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning OpenMP threads starve a shared CPU
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
@@ -54,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _harness import BenchInputError, fail, guard_out, machine, read_json_object, write_result
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_STAGES = ("decode", "digest", "align ORB", "align cached", "augment", "resize", "stored sample")
@@ -260,22 +256,22 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--runs", type=int, default=2, help="with --check: profiles made now, each compared")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("profile_pipeline.py", args.out)) is not None:  # before any work
         return refused
     if args.check:
-        reference = json.loads(args.check.read_text())["summary"]
+        try:  # the results compared: read (and checked) before any profile runs
+            reference = read_json_object(args.check, "--check", keys=("summary",))["summary"]
+            given = [read_json_object(path, "--result", keys=("summary",))["summary"] for path in args.result or ()]
+        except BenchInputError as err:
+            return fail("profile_pipeline.py", err)
         if args.result:
-            nows = [json.loads(path.read_text())["summary"] for path in args.result]
+            nows = given
         else:
             nows = [_profile_now(args)[0] for _ in range(max(1, args.runs))]
         return _verdict([check(now, reference, args.tolerance, args.min_share) for now in nows], args.check)
     _, result = _profile_now(args)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    write_result(args.out, result)
     return 0
 
 
@@ -283,9 +279,8 @@ def _profile_now(args: argparse.Namespace) -> tuple[dict, dict]:
     """A profile made now: its summary and the result written to ``--out``."""
     import torch
 
-    from stamlane.training.hardware import cpu_name
-
     torch.set_num_threads(args.threads)
+    info = machine()
     warnings.filterwarnings("ignore")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"
@@ -294,8 +289,7 @@ def _profile_now(args: argparse.Namespace) -> tuple[dict, dict]:
     summary = summarise(times)
     print(table(summary))
     result = {
-        "cpu": cpu_name(),
-        "cores": os.cpu_count(),
+        **info,
         "threads": args.threads,
         "torch": torch.__version__,
         "bf16": bool(_cli_bf16()),

@@ -43,9 +43,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_roads  # a benchmark script beside this one
+from _harness import Within, fail, option_problem, write_image, write_result
 
 from stamlane.data.corruption import CORRUPTIONS, KeyFrameCorruption
 
@@ -547,22 +546,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--shared", type=Path, default=real_roads.REPO.parent / "shared", help="the folder of data/")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/real-history"))
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
+    from stamlane.safety.guard import GuardError, check_outputs, write_atomic
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
-    unknown = [k for k in args.kinds if k not in KINDS]
-    problem = (
-        f"--kinds: {' '.join(unknown)} not of {' '.join(KINDS)}"
-        if unknown
-        else f"--draws must be in 1..{MAX_DRAWS}, got {args.draws}"
-        if not 1 <= args.draws <= MAX_DRAWS
-        else f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}"
-        if not 100 <= args.resamples <= MAX_RESAMPLES
-        else f"--frames must be >= 1, got {args.frames}"
-        if args.frames is not None and args.frames < 1
-        else None
-    )
+    ranges = {"draws": Within(1, MAX_DRAWS), "resamples": Within(100, MAX_RESAMPLES), "frames": Within(1)}
+    problem = option_problem(vars(args), choices={"kinds": KINDS}, ranges=ranges)
     video = args.shared / real_roads.VIDEO
     if problem is None and not video.is_file():
         problem = f"{video} does not exist (the real video lives in ../shared beside the project)"
@@ -573,23 +562,19 @@ def main(argv: list[str] | None = None) -> int:
         except GuardError as err:
             problem = str(err)
     if problem is not None:
-        print(f"real_history: error: {problem}", file=sys.stderr)
-        return 2
+        return fail("real_history", problem)
     kinds = list(dict.fromkeys(args.kinds))
     try:
         patches = read_patches(args.shared) if set(kinds) & set(VEHICLE_KINDS) else []
         out, cells = run(args.ckpt, video, kinds, args.draws, args.resamples, args.frames, patches)
     except real_roads.RealRoadsError as err:
-        print(f"real_history: error: {err}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_atomic(args.out / "real-history.json", json.dumps(out, indent=1) + "\n")
+        return fail("real_history", err)
+    write_result(args.out / "real-history.json", out, quiet=True)
     summary = table(out)
     write_atomic(args.out / "summary.md", summary)
     picture = sheet_picture(cells, out["kinds"])
     if picture is not None:
-        with atomic_path(args.out / "sheet.jpg") as tmp:
-            cv2.imwrite(str(tmp), picture, [cv2.IMWRITE_JPEG_QUALITY, real_roads.STRIP_QUALITY])
+        write_image(args.out / "sheet.jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, real_roads.STRIP_QUALITY])
     print(summary, end="")
     print(f"wrote {args.out}/: real-history.json, summary.md" + (", sheet.jpg" if picture is not None else ""))
     return 0

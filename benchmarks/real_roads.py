@@ -48,7 +48,6 @@ folder) or a checkpoint cannot be read.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -58,9 +57,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_frames  # a benchmark module beside this one: label files, the split, the numbers by lane position
+from _harness import Within, fail, option_problem, write_image, write_result
 from real_roads_tables import dev_lanes_rows, lanes_table, sealed_table, table
 from real_video_stats import crossings, stability
 
@@ -531,15 +529,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--val", type=Path, help="a synthetic set whose validation split scores each decoding too")
     parser.add_argument("--val-labels", default="val.json", help="its label file (default val.json)")
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
+    from stamlane.safety.guard import GuardError, check_outputs, write_atomic
     from stamlane.training.quiet import quiet_libraries
     from stamlane.weights import SHIPPED
 
     quiet_libraries()
-    for name, value in (("--frames", args.frames), ("--video-frames", args.video_frames), ("--strip", args.strip)):
-        if value is not None and value < 1:
-            print(f"real_roads: error: {name} must be >= 1, got {value}", file=sys.stderr)
-            return 2
+    if problem := option_problem(vars(args), ranges=dict.fromkeys(("frames", "video_frames", "strip"), Within(1))):
+        return fail("real_roads", problem)
     sealed = args.split == "sealed"
     ckpts = args.ckpt or [m.name for m in SHIPPED]
     results, pictures = [], []
@@ -574,13 +570,10 @@ def main(argv: list[str] | None = None) -> int:
                 results.append(result)
                 pictures.append((name, picture))
     except (RealRoadsError, real_frames.RealFramesError) as err:
-        print(f"real_roads: error: {err}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
+        return fail("real_roads", err)
     for result, (name, picture) in zip(results, pictures, strict=True):
-        with atomic_path(args.out / f"{name}-strip.jpg") as tmp:
-            cv2.imwrite(str(tmp), picture, [cv2.IMWRITE_JPEG_QUALITY, STRIP_QUALITY])
-        write_atomic(args.out / f"{name}.json", json.dumps(result, indent=1) + "\n")
+        write_image(args.out / f"{name}-strip.jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, STRIP_QUALITY])
+        write_result(args.out / f"{name}.json", result, quiet=True)
     if sealed:
         summary = "Sealed frames (docs/real-protocol.md), each model's own decoding:\n\n" + sealed_table(results)
     else:

@@ -22,11 +22,11 @@ import argparse
 import json
 import os
 import re
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
+from _harness import Within, fail, option_problem
 
 SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
 MAX_RUN_BYTES = 64 << 20  # a run file larger than this is no real_roads.py result
@@ -182,25 +182,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--groups", nargs="+", help="the groups to show, in this order (default: every group)")
     parser.add_argument("--boot", type=int, default=10000, help="bootstrap draws")
     args = parser.parse_args(argv)
-    if not 1 <= args.boot <= MAX_BOOT:
-        print(f"real_roads_seeds: error: --boot must be 1 to {MAX_BOOT}, got {args.boot}", file=sys.stderr)
-        return 2
+    if (problem := option_problem(vars(args), ranges={"boot": Within(1, MAX_BOOT)})) is not None:
+        return fail("real_roads_seeds", problem)
     try:
         groups = read(args.folder)
     except SeedsError as err:
-        print(f"real_roads_seeds: error: {err}", file=sys.stderr)
-        return 2
+        return fail("real_roads_seeds", err)
     if args.groups:
         missing = [g for g in args.groups if g not in groups]
         if missing:
-            print(
-                f"real_roads_seeds: no <group>-s<seed>.json for {', '.join(missing)} in {args.folder}", file=sys.stderr
-            )
-            return 2
+            return fail("real_roads_seeds", f"no <group>-s<seed>.json for {', '.join(missing)} in {args.folder}")
         groups = {g: groups[g] for g in args.groups}
     if not groups:
-        print(f"real_roads_seeds: no <group>-s<seed>.json in {args.folder}", file=sys.stderr)
-        return 2
+        return fail("real_roads_seeds", f"no <group>-s<seed>.json in {args.folder}")
     print(table(groups))
     print()
     print("\n".join(differences(groups, args.boot)))

@@ -17,11 +17,12 @@ import argparse
 import json
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from _harness import guard_out, in_turn, machine, medians, ratio, write_result
 
 SPLITS = {"test": ("key", "other_clip", "warped_key", "exact"), "val": ("key",)}
 
@@ -69,8 +70,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--src", type=Path, default=None, help="another checkout's src folder, timed alternately")
     parser.add_argument("--one", nargs=2, type=Path, metavar=("ROOT", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("run_passes.py", args.out, folder=True)) is not None:  # before any work
         return refused
@@ -79,37 +78,38 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from stamlane.synth import generate_dataset
     from stamlane.synth.layout import SplitCounts
-    from stamlane.training.hardware import cpu_name
 
     root = args.out / "data"
     if not (root / "dataset.json").is_file():
         generate_dataset(root, SplitCounts(val=args.clips, test=args.clips), seed=0, workers=2)
+    info = machine()
     codes = {"this": None, **({"other": args.src.resolve()} if args.src else {})}
-    times: dict[str, list[float]] = {name: [] for name in codes}
     warm = args.out / "warm-up"  # the alignment cache of the data root filled first: every timed run reads it
     shutil.rmtree(warm, ignore_errors=True)
     subprocess.run([sys.executable, __file__, "--one", str(root), str(warm)], capture_output=True, check=True)
-    for i in range(args.repeats):
-        order = list(codes.items()) if i % 2 == 0 else list(reversed(codes.items()))  # ABBA: a load trend evens out
-        for name, src in order:
-            out = args.out / f"{name}-{i}"
-            shutil.rmtree(out, ignore_errors=True)
-            env = dict(os.environ, **({"PYTHONPATH": str(src)} if src else {}))
-            command = [sys.executable, __file__, "--one", str(root), str(out)]
-            done = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-            times[name].append(json.loads(done.stdout.strip().splitlines()[-1]))
-            print(f"{name} {i}: {times[name][-1]:.1f} s", flush=True)
+
+    def measure(name: str, i: int) -> float:
+        out = args.out / f"{name}-{i}"
+        shutil.rmtree(out, ignore_errors=True)
+        src = codes[name]
+        env = dict(os.environ, **({"PYTHONPATH": str(src)} if src else {}))
+        command = [sys.executable, __file__, "--one", str(root), str(out)]
+        done = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+        seconds = float(json.loads(done.stdout.strip().splitlines()[-1]))
+        print(f"{name} {i}: {seconds:.1f} s", flush=True)
+        return seconds
+
+    times = in_turn(measure, list(codes), args.repeats, alternate=True)
     result = {
-        "cpu": cpu_name(),
+        **info,
         "passes": sum(1 + len(p) for p in SPLITS.values()),
         "clips": args.clips,
         "seconds": times,
-        "median": {name: statistics.median(t) for name, t in times.items()},
+        "median": medians(times),
     }
     if "other" in times:
-        result["ratio_other_over_this"] = result["median"]["other"] / result["median"]["this"]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "run_passes.json").write_text(json.dumps(result, indent=2))
+        result["ratio_other_over_this"] = ratio(times, "other", "this", digits=None)
+    write_result(args.out / "run_passes.json", result, indent=2, quiet=True)
     print(json.dumps({k: v for k, v in result.items() if k != "seconds"}, indent=2))
     return 0
 

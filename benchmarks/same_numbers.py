@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import torch
+from _harness import fail, guard_out, write_result
 
 ROW_FILES = ("per_image.jsonl", "per_clip.jsonl")
 
@@ -86,8 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     for folder in (args.before, args.after):
         if not folder.is_dir():
-            print(f"same_numbers: {folder} is not a folder", file=sys.stderr)
-            return 2
+            return fail("same_numbers", f"{folder} is not a folder")
+    if (refused := guard_out("same_numbers", args.json)) is not None:  # before any work
+        return refused
     report = compare(args.before, args.after)
     bad = 0
     for run, tensors in report["weights"].items():
@@ -105,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         + ("every tensor, lane and per-image value equal" if not bad else f"{bad} differ")
     )
     if args.json:
-        args.json.write_text(json.dumps(report, indent=1) + "\n")
+        write_result(args.json, report, quiet=True)
     return 1 if bad else 0
 
 

@@ -4,8 +4,8 @@ step fed.
 
 Usage::
 
-    python benchmarks/scale.py                       # the full sweep on the CPU (about 15 minutes on 2 cores)
-    python benchmarks/scale.py --quick               # every measurement, tiny (CI-like; under 30 s)
+    python benchmarks/scale.py                       # the full sweep on the CPU
+    python benchmarks/scale.py --quick               # every measurement, tiny (a smoke test, as CI runs it)
     python benchmarks/scale.py --device cuda --batch 4 8   # on a GPU (GPU memory, steps per second)
 
 Writes ``--out`` (default ``outputs/bench/scale.json``) and a markdown table beside it (``.md``). What is measured:
@@ -43,18 +43,15 @@ import argparse
 import functools
 import importlib
 import importlib.metadata
-import json
 import math
 import multiprocessing
 import resource
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _harness import BenchInputError, check_out_file, fail, read_json_object
+from _harness import BenchInputError, check_out_file, fail, machine, read_json_object, write_figure, write_result
 
 PAPER = {"width": 1.0, "frames": 4, "size": (256, 512), "batch": 1}
 """The centre of every sweep: the paper's model (configs/tusimple_stam4.yaml) at batch 1."""
@@ -235,7 +232,7 @@ def _table(rows: list[dict], centre: dict) -> str:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="every measurement, tiny (a smoke test; < 30 s)")
+    parser.add_argument("--quick", action="store_true", help="every measurement, tiny (a smoke test)")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="where the steps run")
     parser.add_argument("--batch", type=int, nargs="+", default=None, help="batch sizes besides 1 (default 2)")
     parser.add_argument("--steps", type=int, default=2, help="timed steps per configuration (median)")
@@ -249,7 +246,6 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from stamlane.safety.guard import GuardError
-    from stamlane.training.hardware import cpu_name
 
     args = _parser().parse_args(argv)
     try:
@@ -273,8 +269,7 @@ def main(argv: list[str] | None = None) -> int:
     batches = args.batch if args.batch is not None else ([2] if not args.quick else [])
     started = time.perf_counter()
     payload: dict = {
-        "cpu": cpu_name(),
-        "cores": os.cpu_count(),
+        **machine(),
         "device": args.device,
         "torch": importlib.metadata.version("torch"),
         "threads": args.threads,
@@ -314,9 +309,7 @@ def main(argv: list[str] | None = None) -> int:
                 line += f" = {result['load_over_step']:.3f} of a step; workers to keep a step fed: {feed}"
             print(line, flush=True)
     payload["seconds"] = time.perf_counter() - started
-    from stamlane.safety.guard import write_atomic
-
-    write_atomic(args.out, json.dumps(payload, indent=2))
+    write_result(args.out, payload, indent=2, quiet=True)
     print("\n" + report(payload, args.out))
     print(f"\nwrote {args.out} ({payload['seconds']:.0f} s)")
     return 0
@@ -386,11 +379,7 @@ def _plot(rows: list[dict], centre: dict, path: Path, title: str) -> None:
             ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    from stamlane.safety.guard import atomic_path
-
-    with atomic_path(path) as tmp:  # the same suffix: matplotlib picks the format by it
-        fig.savefig(tmp, dpi=80)
-    plt.close(fig)
+    write_figure(fig, path, dpi=80)
 
 
 def _by_batch(rows: list[dict], centre: dict) -> dict[int, dict]:

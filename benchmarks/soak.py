@@ -24,13 +24,15 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import argparse
-import json
 import resource
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _harness import BenchInputError, fail, guard_out, machine, read_json_object, write_result
+from eval_speed import make_culane, make_tusimple  # a benchmark script beside this one
 
 
 def rss_mib() -> float:
@@ -90,9 +92,6 @@ def _peak_child(code: str) -> tuple[float, float]:
 
 
 def soak_eval(args: argparse.Namespace) -> dict:
-    sys.path.insert(0, str(Path(__file__).parent))
-    from eval_speed import make_culane, make_tusimple
-
     report: dict = {}
     baseline, _ = _peak_child("import stamlane_eval.tusimple, stamlane_eval.culane, stamlane_eval.io")
     report["import_peak_mib"] = baseline
@@ -146,8 +145,6 @@ def main(argv: list[str] | None = None) -> int:
     for sp in (s, e):
         sp.add_argument("--out", type=Path, default=Path("outputs/bench/soak.json"))
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import BenchInputError, fail, guard_out, read_json_object
 
     if (refused := guard_out("soak.py", args.out)) is not None:  # before any work
         return refused
@@ -157,9 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         return fail("soak.py", err)
     report = soak_stream(args) if args.what == "stream" else soak_eval(args)
     report["maxrss_self_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(old | {args.what: report}, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write_result(args.out, old | {args.what: report | {"machine": machine()}})
     return 0
 
 

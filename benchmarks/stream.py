@@ -42,7 +42,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning Op
 import argparse
 import functools
 import json
-import platform
 import statistics
 import sys
 import tempfile
@@ -53,6 +52,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
+from _harness import fail, guard_out, in_turn, machine, write_result
 from tqdm import tqdm
 
 from stamlane.data.clips import frame_order
@@ -73,10 +73,7 @@ def _interleaved(fns: dict[str, Callable[[], float]], repeats: int, frames: int)
     in rotation so that all see the same machine load; one warm-up run each. ms per frame: median and min."""
     for fn in fns.values():
         fn()
-    times: dict[str, list[float]] = {name: [] for name in fns}
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            times[name].append(fn())
+    times = in_turn(lambda name, _: fns[name](), list(fns), repeats)
     return {
         name: {"median": 1e3 * statistics.median(t) / frames, "min": 1e3 * min(t) / frames} for name, t in times.items()
     }
@@ -348,8 +345,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames-dir", type=Path, help="real frames for the end-to-end timing (default: first clip)")
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "stream.json")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("stream.py", args.out)) is not None:  # before any work
         return refused
@@ -357,8 +352,7 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.ckpt is not None:
         if not args.ckpt.is_file():
-            print(f"benchmarks/stream.py: checkpoint {args.ckpt} does not exist", file=sys.stderr)
-            return 2
+            return fail("stream.py", f"checkpoint {args.ckpt} does not exist")
         module, clip = _load(args.ckpt)
         net = module.net
         num_frames = int(module.num_frames or args.num_frames)
@@ -366,7 +360,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         net, num_frames, size = _demo_net(args.width), args.num_frames, tuple(args.image_size)
     report: dict = {
-        "machine": {"platform": platform.platform(), "processor": platform.processor(), "threads": args.threads},
+        "machine": {**machine(), "threads": args.threads},
         "torch": torch.__version__,
         "num_frames": num_frames,
         "image_size": list(size),
@@ -431,9 +425,8 @@ def main(argv: list[str] | None = None) -> int:
                 r = acc[name]
                 cells = " | ".join(f"{r[k]:.4f}" for k in ("f1", "accuracy", "fp", "fn", "pixel_f1"))
                 print(f"| {weights} | {name} | {cells} |")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=2))
-    print(f"\nwrote {args.out}")
+    print()
+    write_result(args.out, report, indent=2)
     return 0
 
 

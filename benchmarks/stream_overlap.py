@@ -17,16 +17,15 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before torch: spinning OpenMP threads starve a shared CPU
 
 import argparse
-import json
 import statistics
 import sys
-import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out, in_turn, load_1min, machine, medians, ratio, timed, write_result
 
 REPO = Path(__file__).resolve().parents[1]
 VIDEO = REPO.parent / "shared" / "data" / "real" / "solidWhiteRight.mp4"
@@ -61,35 +60,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, default=Path("outputs/benchmarks/stream_overlap.json"))
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("stream_overlap.py", args.out)) is not None:  # before any work
         return refused
     import torch
 
     from stamlane.stream import StreamingPredictor
-    from stamlane.training.hardware import cpu_name
     from stamlane.training.stored import StoredModel
 
     warnings.filterwarnings("ignore")
     torch.set_num_threads(max(1, os.cpu_count() or 1))
     model = StoredModel.open("stam4-synthetic")
     model.module.to(args.device)
-    result: dict = {"cpu": cpu_name(), "cores": os.cpu_count(), "device": args.device, "video": VIDEO.is_file()}
-    result["load_1min_at_start"] = round(os.getloadavg()[0], 1)
-    times: dict[str, list[float]] = {"serial": [], "pipelined": []}
+    result: dict = machine() | {"device": args.device, "video": VIDEO.is_file(), "load_1min_at_start": load_1min()}
     outputs: dict[str, list] = {}
-    for _ in range(args.repeats):
-        for mode in times:
-            predictor = StreamingPredictor.from_stored(model)
-            start = time.perf_counter()
-            if mode == "serial":
-                got = [predictor(image) for image in frames(args.frames)]
-            else:
-                got = list(predictor.run(frames(args.frames)))
-            times[mode].append(round((time.perf_counter() - start) * 1000.0 / len(got), 2))
-            outputs[mode] = got
+    ways: dict[str, Callable[[StreamingPredictor], list]] = {
+        "serial": lambda predictor: [predictor(image) for image in frames(args.frames)],
+        "pipelined": lambda predictor: list(predictor.run(frames(args.frames))),
+    }
+
+    def measure(mode: str, _: int) -> float:
+        predictor = StreamingPredictor.from_stored(model)  # made before the clock starts
+        seconds, outputs[mode] = timed(lambda: ways[mode](predictor))
+        return round(seconds * 1000.0 / len(outputs[mode]), 2)
+
+    times = in_turn(measure, list(ways), args.repeats)
     serial, piped = outputs["serial"], outputs["pipelined"]
     same = len(serial) == len(piped) and all(
         torch.equal(a.logits, b.logits)
@@ -99,18 +94,16 @@ def main(argv: list[str] | None = None) -> int:
         for a, b in zip(serial, piped)
     )
     stages = {k: round(statistics.median(o.timings[k] for o in serial), 2) for k in serial[0].timings}
-    med = {k: statistics.median(v) for k, v in times.items()}
+    med = medians(times)
     result |= {"frames": len(serial), "ms_per_frame": times, "median_ms": med, "serial_stages_ms": stages}
-    result |= {"ratio": round(med["serial"] / med["pipelined"], 3), "same_outputs": same}
-    result["load_1min_at_end"] = round(os.getloadavg()[0], 1)
+    result |= {"ratio": ratio(times, "serial", "pipelined"), "same_outputs": same}
+    result["load_1min_at_end"] = load_1min()
     print(
         f"{len(serial)} frames on {args.device}: serial {med['serial']:.1f} ms a frame {stages}, pipelined "
         f"{med['pipelined']:.1f} (x{result['ratio']:.2f}, medians of {args.repeats} in turn); the same outputs: "
         f"{same}; load {result['load_1min_at_start']} -> {result['load_1min_at_end']}"
     )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    write_result(args.out, result)
     return 0
 
 

@@ -14,19 +14,17 @@ frame without alignment (what pre-alignment repairs). ``--set`` overrides ``Synt
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _harness import guard_out, machine, write_result
 from stamlane_eval.cli_tools import parse_wxh
+from synth_align import parse_overrides
 
 from stamlane.synth.generator import FACTORS, SynthConfig, clip_statistics, generate_clip, write_clip
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synth_align import parse_overrides
 
 
 def content(clips: list, stride: int) -> dict[str, float]:
@@ -41,18 +39,16 @@ def content(clips: list, stride: int) -> dict[str, float]:
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--clips", type=int, default=20)
     p.add_argument("--size", default="640x360", help="frame size WxH")
-    p.add_argument("--out", default=None)
+    p.add_argument("--out", type=Path, default=None)
     p.add_argument("--set", nargs="*", default=[], help="SynthConfig overrides, e.g. fps=10 grain=0")
-    args = p.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
+    args = p.parse_args(argv)
 
     if (refused := guard_out("synth.py", args.out)) is not None:  # before any work
-        raise SystemExit(refused)
+        return refused
     overrides = parse_overrides(args.set)
     h, w = parse_wxh(args.size)
     results: dict[str, dict] = {}
@@ -94,9 +90,9 @@ def main() -> None:
             f"{100 * r['stride1']['hidden_fraction']:.1f} % | {revealed} | {shifts} |"
         )
     if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(results, indent=2))
+        write_result(args.out, results | {"machine": machine()}, indent=2)  # after the timings: machine() imports torch
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

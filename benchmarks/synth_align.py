@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import sys
 import time
 from dataclasses import fields, replace
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import guard_out, machine, write_image, write_result
 
 from stamlane.align import AlignConfig, estimate_clip
 from stamlane.align.homography import ALIGN_PRESETS, align_preset, default_horizon_row, ground_corners
@@ -95,8 +95,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dump", type=Path, default=None, help="write the frames of the first clip here (PNG)")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("synth_align.py", args.out)) is not None:  # before any work
         return refused
@@ -120,9 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         render += time.perf_counter() - start
         frames = clip.frames if args.no_jpeg else [jpeg(f, cfg.jpeg_quality) for f in clip.frames]
         if args.dump is not None and c == 0:
-            args.dump.mkdir(parents=True, exist_ok=True)
             for i, f in enumerate(frames):
-                cv2.imwrite(str(args.dump / f"{i + 1}.png"), f)
+                write_image(args.dump / f"{i + 1}.png", f)
         vehicles = bool(clip.vehicle_masks[-1].any())
         for key1 in args.keys:
             key = key1 - 1
@@ -167,10 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     for k, v in sorted(reasons.items()):
         print(f"  {k}: {v}")
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(
-            json.dumps({"config": {k: str(v) for k, v in vars(args).items()}, "results": results}, indent=2)
-        )
+        config = {k: str(v) for k, v in vars(args).items()}
+        write_result(args.out, {"config": config, "machine": machine(), "results": results}, indent=2)
     return 0
 
 

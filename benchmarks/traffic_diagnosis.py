@@ -35,7 +35,6 @@ checkpoint that cannot be read.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from dataclasses import dataclass
@@ -44,8 +43,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _harness import Within, fail, option_problem, write_result
 from synth_align import corner_error, jpeg  # a benchmark script beside this one
 
 from stamlane.synth.clip import SynthClip, generate_clip
@@ -508,18 +506,12 @@ def main(argv: list[str] | None = None) -> int:
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
-    unknown = [k for k in args.kinds if k not in KINDS]
-    problem = (
-        f"--kinds: {' '.join(unknown)} not of {' '.join(KINDS)}"
-        if unknown
-        else f"--clips must be in 2..{MAX_CLIPS} (the intervals resample clips), got {args.clips}"
-        if not 2 <= args.clips <= MAX_CLIPS
-        else f"--resamples must be in 100..{MAX_RESAMPLES}, got {args.resamples}"
-        if not 100 <= args.resamples <= MAX_RESAMPLES
-        else f"--seed must be >= 0, got {args.seed}"
-        if args.seed < 0
-        else None
-    )
+    ranges = {
+        "clips": Within(2, MAX_CLIPS, " (the intervals resample clips)"),
+        "resamples": Within(100, MAX_RESAMPLES),
+        "seed": Within(0),
+    }
+    problem = option_problem(vars(args), choices={"kinds": KINDS}, ranges=ranges)
     if problem is None:
         inputs = [Path(c) for c in args.ckpt if Path(c).exists()]
         try:
@@ -532,10 +524,8 @@ def main(argv: list[str] | None = None) -> int:
         except DiagnosisError as err:
             problem = str(err)
     if problem is not None:
-        print(f"traffic_diagnosis: error: {problem}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_atomic(args.out / "diagnosis.json", json.dumps(out, indent=1) + "\n")
+        return fail("traffic_diagnosis", problem)
+    write_result(args.out / "diagnosis.json", out, quiet=True)
     summary = table(out)
     write_atomic(args.out / "summary.md", summary)
     print(summary, end="")

@@ -46,6 +46,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import fail, write_image
 
 REPO = Path(__file__).resolve().parents[1]
 VIDEO = "data/real/solidWhiteRight.mp4"  # under --shared
@@ -265,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=LABELS, help="the labels file (json lines)")
     parser.add_argument("--pictures", type=Path, help="write each frame's picture here, to be looked at")
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
+    from stamlane.safety.guard import GuardError, check_outputs, write_atomic
 
     path = args.shared / VIDEO
     try:
@@ -283,17 +284,12 @@ def main(argv: list[str] | None = None) -> int:
             raise VideoLabelsError(str(err)) from None
         records, pictures = label_video(path, tuple(args.frames))
     except VideoLabelsError as err:
-        print(f"video_labels: error: {err}", file=sys.stderr)
-        return 2
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(args.out, "".join(json.dumps(r) + "\n" for r in records))
+        return fail("video_labels", err)
+    write_atomic(args.out, "".join(json.dumps(r) + "\n" for r in records))  # json lines, as TuSimple's labels
     if args.pictures is not None:
-        args.pictures.mkdir(parents=True, exist_ok=True)
-        for name, image in [(f"{index:04d}", image) for index, image in pictures.items()] + [
-            ("sheet", sheet(pictures))
-        ]:
-            with atomic_path(args.pictures / f"{name}.jpg") as tmp:
-                cv2.imwrite(str(tmp), image, [cv2.IMWRITE_JPEG_QUALITY, 80])
+        named = [(f"{index:04d}", image) for index, image in pictures.items()] + [("sheet", sheet(pictures))]
+        for name, image in named:
+            write_image(args.pictures / f"{name}.jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 80])
     lanes = [len(r["lanes"]) for r in records]
     print(f"wrote {args.out}: {len(records)} frames, lines per frame {lanes}")
     return 0

@@ -35,7 +35,6 @@ import argparse
 import contextlib
 import gc
 import io
-import json
 import os
 import pickle
 import statistics
@@ -48,6 +47,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from _harness import fail, guard_out, machine, write_result
 from stamlane_eval import temporal
 from stamlane_eval.io import read_culane_lines
 from stamlane_eval.video import Frame
@@ -247,8 +247,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reference-frames", type=int, default=100, help="frames the (slow) reference scores")
     ap.add_argument("--out", type=Path, default=Path("outputs/bench/video_speed.json"), help="figures as JSON")
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_harness.py: the input contract
-    from _harness import guard_out
 
     if (refused := guard_out("video_speed.py", args.out)) is not None:  # before any work
         return refused
@@ -257,8 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     w, h = (int(v) for v in args.size.lower().split("x"))
     size = (h, w)
     if args.reference is not None and not args.reference.is_file():
-        print(f"video_speed: error: {args.reference}: no such file", file=sys.stderr)
-        return 2
+        return fail("video_speed", f"{args.reference}: no such file")
     results: dict[str, object] = {"frames": args.frames, "size": args.size, "pred_points": args.pred_points}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -319,9 +316,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{'equal' if same else 'DIFFERENT'} (RVLD Ns {ref['Ns']} Nj {ref['Nj']} Nm {ref['Nm']} Rs {ref['Rs']}; "
                 f"stamlane-eval {m.ns} {m.nj} {m.nm} {m.rs})"
             )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write_result(args.out, results | machine())  # after the timings: machine() imports torch
     return 0
 
 

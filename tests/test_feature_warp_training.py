@@ -1,11 +1,9 @@
-"""Training with feature-space alignment: ``warp="feature"`` data, `StamLaneModule` on such batches, the
-streaming predictor and the stream benchmark's fine-tuning on the same path."""
+"""Training with feature-space alignment: ``warp="feature"`` data, `StamLaneModule` on such batches and the
+streaming predictor on the same path (the stream benchmark's fine-tuning: tests/benchmarks/test_stream.py)."""
 
 from __future__ import annotations
 
 import functools
-import importlib.util
-import sys
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -296,23 +294,3 @@ def test_cli_fit_and_predict_with_data_warp_feature(
     finetune = [*fit, f"--model.init_weights={ckpt}", "--trainer.max_steps=1", f"--trainer.logger.save_dir={tuned}"]
     assert cli_main(finetune) == 0
     assert torch.load(next(tuned.rglob("last.ckpt")), weights_only=True)["global_step"] == 1
-
-
-# --- the stream benchmark --------------------------------------------------------------------------
-
-
-def test_stream_benchmark_finetunes_through_the_library_path(root: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    spec = importlib.util.spec_from_file_location("bench_stream", REPO / "benchmarks" / "stream.py")
-    bench = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "bench_stream", bench)
-    spec.loader.exec_module(bench)
-    calls = []
-    monkeypatch.setattr(
-        stamlane.training.module, "forward_feature_aligned", lambda *a: calls.append(1) or forward_feature_aligned(*a)
-    )
-    module = _module()
-    before = [p.detach().clone() for p in module.parameters()]
-    clip = ClipOptions(num_frames=T, image_size=SIZE, stride=2)
-    bench.finetune(module, clip, root, ["train.json"], steps=1, feature=True)
-    assert calls == [1] and not module.training
-    assert any(not torch.equal(a, b) for a, b in zip(before, module.parameters()))

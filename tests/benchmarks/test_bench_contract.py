@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.benchmark_modules import REPO, benchmark_module
+from tests.benchmarks.scripts import REPO, benchmark_module
 
 H = [200, 210, 220, 230]
 LANES = [[100, 110, 120, 130], [300, 310, 320, 330]]
@@ -288,7 +288,7 @@ OUT_FOLDER_SCRIPTS = {"demo_transfer": [], "history_recipe": [], "run_passes": [
 
 @pytest.mark.parametrize("script", sorted({**OUT_FILE_SCRIPTS, **OUT_FOLDER_SCRIPTS}))
 def test_every_script_refuses_an_out_it_cannot_write_before_any_work(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, script: str
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], script: str
 ) -> None:
     """A file script given a folder as --out, a folder script given a file: one line, exit 2, nothing made."""
     folder = script in OUT_FOLDER_SCRIPTS
@@ -299,12 +299,8 @@ def test_every_script_refuses_an_out_it_cannot_write_before_any_work(
         out.mkdir()
     argv = [*{**OUT_FILE_SCRIPTS, **OUT_FOLDER_SCRIPTS}[script], "--out", str(out)]
     before = _snapshot(tmp_path)
-    monkeypatch.setattr(sys, "argv", [f"{script}.py", *argv])  # the scripts whose main() reads sys.argv
     with benchmark_module(script) as module:
-        try:
-            code = module.main(argv) if module.main.__code__.co_argcount else module.main()
-        except SystemExit as done:
-            code = done.code
+        code = module.main(argv)
     _one_line(capsys, code, f"{script}.py", str(out), "is a file, not a folder" if folder else "is a folder")
     assert _snapshot(tmp_path) == before and sorted(p.name for p in tmp_path.iterdir()) == [out.name]
 
@@ -320,3 +316,28 @@ def test_results_merged_into_out_are_checked_first(
     with benchmark_module(script) as module:
         _one_line(capsys, module.main(argv), f"{script}.py", "is not JSON")
     assert out.read_text() == "not json"
+
+
+def test_adapt_intervals_bad_input_is_one_line_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``adapt_intervals.py``: a missing or non-JSON real_roads.py file, frames that differ between the files, and
+    an --out it cannot write: one line, exit 2, nothing written."""
+    record = {"labelled_frames": {"per_image": [{"raw_file": "a.jpg", "fp": 0.0, "fn": 0.0, "accuracy": 1.0}]}}
+    before, other = tmp_path / "before.json", tmp_path / "other.json"
+    before.write_text(json.dumps(record))
+    other.write_text(json.dumps({"labelled_frames": {"per_image": [{"raw_file": "b.jpg", "fp": 0, "fn": 0}]}}))
+    (tmp_path / "broken.json").write_text("{oops")
+    (tmp_path / "folder").mkdir()
+    out = str(tmp_path / "table.json")
+    cases = [
+        ([str(tmp_path / "missing.json"), "--out", out], "missing.json"),
+        ([str(tmp_path / "broken.json"), "--out", out], "not JSON"),
+        ([str(other), "--out", out], "scored on other frames"),
+        ([str(before), "--out", str(tmp_path / "folder")], "is a folder"),
+    ]
+    snapshot = _snapshot(tmp_path)
+    with benchmark_module("adapt_intervals") as module:
+        for after, words in cases:
+            _one_line(capsys, module.main([str(before), *after]), "adapt_intervals", words)
+    assert _snapshot(tmp_path) == snapshot

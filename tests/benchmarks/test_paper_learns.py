@@ -5,7 +5,6 @@ mode trains the stable variant a few steps on a TuSimple-layout set and writes t
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 from pathlib import Path
 
@@ -13,20 +12,13 @@ import pytest
 import torch
 
 from stamlane.training.lightning_cli import StamLaneCLI
+from tests.benchmarks.scripts import REPO, load_script
 
-REPO = Path(__file__).resolve().parents[2]
 PAPER, STABLE = REPO / "configs" / "tusimple_stam4.yaml", REPO / "configs" / "common" / "stable_sgd.yaml"
 torch.set_num_threads(1)
 
 
-def _load():
-    spec = importlib.util.spec_from_file_location("bench_paper_learns", REPO / "benchmarks" / "paper_learns.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-paper_learns = _load()
+paper_learns = load_script("paper_learns")
 pytestmark = pytest.mark.usefixtures("plain_argv")
 
 

@@ -3,17 +3,15 @@ the machine's timings left out."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 import torch
 
-REPO = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("bench_same_numbers", REPO / "benchmarks" / "same_numbers.py")
-same_numbers = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(same_numbers)
+from tests.benchmarks.scripts import load_script
+
+same_numbers = load_script("same_numbers")
 
 
 def _experiment(root: Path, weight: torch.Tensor, run_time: float, acc: float) -> Path:

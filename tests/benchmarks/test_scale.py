@@ -3,25 +3,14 @@ sample with the cache and on the fly, the workers that keep a step fed) and writ
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.benchmarks.scripts import load_script
 
-
-def _load():
-    spec = importlib.util.spec_from_file_location("bench_scale", REPO / "benchmarks" / "scale.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # the forked step processes find it by name
-    spec.loader.exec_module(module)
-    return module
-
-
-scale = _load()
+scale = load_script("scale")  # registered: the forked step processes find it by name
 
 
 def test_workers_to_feed_a_step():

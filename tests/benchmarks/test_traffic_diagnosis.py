@@ -12,7 +12,7 @@ import pytest
 from stamlane.synth.clip import SynthClip, generate_clip
 from stamlane.synth.config import FACTORS, REVEAL_TRAFFIC, SynthConfig
 from stamlane.synth.layout import SPLITS
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
 RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "traffic"
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
 H_SAMPLES = [200, 210, 220, 230]
 LANES = [[100, 110, 120, 130], [300, 310, 320, 330]]

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
 VP = (480.0, 311.0)
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
 
 @pytest.fixture(scope="module")
@@ -119,7 +119,7 @@ def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path
 
 @pytest.mark.parametrize("folder", ["real-history", "real-history/seeds", "real-history/vehicles"])
 def test_the_committed_tables_are_the_committed_numbers(bench, folder: str) -> None:
-    results = Path(__file__).resolve().parents[1] / "docs" / "results" / folder
+    results = Path(__file__).resolve().parents[2] / "docs" / "results" / folder
     out = json.loads((results / "real-history.json").read_text())
     assert bench.table(out) == (results / "summary.md").read_text()
 

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +58,7 @@ def test_a_missing_group_is_one_line_and_status_2(bench, tmp_path: Path, capsys)
     assert bench.main([str(tmp_path)]) == 2
     assert bench.main([str(tmp_path), "--groups", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 2 and all(line.startswith("real_roads_seeds: no <group>-s<seed>.json") for line in err)
+    assert len(err) == 2 and all(line.startswith("real_roads_seeds: error: no <group>-s<seed>.json") for line in err)
 
 
 def test_broken_run_files_and_bad_options_are_one_line_each(bench, tmp_path: Path, capsys) -> None:
