@@ -9,8 +9,8 @@ __all__ = ["__version__"]
 
 
 def __getattr__(name: str) -> str:
-    """``__version__``, read from the installed distribution on first use (importlib.metadata costs 70 ms, which
-    every ``stamlane-eval`` run would pay)."""
+    """``__version__``, read from the installed distribution on first use (importlib.metadata's cost, which every
+    ``stamlane-eval`` run would pay: docs/results/evaluators/)."""
     if name != "__version__":
         raise AttributeError(f"module 'stamlane_eval' has no attribute {name!r}")
     from importlib.metadata import PackageNotFoundError, version

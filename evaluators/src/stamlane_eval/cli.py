@@ -57,7 +57,7 @@ __all__ = ["main"]
 EXIT_BAD_INPUT = 2
 MAX_JOBS = 256  # --jobs: each worker is a whole interpreter with numpy, scipy and OpenCV (~100 MB); more is no gain
 MAX_THRESHOLDS = 100  # --iou: distinct thresholds (a sweep in steps of 0.01); each one is counted for every image
-PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run takes about a second and needs no bar
+PROGRESS_MIN_ITEMS = 200  # images or frames: below it a run is short and needs no bar
 SWAP_SAMPLE = 16  # list entries looked at (evenly spread) for images beside their .lines.txt: 2 x 16 stat calls
 
 

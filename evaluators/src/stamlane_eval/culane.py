@@ -151,7 +151,7 @@ def _spline_official_many(pts: np.ndarray, times: int = SPLINE_SAMPLES) -> np.nd
         t2 = t * t
         t3 = np.power(t, 3.0)
         # a + b t + c t^2 + d t^3, left to right as in C++, per coordinate on contiguous (L, n-1, times) arrays
-        # (a trailing axis of 2 would make numpy's inner loops 2 elements long: 3x slower, same numbers)
+        # (a trailing axis of 2 would make numpy's inner loops 2 elements long: slower, same numbers)
         out = np.empty((n_lanes, (n - 1) * times + 1, 2), np.float32)
         for k in (0, 1):
             v = pts[:, :-1, k, None].astype(np.float64) + coef_b[:, :, k, None] * t
@@ -228,7 +228,7 @@ def _rasterise(
         budget = CanvasBudget(size)
     if pts is None:
         return None
-    import cv2  # here, not at the top: `stamlane-eval tusimple` imports this module but never draws (15 ms saved)
+    import cv2  # here, not at the top: `stamlane-eval tusimple` imports this module but never draws
 
     h_img, w_img = size
     # Consecutive equal points add nothing: a zero-length cv::line only draws the end cap, already drawn by

@@ -8,7 +8,7 @@ under ``(file identity, key_from_hist, net_from_orig, network size)``, and each 
 identities and the aligner's settings; a later read is the same bytes, and the sample the same tensors bit for bit
 (the float conversion is `stamlane.data.transforms.to_network` either way).
 
-A file's identity is the digest of its bytes (`file_identity`, read again at every use: about 0.1 ms a frame): a
+A file's identity is the digest of its bytes (`file_identity`, read again at every use): a
 frame written again with other pixels is another frame for the store, never an old picture. The store holds at most its budget
 (least recently used first out); it lives in the process, so `ClipDataModule` fills it in the main process before
 a test or prediction loader's workers start (`ClipDataset.materialise`): forked workers read it, and the next pass

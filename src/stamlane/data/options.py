@@ -73,7 +73,8 @@ class ClipOptions:
             against the key frame) for ``align="fly"``.
         align_preset: the ORB settings of ``align="fly"`` (and of the pairs ``"cache"`` misses), a name of
             `stamlane.align.homography.ALIGN_PRESETS`: ``"standard"`` (what every shipped model was made with) or
-            ``"fast"`` (1.5x faster estimates, same accuracy on real-frame pairs, other homographies: opt in).
+            ``"fast"`` (faster estimates, same accuracy on real-frame pairs, other homographies: opt in;
+            measured in docs/alignment.md).
         repeat_missing_history: a history frame that does not exist is replaced by the nearest later one instead
             of making the clip bad (sets such as CULane, whose early frames may lack).
     """

@@ -20,7 +20,7 @@ frame-after-frame scoring) and ``--reveal-probes`` fewer probes on the reveal sp
 ``reveal`` need ``--splits reveal --reveal-probes key`` (docs/results.md).
 Arguments after ``--`` go to every run's ``stamlane fit`` after the model's config (``-- --trainer.accelerator=gpu``
 trains and predicts on a GPU; the run store is locked to them like every setting).
-``--quick`` is a seconds-long smoke run on a tiny set (its numbers mean nothing; the tests run it).
+``--quick`` is a smoke run on a tiny set (its numbers mean nothing; the tests run it).
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"history probes on the reveal splits (default all: {' '.join(REVEAL_PROBES)})",
     )
     p.add_argument("--max-overlays", type=int, default=12, help="overlay pictures per model and split")
-    p.add_argument("--quick", action="store_true", help="a seconds-long smoke run on a tiny set (tests)")
+    p.add_argument("--quick", action="store_true", help="a smoke run on a tiny set (tests)")
     return p
 
 

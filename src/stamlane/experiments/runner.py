@@ -62,7 +62,7 @@ QUICK_OVERRIDES: dict[str, Any] = {
     "data.loader.batch_size": 2,
     "data.loader.num_workers": 0,
 }
-"""A seconds-long smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
+"""A smoke run (``--quick``): a tiny network on small images; its numbers mean nothing."""
 TEMPORAL_SPLIT = TEMPORAL_LABELS.removesuffix(".json")
 """The label file (stem) of a synthetic set whose every frame is a key frame: predicted frame after frame, each with
 its own history, and scored with RVLD's temporal stability per clip (`stamlane.experiments.split_scores.score_temporal`)."""

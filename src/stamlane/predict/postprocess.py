@@ -12,8 +12,7 @@ docs/method.md §5 (paper 3.4). numpy in, numpy out; called from ``StamLaneModul
    ``cluster_thresh`` keeps it out of the clustering (it is still assigned in step 3). Where fewer than
    ``min_samples`` pixels are that confident (a weakly trained network whose lane probabilities top out
    below ``cluster_thresh``), every lane pixel is clustered, as in the paper, rather than no lane reported;
-   clustering every pixel is what makes LaneNet's post-processing cost 300-400 ms (and sklearn DBSCAN
-   on 50k tight points 11 s and 5.7 GB);
+   clustering every pixel is what makes LaneNet's post-processing slow (docs/method.md, docs/training.md);
 3. every lane pixel is assigned to the nearest cluster centre (mean embedding of the cluster), pixels
    farther than ``assign_radius`` from every centre are dropped as noise;
 4. clusters with fewer than ``min_cluster_pixels`` pixels are dropped;
@@ -175,7 +174,7 @@ def dbscan(points: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
     Returns:
         ``(N,)`` labels: ``0..K-1`` in the order DBSCAN finds the clusters, ``-1`` noise.
     """
-    if _dbscan_inner is None:  # ball_tree: 2-3x faster than kd_tree on tight 4-d clusters (benchmarks/postprocess.py)
+    if _dbscan_inner is None:  # ball_tree: faster than kd_tree on tight 4-d clusters (docs/training.md)
         found: np.ndarray = DBSCAN(eps=eps, min_samples=min_samples, algorithm="ball_tree").fit_predict(points)
         return found
     data = np.asarray(points, dtype=np.float64)

@@ -86,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--align-preset",
         choices=tuple(ALIGN_PRESETS),
         help="the ORB settings of the alignment (default: the checkpoint's data.clip.align_preset, else standard; "
-        "fast: 1.5x faster estimates, docs/alignment.md)",
+        "fast: faster estimates, docs/alignment.md)",
     )
     parser.add_argument("--max-frames", type=int, help="stop after this many frames")
     parser.add_argument("--no-video", action="store_true", help="do not write overlay.mp4")

@@ -18,8 +18,8 @@ and ``clip.onnx`` is the whole clip model (the paper's pipeline on pre-aligned i
 
 Every graph is exported in eval mode (batch norm with its running statistics); the network's own mode is left
 as it was. T and (H, W) are fixed at export (the fusion unrolls over T); the batch is dynamic. Opset 17 (``GridSample``
-needs >= 16). The TorchScript exporter is used (``dynamo=False``): it exports these graphs in about a second,
-the dynamo exporter ten times slower.
+needs >= 16). The TorchScript exporter is used (``dynamo=False``): it exports these graphs
+far faster than the dynamo exporter (docs/method.md).
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ class AdaptError(ValueError):
 
 
 MAX_STEPS = 100_000
-"""Optimizer steps one adaptation may ask (about 6 hours at 5 steps/s on 2 CPU cores): a flag sizes no endless run."""
+"""Optimizer steps one adaptation may ask (hours on a CPU: docs/results/timings/): a flag sizes no endless run."""
 MAX_BATCH = 64
 """Real or synthetic clips in one batch: a flag sizes no batch that cannot fit in memory."""
 MAX_SYNTHETIC_CLIPS = 1000

@@ -1,7 +1,7 @@
 """What the machine runs fast: native bfloat16 or not.
 
-bf16 autocast is ~3x faster than float32 on CPUs with AMX or AVX512-BF16 and ~10-15x SLOWER on CPUs
-without them (AVX2-only laptops and many cloud cores), where oneDNN emulates it. ``bf16="auto"`` in
+bf16 autocast is faster than float32 on CPUs with AMX or AVX512-BF16 and much SLOWER on CPUs without them
+(AVX2-only laptops and many cloud cores), where oneDNN emulates it (measured: docs/results/timings/). ``bf16="auto"`` in
 `stamlane.training.module.StamLaneModule` asks `native_bf16` which one this machine is.
 """
 

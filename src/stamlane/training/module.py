@@ -127,9 +127,9 @@ class StamLaneModule(LightningModule):
         crop_top: fraction of the frame height cut off above the network input (linked from ``data.clip.crop_top``);
             recorded so that streaming and export feed the network as it was trained.
         bf16: run the network under ``torch.autocast(dtype=bfloat16)``; losses and decoding stay float32.
-            ``"auto"`` (default): where the device the module is on runs bf16 natively (CPU: AMX / AVX512-BF16,
-            ~3x faster than float32; CUDA: ``torch.cuda.is_bf16_supported``), float32 elsewhere (emulated bf16
-            is ~15x slower); asked again when the module moves (`bf16`); see `stamlane.training.hardware`.
+            ``"auto"`` (default): where the device the module is on runs bf16 natively (CPU: AMX / AVX512-BF16;
+            CUDA: ``torch.cuda.is_bf16_supported``), float32 elsewhere (emulated bf16 is far slower: measured in
+            docs/results/timings/); asked again when the module moves (`bf16`); see `stamlane.training.hardware`.
         channels_last: keep conv weights (and so activations) channels_last (faster on CPU with oneDNN).
         report_run_time: hand each image's ``run_time`` to the evaluator (TuSimple scores an image over
             200 ms as missed); False leaves it out, so scores do not depend on the machine's load.

@@ -68,7 +68,7 @@ def read_text(path: str | os.PathLike[str], limit: int = MAX_FILE_BYTES, univers
             kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO, device or socket"
             raise LaneFileError(f"{p}: cannot read: {kind}, not a regular file")
         chunks, size = [], 0
-        while size <= limit:  # os.read, not a file object: 4,000 small files read 20 ms faster
+        while size <= limit:  # os.read, not a file object: faster on many small files
             chunk = os.read(fd, min(limit + 1 - size, 1 << 20))
             if not chunk:
                 break

@@ -32,8 +32,7 @@ uint8): each lane is drawn into a canvas cropped to it, never larger than the im
 before each canvas is allocated."""
 MAX_LANES = 512
 """Most lanes in one image, either side (time): the CULane metric compares every predicted lane with every annotated
-one and matches them in time cubic in the lane count; measured with ``culane.evaluate_image`` on the shared 2-core
-AMD EPYC: 65x4 lanes 0.4 s, 256x256 1.0 s, 512x512 4.4 s (1,500x1,500: about a minute). The C++ tool scores any
+one and matches them in time cubic in the lane count (what it costs: docs/results/evaluators/). The C++ tool scores any
 count (65 predicted lanes: 2 matched, 63 FP); real images hold at most a dozen. TuSimple files scored by lane.py's
 rule have no lane count limit: `MAX_TUSIMPLE_VALUES` and `MAX_COMPARED_CELLS` are their budgets."""
 MAX_LANE_POINTS = 10000
@@ -45,14 +44,13 @@ MAX_TUSIMPLE_VALUES = 1 << 25
 scoring (memory: 256 MiB). TuSimple's 2,782 test images take 0.8 M (5 lanes of 56 rows): any lane count and lane
 length lane.py scores fits, as long as the file's lanes padded to its longest do."""
 MAX_COMPARED_CELLS = 1 << 28
-"""Most (predicted lane, gt lane, row) comparisons of one TuSimple image that lane.py compares (time: 128 x 128
-lanes of 16,384 rows, at the limit, took 6.5 s and peaked at 0.28 GB on the shared 2-core AMD EPYC, load average
-12; memory stays bounded, the comparison runs a few gt lanes at a time; a TuSimple test image takes
+"""Most (predicted lane, gt lane, row) comparisons of one TuSimple image that lane.py compares (time, measured at the
+limit in docs/results/evaluators/; memory stays bounded, the comparison runs a few gt lanes at a time; a TuSimple test image takes
 7 x 5 x 56 = 1,960). An image that lane.py's lane-count or run-time rule scores (0, 0, 1) unseen costs nothing."""
 MAX_IMAGE_POINTS = 100_000
 """Most points in the lanes of one CULane/ApolloScape ``.lines.txt`` or VIL-100 ``.json`` (the memory budget of one image, not a limit
 per lane): the C++ metric resamples a lane at 50 points per segment, about 3 KB per input point while it is
-resampled (measured: one lane of 100,000 points, ``stamlane-eval culane``, peaks at 0.33 GB in 3.6 s); the C++
+resampled (measured at the limit: docs/results/evaluators/); the C++
 tool's own inputs hold a few hundred points per image."""
 MAX_LANE_WIDTH = 32767
 """Widest lane line (px) the CULane metric may draw: OpenCV's ``MAX_THICKNESS``, past which the C++ tool's
