@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import stamlane.align.motion as motion
-from stamlane.align import ALIGN_PRESETS, AlignConfig, align_preset, estimate_homography
+from stamlane.align import ALIGN_PRESETS, AlignConfig, align_preset, check_plausible, estimate_homography
 from stamlane.align.egomotion import key_from_hist_motion
 from stamlane.align.motion import forward_motion
 from stamlane.align.synthetic import render_road
@@ -94,7 +94,9 @@ def test_presets_made_before_it_are_unchanged(texture, monkeypatch):
     assert ALIGN_PRESETS["fast"] == AlignConfig(key_scales=(1.0,), max_track_points=150)
     assert "motion_scales" not in repr(ALIGN_PRESETS["fast"])
     assert "motion_scales=(1.4, 1.8, 2.4)" in repr(ALIGN_PRESETS["motion"])
-    others = [f.name for f in fields(AlignConfig) if f.name != "motion_scales"]
+    assert "ground_sign=True" in repr(ALIGN_PRESETS["motion"])
+    changed = {"motion_scales", "ground_sign", "max_scale", "max_displacement"}  # what the motion preset sets
+    others = [f.name for f in fields(AlignConfig) if f.name not in changed]
     assert all(getattr(ALIGN_PRESETS["motion"], n) == getattr(AlignConfig(), n) for n in others)
 
     # standard and fast never take the motion path
@@ -106,3 +108,19 @@ def test_presets_made_before_it_are_unchanged(texture, monkeypatch):
     key = render_road(texture, SMALL_CAMERA, forward=1.0)
     for name in ("standard", "fast"):
         assert estimate_homography(hist, key, horizon_row=SMALL_HORIZON, config=align_preset(name)).ok
+
+
+@pytest.mark.parametrize("forward", [6.0, 8.0, 12.0])
+def test_ground_sign_lets_the_true_homography_of_a_long_drive_through(forward):
+    # 6-12 m (two to three frames at 5 fps): hist_from_key's h[2, 2], the image origin's w, turns negative while
+    # the ground region lies before the line at infinity; the default test reads the origin's sign and refuses
+    truth = key_from_hist_motion(SMALL_CAMERA, forward)
+    assert np.linalg.inv(truth)[2, 2] < 0
+    assert "perspective too strong" in check_plausible(truth, SHAPE, SMALL_HORIZON, AlignConfig())
+    assert check_plausible(truth, SHAPE, SMALL_HORIZON, align_preset("motion")) == ""
+    # and what is implausible stays so: a mirror image, a ground region cut by the line at infinity (w = 1 - y / 250
+    # of hist_from_key: positive at row 162, negative at row 359)
+    mirror = np.diag([-1.0, 1.0, 1.0]) @ truth
+    assert "mirror" in check_plausible(mirror, SHAPE, SMALL_HORIZON, align_preset("motion"))
+    crossing = np.linalg.inv(np.array([[1.0, 0, 0], [0, 1, 0], [0, -1 / 250, 1]]))
+    assert "perspective too strong" in check_plausible(crossing, SHAPE, SMALL_HORIZON, align_preset("motion"))

@@ -78,6 +78,12 @@ class AlignConfig:
             the bottom-row scales, each >= 1, at which the history frame is pre-warped and matched again when the
             plain estimate is not strongly confirmed; the candidates compete on tracked-corner agreement.
             Empty (the default): the plain estimate alone.
+        ground_sign: `check_plausible` reads the homography's sign and scale at the ground region's corner farthest
+            from the line at infinity instead of at the image origin. The origin lies above the horizon: after 10 m
+            or more of driving (two frames back at 5 fps) it can lie beyond the line at infinity of ``hist_from_key``
+            while the whole ground region lies before it, and the default test then rejects the true homography as
+            "perspective too strong" (docs/alignment.md counts the generator's own). False (the default): the
+            origin's, as every result so far was made with.
     """
 
     features: FeatureConfig = field(default_factory=lambda: FeatureConfig(cell_size=15, max_features=300))
@@ -99,6 +105,7 @@ class AlignConfig:
     max_displacement: float = 0.5
     max_models: int = 3
     motion_scales: tuple[float, ...] = ()
+    ground_sign: bool = False
 
     def __post_init__(self) -> None:
         if any(not np.isfinite(s) or not 1 <= s <= 8 for s in self.motion_scales):
@@ -119,16 +126,16 @@ class AlignConfig:
             raise ValueError(f"min_matches and min_inliers must be >= 4, got {self.min_matches}, {self.min_inliers}")
 
     def __repr__(self) -> str:
-        # the dataclass's own repr, without ``motion_scales`` while it is off: the pair cache names an entry by the
-        # settings' repr (`stamlane.align.cache.pair_key`), so the presets made before it keep their entries
-        shown = [f for f in fields(self) if f.name != "motion_scales" or self.motion_scales]
+        # the dataclass's own repr, without the fields added for the motion preset while they are off: the pair cache
+        # names an entry by the settings' repr (`stamlane.align.cache.pair_key`), so the presets made before keep theirs
+        shown = [f for f in fields(self) if f.name not in ("motion_scales", "ground_sign") or getattr(self, f.name)]
         return f"{type(self).__qualname__}({', '.join(f'{f.name}={getattr(self, f.name)!r}' for f in shown)})"
 
 
 ALIGN_PRESETS: dict[str, AlignConfig] = {
     "standard": AlignConfig(),
     "fast": AlignConfig(key_scales=(1.0,), max_track_points=150),
-    "motion": AlignConfig(motion_scales=(1.4, 1.8, 2.4)),
+    "motion": AlignConfig(motion_scales=(1.4, 1.8, 2.4), ground_sign=True, max_scale=5.0, max_displacement=0.75),
 }
 """Named `AlignConfig` settings, chosen by ``data.clip.align_preset`` and ``stamlane stream --align-preset``
 (``stamlane align`` writes ``standard``'s). ``standard``: every setting's default, what every shipped model and result was made
@@ -137,8 +144,9 @@ real-frame pairs at 640x360 (one core) 1.5x faster, 14.2 -> 9.2 ms a pair, with 
 success (0.144 / 0.142 px, 100 % of 120 pairs; `benchmarks/align_presets.py`, docs/alignment.md).
 Its homographies differ from ``standard``'s, so a model's numbers change slightly with it: opt in. ``motion``:
 ``standard`` with the forward-motion prior of low frame rates (`stamlane.align.motion`; bottom-row scales 1.4 / 1.8
-/ 2.4 span the 2.4-5.6 m a frame of 5 fps driving), for 5 fps clips and traffic (docs/alignment.md); slower where
-the plain estimate is not confirmed."""
+/ 2.4 span the 2.4-5.6 m a frame of 5 fps driving) and the ground region's sign in the plausibility check (which
+lets a chain 2-3 frames back at 5 fps through), for 5 fps clips and traffic (docs/alignment.md); slower where the
+plain estimate is not confirmed."""
 
 
 def align_preset(name: str) -> AlignConfig:
@@ -316,10 +324,14 @@ def check_plausible(
     if abs(np.linalg.det(h)) < 1e-12:
         return "singular homography"
     h = np.linalg.inv(h)  # hist_from_key
-    if abs(h[2, 2]) < 1e-12:
-        return "singular homography"
-    h = h / h[2, 2]
     corners = ground_corners(shape, horizon_row)
+    scale = h[2, 2]  # the sign and scale the test of w below reads: the image origin's w
+    if cfg.ground_sign:  # the ground region's own: its corner farthest from the line at infinity
+        w = corners @ h[2, :2] + h[2, 2]
+        scale = w[np.argmax(np.abs(w))]
+    if abs(scale) < 1e-12:
+        return "singular homography"
+    h = h / scale
     w = corners @ h[2, :2] + h[2, 2]
     if np.any(w <= 1e-3):
         return "perspective too strong: the ground region crosses the line at infinity"
