@@ -28,10 +28,9 @@ settings), their frames through the JPEG round trip the data loader reads, their
     matches the final homography keeps within its 3 px threshold) on the vehicle masks, and the stage-1 fit's error
     with every match against the fit without the matches on vehicles (`fit_homography`).
 
-``--align-preset NAME`` (`stamlane.align.homography.ALIGN_PRESETS`; default ``standard``, what the shipped models
-align with) sets the alignment of the ORB chain in (a), (b) and (c); with another preset, (c) also runs ``standard``
-on the same windows, the two taking turns, and records both chains' thread CPU time per window (``chain_ms``,
-``standard_ms``) and ``standard``'s errors beside the preset's (the support and stage-1 columns stay ``standard``'s).
+``--align-preset NAME`` (of `ALIGN_PRESETS`; default ``standard``, the shipped models') aligns the ORB chain of (a)-(c);
+another preset's (c) also runs ``standard`` on each window right after it: its errors (``standard_px``) and both chains'
+thread CPU time a window (``chain_ms``, ``standard_ms``); the support and stage-1 columns stay ``standard``'s.
 
 Writes ``diagnosis.json`` and ``summary.md`` (the tables: `table`). Exit status 2 with one line on a bad option or a
 checkpoint that cannot be read.
@@ -245,7 +244,7 @@ def support_on_vehicles(hist: np.ndarray, key: np.ndarray, masks: tuple[np.ndarr
 
 def chain_errors(
     clip: SynthClip, frames: list[np.ndarray], key: int, preset: str = "standard"
-) -> tuple[list[float], list[bool], float]:
+) -> tuple[list, list, float]:
     """The ORB chain's corner error 1..3 frames back of a key frame (as the models align, with ``preset``), whether
     each was ok, and the window's thread CPU time in milliseconds."""
     from stamlane.align import estimate_clip
@@ -275,12 +274,8 @@ def alignment_rows(kind: str, seed: int, j: int, preset: str = "standard") -> li
                 row |= {"chain_px": errors, "chain_ok": oks}
                 if preset != "standard":  # the plain chain on the same window, right after: a busy machine slows both
                     plain_errors, plain_oks, plain_ms = chain_errors(clip, frames, key)
-                    row |= {
-                        "chain_ms": ms,
-                        "standard_px": plain_errors,
-                        "standard_ok": plain_oks,
-                        "standard_ms": plain_ms,
-                    }
+                    row |= {"chain_ms": ms, "standard_px": plain_errors, "standard_ok": plain_oks,
+                            "standard_ms": plain_ms}  # fmt: skip
                 if vehicles == "with":
                     pairs = [
                         support_on_vehicles(
@@ -329,15 +324,8 @@ def key_frame_rows(kind: str, seed: int, j: int, models: list[Model], preset: st
     return rows
 
 
-def run(
-    kinds: list[str],
-    clips: int,
-    seed: int,
-    ckpts: list[str],
-    resamples: int,
-    say: Any = print,
-    preset: str = "standard",
-) -> dict:
+def run(kinds: list[str], clips: int, seed: int, ckpts: list[str], resamples: int, say: Any = print,
+        preset: str = "standard") -> dict:  # fmt: skip
     """Every measurement on ``clips`` clips of each kind: the rows and their summary (`summarise`)."""
     import torch
 
@@ -452,10 +440,8 @@ def alignment_summary(rows: list[dict], resamples: int) -> dict:
                         "success_minus_standard": _paired(good, plain, groups, resamples),
                     }
             if chosen and "chain_ms" in chosen[0]:
-                out[f"{fps:g}fps/{vehicles}/ms"] = {
-                    "median_ms": float(np.median([r["chain_ms"] for r in chosen])),
-                    "standard_median_ms": float(np.median([r["standard_ms"] for r in chosen])),
-                }
+                out[f"{fps:g}fps/{vehicles}/ms"] = {"median_ms": float(np.median([r["chain_ms"] for r in chosen])),
+                                                    "standard_median_ms": float(np.median([r["standard_ms"] for r in chosen]))}  # fmt: skip
         chosen = [r for r in rows if r["fps"] == fps and r["vehicles"] == "with"]
         for b in range(HISTORY):
             support = np.array([r["support"][b] for r in chosen], float)
@@ -540,8 +526,7 @@ def table(out: dict) -> str:
 
 
 def _preset_table(out: dict) -> list[str]:
-    """(c) of another preset beside ``standard``'s on the same windows: share within `SUCCESS_PX`, paired
-    difference, and the chain's median thread CPU time per 4-frame window."""
+    """(c) of another preset beside ``standard``'s on the same windows: < `SUCCESS_PX`, paired, median ms a window."""
     preset, rows = out["align_preset"], []
     for kind, entry in out["kinds"].items():
         a = entry["summary"]["alignment"]
@@ -565,8 +550,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"of {' '.join(KINDS)}")
     parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
     parser.add_argument("--resamples", type=int, default=2000, help=f"bootstrap resamples (100-{MAX_RESAMPLES})")
-    parser.add_argument("--align-preset", choices=tuple(ALIGN_PRESETS), default="standard",
-                        help="the ORB chain's alignment preset (default: standard, the shipped models')")  # fmt: skip
+    parser.add_argument("--align-preset", default="standard", help=f"of {' '.join(ALIGN_PRESETS)} (default: standard)")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/traffic"))
     args = parser.parse_args(argv)
     from stamlane.safety.guard import GuardError, check_outputs, write_atomic
@@ -583,6 +567,8 @@ def main(argv: list[str] | None = None) -> int:
         if not 100 <= args.resamples <= MAX_RESAMPLES
         else f"--seed must be >= 0, got {args.seed}"
         if args.seed < 0
+        else f"--align-preset must be one of {' '.join(ALIGN_PRESETS)}, got {args.align_preset!r}"
+        if args.align_preset not in ALIGN_PRESETS
         else None
     )
     if problem is None:
@@ -593,8 +579,8 @@ def main(argv: list[str] | None = None) -> int:
             problem = str(err)
     if problem is None:
         try:
-            kinds = list(dict.fromkeys(args.kinds))
-            out = run(kinds, args.clips, args.seed, args.ckpt, args.resamples, preset=args.align_preset)
+            out = run(list(dict.fromkeys(args.kinds)), args.clips, args.seed, args.ckpt, args.resamples,
+                      preset=args.align_preset)  # fmt: skip
         except DiagnosisError as err:
             problem = str(err)
     if problem is not None:
