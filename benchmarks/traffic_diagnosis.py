@@ -1,7 +1,7 @@
 """Vehicles that hide the lanes: what the aligned history shows of the hidden paint, what the networks make of it.
 
     python benchmarks/traffic_diagnosis.py [--clips 20] [--seed 57] [--kinds KIND ...] [--ckpt NAME_OR_FILE ...]
-                                           [--resamples 2000] [--out outputs/bench/traffic]
+                                           [--resamples 2000] [--align-preset standard] [--out outputs/bench/traffic]
 
 Issue 57 asks why the 4-frame models barely read their history on ``reveal-traffic``. For each kind of vehicle
 traffic (the two ``reveal-traffic`` kinds at 5 fps, `REVEAL_TRAFFIC`, and the challenging split's three traffic
@@ -28,6 +28,10 @@ settings), their frames through the JPEG round trip the data loader reads, their
     matches the final homography keeps within its 3 px threshold) on the vehicle masks, and the stage-1 fit's error
     with every match against the fit without the matches on vehicles (`fit_homography`).
 
+``--align-preset NAME`` (of `ALIGN_PRESETS`; default ``standard``, the shipped models') aligns the ORB chain of (a)-(c);
+another preset's (c) also runs ``standard`` on each window right after it: its errors (``standard_px``) and both chains'
+thread CPU time a window (``chain_ms``, ``standard_ms``); the support and stage-1 columns stay ``standard``'s.
+
 Writes ``diagnosis.json`` and ``summary.md`` (the tables: `table`). Exit status 2 with one line on a bad option or a
 checkpoint that cannot be read.
 """
@@ -46,6 +50,7 @@ import numpy as np
 from _harness import Within, fail, option_problem, write_result
 from synth_align import corner_error, jpeg  # a benchmark script beside this one
 
+from stamlane.align.homography import ALIGN_PRESETS, align_preset
 from stamlane.synth.clip import SynthClip, generate_clip
 from stamlane.synth.config import FACTORS, REVEAL_TRAFFIC, SynthConfig
 from stamlane.synth.layout import EVAL_KEY_STEP, SPLITS, key_frames
@@ -235,21 +240,26 @@ def support_on_vehicles(hist: np.ndarray, key: np.ndarray, masks: tuple[np.ndarr
     return counts, errors
 
 
-def chain_errors(clip: SynthClip, frames: list[np.ndarray], key: int) -> tuple[list[float], list[bool]]:
-    """The ORB chain's corner error 1..3 frames back of a key frame (as the models align) and whether each was ok."""
+def chain_errors(
+    clip: SynthClip, frames: list[np.ndarray], key: int, preset: str = "standard"
+) -> tuple[list, list, float]:
+    """The ORB chain's corner error 1..3 frames back of a key frame (as the models align, with ``preset``), whether
+    each was ok, and the window's thread CPU time in milliseconds."""
     from stamlane.align import estimate_clip
     from stamlane.align.homography import default_horizon_row
 
     shape = frames[key].shape[:2]
     row = default_horizon_row(shape[0])
     window = frames[key - HISTORY : key + 1]
-    alignments = estimate_clip(window, strategy="chain")
+    start = time.thread_time()
+    alignments = estimate_clip(window, strategy="chain", config=align_preset(preset))
+    ms = 1000 * (time.thread_time() - start)
     errors = [corner_error(alignments[HISTORY - j].key_from_hist, clip.key_from_hist(key, key - j), shape, row)
               for j in range(1, HISTORY + 1)]  # fmt: skip
-    return errors, [alignments[HISTORY - j].ok for j in range(1, HISTORY + 1)]
+    return errors, [alignments[HISTORY - j].ok for j in range(1, HISTORY + 1)], ms
 
 
-def alignment_rows(kind: str, seed: int, j: int) -> list[dict]:
+def alignment_rows(kind: str, seed: int, j: int, preset: str = "standard") -> list[dict]:
     """(c) for the ``j``-th clip of ``kind``: a row per fps and vehicles (with / without), its last key frame."""
     rows = []
     for fps in FPS:
@@ -257,9 +267,13 @@ def alignment_rows(kind: str, seed: int, j: int) -> list[dict]:
         for vehicles, clip in clips.items():
             frames = [jpeg(f, 92) for f in clip.frames]
             for key in clip_keys(kind, len(frames))[-1:]:  # the last key frame: one window a clip
-                errors, oks = chain_errors(clip, frames, key)
+                errors, oks, ms = chain_errors(clip, frames, key, preset)
                 row: dict[str, Any] = {"clip": j, "fps": fps, "vehicles": vehicles, "key": key}
                 row |= {"chain_px": errors, "chain_ok": oks}
+                if preset != "standard":  # the plain chain on the same window, right after: a busy machine slows both
+                    plain_errors, plain_oks, plain_ms = chain_errors(clip, frames, key)
+                    row |= {"chain_ms": ms, "standard_px": plain_errors, "standard_ok": plain_oks,
+                            "standard_ms": plain_ms}  # fmt: skip
                 if vehicles == "with":
                     pairs = [
                         support_on_vehicles(
@@ -276,7 +290,7 @@ def alignment_rows(kind: str, seed: int, j: int) -> list[dict]:
 
 
 # ------------------------------------------------------------------------------------------------ the run
-def key_frame_rows(kind: str, seed: int, j: int, models: list[Model]) -> list[dict]:
+def key_frame_rows(kind: str, seed: int, j: int, models: list[Model], preset: str = "standard") -> list[dict]:
     """(a) and (b) for the ``j``-th clip of ``kind``: a row per key frame."""
     from stamlane.align import estimate_clip
 
@@ -285,7 +299,7 @@ def key_frame_rows(kind: str, seed: int, j: int, models: list[Model]) -> list[di
     rows = []
     for key in clip_keys(kind, len(frames)):
         window = frames[key - HISTORY : key + 1]
-        orb = np.stack([a.key_from_hist for a in estimate_clip(window, strategy="chain")])
+        orb = np.stack([a.key_from_hist for a in estimate_clip(window, strategy="chain", config=align_preset(preset))])
         exact = np.stack([clip.key_from_hist(key, key - HISTORY + t) for t in range(HISTORY + 1)])
         hidden = hidden_points(clip, key)
         masks = {name: history_shows(clip, key, list(mats[::-1])) for name, mats in (("exact", exact), ("orb", orb))}
@@ -308,7 +322,8 @@ def key_frame_rows(kind: str, seed: int, j: int, models: list[Model]) -> list[di
     return rows
 
 
-def run(kinds: list[str], clips: int, seed: int, ckpts: list[str], resamples: int, say: Any = print) -> dict:
+def run(kinds: list[str], clips: int, seed: int, ckpts: list[str], resamples: int, say: Any = print,
+        preset: str = "standard") -> dict:  # fmt: skip
     """Every measurement on ``clips`` clips of each kind: the rows and their summary (`summarise`)."""
     import torch
 
@@ -319,10 +334,12 @@ def run(kinds: list[str], clips: int, seed: int, ckpts: list[str], resamples: in
     if len(set(names)) < len(names):
         raise DiagnosisError(f"--ckpt: two checkpoints of one name among {' '.join(names)}")
     out: dict[str, Any] = {"seed": seed, "clips": clips, "checkpoints": names, "kinds": {}}
+    if preset != "standard":
+        out["align_preset"] = preset
     start = time.perf_counter()
     for kind in kinds:
-        key_rows = [r for j in range(clips) for r in key_frame_rows(kind, seed, j, models)]
-        align_rows = [r for j in range(clips) for r in alignment_rows(kind, seed, j)]
+        key_rows = [r for j in range(clips) for r in key_frame_rows(kind, seed, j, models, preset)]
+        align_rows = [r for j in range(clips) for r in alignment_rows(kind, seed, j, preset)]
         split, _, _ = kind_split(kind)
         out["kinds"][kind] = {
             "split": split,
@@ -412,6 +429,17 @@ def alignment_summary(rows: list[dict], resamples: int) -> dict:
                     "p90_px": float(np.percentile(errors, 90)),
                     "success": _estimate(good, groups, resamples),
                 }
+                if chosen and "standard_px" in chosen[0]:  # another preset: standard's on the same windows, paired
+                    plain = np.array([[float(r["standard_ok"][b] and r["standard_px"][b] < SUCCESS_PX), 1.0]
+                                      for r in chosen])  # fmt: skip
+                    out[f"{fps:g}fps/{vehicles}/{b + 1}"] |= {
+                        "standard_median_px": float(np.median([r["standard_px"][b] for r in chosen])),
+                        "standard_success": _estimate(plain, groups, resamples),
+                        "success_minus_standard": _paired(good, plain, groups, resamples),
+                    }
+            if chosen and "chain_ms" in chosen[0]:
+                out[f"{fps:g}fps/{vehicles}/ms"] = {"median_ms": float(np.median([r["chain_ms"] for r in chosen])),
+                                                    "standard_median_ms": float(np.median([r["standard_ms"] for r in chosen]))}  # fmt: skip
         chosen = [r for r in rows if r["fps"] == fps and r["vehicles"] == "with"]
         for b in range(HISTORY):
             support = np.array([r["support"][b] for r in chosen], float)
@@ -490,7 +518,27 @@ def table(out: dict) -> str:
     head = ["kind", "fps", "back", "median px with / without vehicles", "p90 px", f"< {SUCCESS_PX:g} px, vehicles",
             f"< {SUCCESS_PX:g} px, none", "% matches / inliers on vehicles", "stage-1 px all / off vehicles"]  # fmt: skip
     lines += ["", *_table(head, rows)]
+    if "align_preset" in out:
+        lines += [*_preset_table(out), ""]
     return "\n".join(lines) + "\n"
+
+
+def _preset_table(out: dict) -> list[str]:
+    """(c) of another preset beside ``standard``'s on the same windows: < `SUCCESS_PX`, paired, median ms a window."""
+    preset, rows = out["align_preset"], []
+    for kind, entry in out["kinds"].items():
+        a = entry["summary"]["alignment"]
+        for fps in FPS:
+            for vehicles in ("with", "without"):
+                cells = [a[f"{fps:g}fps/{vehicles}/{b}"] for b in range(1, HISTORY + 1)]
+                ms = a[f"{fps:g}fps/{vehicles}/ms"]
+                rows.append([kind, f"{fps:g}", vehicles, " / ".join(f"{100 * c['standard_success']['value']:.0f}" for c in cells),
+                             " / ".join(f"{100 * c['success']['value']:.0f}" for c in cells),
+                             ", ".join(_pct(c["success_minus_standard"], "+") for c in cells),
+                             f"{ms['standard_median_ms']:.0f} / {ms['median_ms']:.0f}"])  # fmt: skip
+    head = ["kind", "fps", "vehicles", f"< {SUCCESS_PX:g} px 1/2/3 back, standard", f"{preset}",
+            f"{preset} − standard, 1 / 2 / 3 back", f"ms a window, standard / {preset}"]  # fmt: skip
+    return ["", f"(c') the ORB chain with the {preset} preset against standard's, the same windows", "", *_table(head, rows)]  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -500,6 +548,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinds", nargs="+", default=list(KINDS), help=f"of {' '.join(KINDS)}")
     parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
     parser.add_argument("--resamples", type=int, default=2000, help=f"bootstrap resamples (100-{MAX_RESAMPLES})")
+    parser.add_argument("--align-preset", default="standard", help=f"of {' '.join(ALIGN_PRESETS)} (default: standard)")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/traffic"))
     args = parser.parse_args(argv)
     from stamlane.safety.guard import GuardError, check_outputs, write_atomic
@@ -512,6 +561,8 @@ def main(argv: list[str] | None = None) -> int:
         "seed": Within(0),
     }
     problem = option_problem(vars(args), choices={"kinds": KINDS}, ranges=ranges)
+    if problem is None and args.align_preset not in ALIGN_PRESETS:
+        problem = f"--align-preset must be one of {' '.join(ALIGN_PRESETS)}, got {args.align_preset!r}"
     if problem is None:
         inputs = [Path(c) for c in args.ckpt if Path(c).exists()]
         try:
@@ -520,7 +571,8 @@ def main(argv: list[str] | None = None) -> int:
             problem = str(err)
     if problem is None:
         try:
-            out = run(list(dict.fromkeys(args.kinds)), args.clips, args.seed, args.ckpt, args.resamples)
+            out = run(list(dict.fromkeys(args.kinds)), args.clips, args.seed, args.ckpt, args.resamples,
+                      preset=args.align_preset)  # fmt: skip
         except DiagnosisError as err:
             problem = str(err)
     if problem is not None:

@@ -105,5 +105,5 @@ def test_the_fast_preset_is_cached_apart(root: Path) -> None:
 
 
 def test_an_unknown_preset_is_refused_in_one_line() -> None:
-    with pytest.raises(ValueError, match=r"align preset must be one of \('standard', 'fast'\), got 'quick'"):
+    with pytest.raises(ValueError, match=r"align preset must be one of \('standard', 'fast', 'motion'\), got 'quick'"):
         replace(CLIP, align_preset="quick")

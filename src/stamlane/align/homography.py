@@ -14,7 +14,7 @@ Two stages, both on the ground region below ``horizon_row``:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import cv2
 import numpy as np
@@ -74,6 +74,16 @@ class AlignConfig:
         max_models: homographies tried per pair: when the tracking check rejects a fit (or it is implausible),
             its RANSAC inliers are set aside and the rest of the matches are fitted again (sequential RANSAC:
             a car driving ahead is a second, wrong "plane" that can outvote the road). 1: one fit only.
+        motion_scales: the forward-motion prior of low frame rates (`stamlane.align.motion`, the ``motion`` preset):
+            the bottom-row scales, each >= 1, at which the history frame is pre-warped and matched again when the
+            plain estimate is not strongly confirmed; the candidates compete on tracked-corner agreement.
+            Empty (the default): the plain estimate alone.
+        ground_sign: `check_plausible` reads the homography's sign and scale at the ground region's corner farthest
+            from the line at infinity instead of at the image origin. The origin lies above the horizon: after 10 m
+            or more of driving (two frames back at 5 fps) it can lie beyond the line at infinity of ``hist_from_key``
+            while the whole ground region lies before it, and the default test then rejects the true homography as
+            "perspective too strong" (docs/alignment.md counts the generator's own). False (the default): the
+            origin's, as every result so far was made with.
     """
 
     features: FeatureConfig = field(default_factory=lambda: FeatureConfig(cell_size=15, max_features=300))
@@ -94,8 +104,12 @@ class AlignConfig:
     max_scale: float = 3.0
     max_displacement: float = 0.5
     max_models: int = 3
+    motion_scales: tuple[float, ...] = ()
+    ground_sign: bool = False
 
     def __post_init__(self) -> None:
+        if any(not np.isfinite(s) or not 1 <= s <= 8 for s in self.motion_scales):
+            raise ValueError(f"motion_scales must each be in [1, 8], got {self.motion_scales}")
         if not 0.1 <= self.refine_scale <= 1:
             raise ValueError(f"refine_scale must be in [0.1, 1], got {self.refine_scale}")
         if not 0.1 <= self.working_scale <= 1:
@@ -111,17 +125,28 @@ class AlignConfig:
         if self.min_inliers < 4 or self.min_matches < 4:
             raise ValueError(f"min_matches and min_inliers must be >= 4, got {self.min_matches}, {self.min_inliers}")
 
+    def __repr__(self) -> str:
+        # the dataclass's own repr, without the fields added for the motion preset while they are off: the pair cache
+        # names an entry by the settings' repr (`stamlane.align.cache.pair_key`), so the presets made before keep theirs
+        shown = [f for f in fields(self) if f.name not in ("motion_scales", "ground_sign") or getattr(self, f.name)]
+        return f"{type(self).__qualname__}({', '.join(f'{f.name}={getattr(self, f.name)!r}' for f in shown)})"
+
 
 ALIGN_PRESETS: dict[str, AlignConfig] = {
     "standard": AlignConfig(),
     "fast": AlignConfig(key_scales=(1.0,), max_track_points=150),
+    "motion": AlignConfig(motion_scales=(1.4, 1.8, 2.4), ground_sign=True, max_scale=5.0, max_displacement=0.75),
 }
 """Named `AlignConfig` settings, chosen by ``data.clip.align_preset`` and ``stamlane stream --align-preset``
 (``stamlane align`` writes ``standard``'s). ``standard``: every setting's default, what every shipped model and result was made
 with. ``fast``: the key frame's features at one scale (no pyramid) and 150 tracked corners instead of 300; on
 real-frame pairs at 640x360 (one core) 1.5x faster, 14.2 -> 9.2 ms a pair, with the same median corner error and
 success (0.144 / 0.142 px, 100 % of 120 pairs; `benchmarks/align_presets.py`, docs/alignment.md).
-Its homographies differ from ``standard``'s, so a model's numbers change slightly with it: opt in."""
+Its homographies differ from ``standard``'s, so a model's numbers change slightly with it: opt in. ``motion``:
+``standard`` with the forward-motion prior of low frame rates (`stamlane.align.motion`; bottom-row scales 1.4 / 1.8
+/ 2.4 span the 2.4-5.6 m a frame of 5 fps driving) and the ground region's sign in the plausibility check (which
+lets a chain 2-3 frames back at 5 fps through), for 5 fps clips and traffic (docs/alignment.md); slower where the
+plain estimate is not confirmed."""
 
 
 def align_preset(name: str) -> AlignConfig:
@@ -299,10 +324,14 @@ def check_plausible(
     if abs(np.linalg.det(h)) < 1e-12:
         return "singular homography"
     h = np.linalg.inv(h)  # hist_from_key
-    if abs(h[2, 2]) < 1e-12:
-        return "singular homography"
-    h = h / h[2, 2]
     corners = ground_corners(shape, horizon_row)
+    scale = h[2, 2]  # the sign and scale the test of w below reads: the image origin's w
+    if cfg.ground_sign:  # the ground region's own: its corner farthest from the line at infinity
+        w = corners @ h[2, :2] + h[2, 2]
+        scale = w[np.argmax(np.abs(w))]
+    if abs(scale) < 1e-12:
+        return "singular homography"
+    h = h / scale
     w = corners @ h[2, :2] + h[2, 2]
     if np.any(w <= 1e-3):
         return "perspective too strong: the ground region crosses the line at infinity"
@@ -415,6 +444,10 @@ def _fit(
 def estimate_prepared(hist: FramePrep, key: FramePrep, cfg: AlignConfig | None = None) -> Alignment:
     """``key_from_hist`` between two prepared frames of one size; never raises (see ``estimate_homography``)."""
     cfg = cfg or AlignConfig()
+    if cfg.motion_scales:
+        from stamlane.align.motion import estimate_with_motion  # it calls back here with motion_scales=()
+
+        return estimate_with_motion(hist, key, cfg)
     fh, fk = hist.features(), key.features(cfg.key_scales)
     if len(fh) < 4 or len(fk) < 4:
         return Alignment.failed(f"too few features: {len(fh)} in history, {len(fk)} in key (textureless?)")
