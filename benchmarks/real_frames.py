@@ -292,3 +292,88 @@ def lane_numbers(
     ``records``, in order) whose decodings drew ``found`` lines, the labels' frames of ``sizes`` (width, height)."""
     frames = [frame_numbers(p["lanes"], n, r, s) for p, n, r, s in zip(preds, found, records, sizes, strict=True)]
     return {"by_position": position_recall(frames), "counts": count_numbers(frames), "per_frame": frames}
+
+
+# --------------------------------------------------------------------------- support in the probability map
+SUPPORT_COLUMNS = 4  # network columns searched either side of a labelled point: lane.py's 20 px at 1280 px wide, of 256
+PRESENT_ROWS = 0.5  # a labelled line is in the probability map where at least this share of its rows has a lane pixel
+
+
+def label_in_net(xs: Sequence[float], rows: Sequence[float], net_from_orig: np.ndarray) -> np.ndarray:
+    """A labelled line's points (lane.py's ``xs`` at ``rows``, -2 where absent) in network-input pixels, ``(N, 2)``
+    ``(x, y)`` (``net_from_orig``: the 3x3 map of `stamlane.stream.predictor` outputs)."""
+    points = np.array([[x, y, 1.0] for x, y in zip(xs, rows, strict=True) if x >= 0], dtype=np.float64).reshape(-1, 3)
+    mapped = np.asarray(net_from_orig, dtype=np.float64) @ points.T
+    out: np.ndarray = (mapped[:2] / mapped[2:]).T
+    return out
+
+
+def line_support(
+    prob: np.ndarray,
+    net_points: np.ndarray,
+    prob_thresh: float,
+    sure_thresh: float,
+    columns: int = SUPPORT_COLUMNS,
+) -> dict[str, Any]:
+    """How much of one labelled line the lane probability map holds.
+
+    Per labelled point inside the map (``net_points``, `label_in_net`), the largest lane probability on its row
+    within ``columns`` network columns of it; then the share of those rows above ``prob_thresh`` (a lane pixel to the
+    decoding) and above ``sure_thresh`` (a pixel DBSCAN clusters, the decoding's ``cluster_thresh``), and the mean.
+
+    Args:
+        prob: ``(H, W)`` lane probability at network resolution.
+        net_points: ``(N, 2)`` ``(x, y)`` of the labelled line in network pixels.
+        prob_thresh: the decoding's lane-pixel threshold.
+        sure_thresh: the decoding's clustering threshold.
+        columns: the half-width of the search, network columns.
+
+    Returns:
+        ``{"rows", "lane_rows", "sure_rows", "mean_max", "present"}``: the labelled rows inside the map, the shares
+        (None with no row inside), and whether at least `PRESENT_ROWS` of the rows hold a lane pixel.
+    """
+    if prob.ndim != 2:
+        raise ValueError(f"expected prob of shape (H, W), got {prob.shape}")
+    height, width = prob.shape
+    peaks = []
+    for x, y in np.asarray(net_points, dtype=np.float64).reshape(-1, 2):
+        row, col = int(np.floor(y)), int(np.rint(x))
+        if not (0 <= row < height and -columns <= col < width + columns):
+            continue
+        lo, hi = max(0, col - columns), min(width, col + columns + 1)
+        if lo < hi:
+            peaks.append(float(prob[row, lo:hi].max()))
+    if not peaks:
+        return {"rows": 0, "lane_rows": None, "sure_rows": None, "mean_max": None, "present": False}
+    peak = np.array(peaks)
+    lane_rows = float((peak > prob_thresh).mean())
+    return {
+        "rows": len(peaks),
+        "lane_rows": lane_rows,
+        "sure_rows": float((peak > sure_thresh).mean()),
+        "mean_max": float(peak.mean()),
+        "present": lane_rows >= PRESENT_ROWS,
+    }
+
+
+CAUSES = ("matched", "absent", "not clustered", "merged", "drawn off the label")
+"""Why a labelled line is matched or not: `miss_cause`."""
+
+
+def miss_cause(matched: bool, present: bool, owner: str) -> str:
+    """One labelled line's `CAUSES` entry.
+
+    Args:
+        matched: lane.py matches it.
+        present: the probability map holds it (`line_support`'s ``present``).
+        owner: what the decoding made of the lane pixels along it: ``"noise"`` (no cluster drawn: unassigned, or
+            in clusters too small to draw), ``"shared"`` (most of them in a drawn cluster that most pixels of
+            another labelled line are in too), ``"own"`` (a drawn cluster of its own).
+    """
+    if owner not in ("noise", "shared", "own"):
+        raise ValueError(f"owner must be noise, shared or own, got {owner!r}")
+    if matched:
+        return "matched"
+    if not present:
+        return "absent"
+    return {"noise": "not clustered", "shared": "merged", "own": "drawn off the label"}[owner]

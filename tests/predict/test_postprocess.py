@@ -184,3 +184,65 @@ def test_the_shipped_models_lanes_are_the_same_as_with_sklearns_dbscan(
     assert len(lanes) == len(expected) == len(samples)
     for got, want in zip(lanes, expected):
         assert len(got) == len(want) and all(np.array_equal(a, b) for a, b in zip(got, want))
+
+
+# ---------------------------------------------------------------------------------- pixel counts and the input size
+def _road(h: int, w: int, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Two straight lanes and a 24x2-pixel streak with its own embedding on an ``h`` x ``w`` map, each network pixel
+    repeated ``factor`` x ``factor`` times: the same road at ``factor`` times the input size."""
+    rng = np.random.default_rng(3)
+    prob = np.full((h, w), 0.05, dtype=np.float32)
+    emb = rng.normal(0.0, 1.0, size=(4, h, w)).astype(np.float32)
+    for i, xb in enumerate((0.2 * w, 0.8 * w)):
+        for y in range(h // 4, h):
+            x = round(w / 2 + (xb - w / 2) * (y - h // 4) / (h - 1 - h // 4))
+            prob[y, x - 1 : x + 2] = 0.97
+            emb[:, y, x - 1 : x + 2] = (3.0 * np.eye(4)[i])[:, None] + rng.normal(0, 0.05, (4, 3))
+    prob[h // 2 : h // 2 + 24, 5:7] = 0.97  # 48 pixels over three bands of rows: a cluster below min_cluster_pixels 50
+    emb[:, h // 2 : h // 2 + 24, 5:7] = np.array([0, 0, -3.0, 0], np.float32)[:, None, None]
+    big_prob = np.kron(prob, np.ones((factor, factor), np.float32))
+    big_emb = np.stack([np.kron(e, np.ones((factor, factor), np.float32)) for e in emb])
+    return big_prob, big_emb
+
+
+def test_pixel_counts_are_unchanged_at_the_reference_size() -> None:
+    config, plain = PostprocessConfig(), PostprocessConfig(reference_size=None)
+    assert config.reference_size == (80, 256) and config.pixel_scale((80, 256)) == 1.0
+    assert config.min_pixels(1.0) == 50 and config.core_samples(1234, 1.0) == 25
+    prob, emb = _road(80, 256)
+    assert prob.shape == (80, 256)
+    got, want = decode_lanes(prob, emb, config=config), decode_lanes(prob, emb, config=plain)
+    assert len(got) == len(want) == 2  # the streak dropped
+    assert len(decode_lanes(prob, emb, config=PostprocessConfig(min_cluster_pixels=30))) == 3  # for its size alone
+    assert all(np.array_equal(a, b) for a, b in zip(got, want))
+
+
+def test_pixel_counts_scale_with_the_area_of_the_map() -> None:
+    config = PostprocessConfig()
+    assert config.pixel_scale((160, 512)) == 4.0 and config.pixel_scale((40, 128)) == 0.25
+    assert PostprocessConfig(reference_size=None).pixel_scale((160, 512)) == 1.0
+    assert config.min_pixels(4.0) == 200 and config.min_pixels(0.01) == 1
+    # min_samples: the subsample drawn against the one the reference size would draw (max_points 2000)
+    assert config.core_samples(4000, 4.0) == 50  # 2000 drawn, 1000 at 80x256: twice as dense
+    assert config.core_samples(12000, 4.0) == 25  # both subsamples full: the same density
+    assert config.core_samples(250, 0.25) == 6  # 250 drawn, 1000 at 80x256
+
+
+def test_the_same_road_at_twice_the_input_decodes_to_the_same_lanes() -> None:
+    """At 160x512 the streak covers 192 pixels: an extra lane with the counts as given at 80x256, dropped with them
+    scaled to the map (200)."""
+    prob, emb = _road(80, 256, factor=2)
+    assert prob.shape == (160, 512)
+    scaled = decode_lanes(prob, emb, config=PostprocessConfig(max_points=10_000))
+    as_given = decode_lanes(prob, emb, config=PostprocessConfig(max_points=10_000, reference_size=None))
+    assert len(scaled) == 2 and len(as_given) == 3
+    small = decode_lanes(*_road(80, 256), config=PostprocessConfig(max_points=10_000))
+    for big, one in zip(scaled, small):  # the same lanes, in the map's pixels (2x)
+        np.testing.assert_allclose(np.interp(one[:, 1] * 2, big[:, 1], big[:, 0]), one[:, 0] * 2, atol=2.0)
+
+
+def test_the_reference_size_is_checked_and_taken_from_a_list() -> None:
+    assert PostprocessConfig(reference_size=[96, 320]).reference_size == (96, 320)  # type: ignore[arg-type]
+    for bad in ((80,), (0, 256), (80.5, 256), (True, 256)):
+        with pytest.raises(ValueError, match="reference_size must be"):
+            PostprocessConfig(reference_size=bad)  # type: ignore[arg-type]

@@ -23,6 +23,13 @@ docs/method.md §5 (paper 3.4). numpy in, numpy out; called from ``StamLaneModul
    refitted), and the curve is sampled every ``y_step`` original pixels (or at the given ``y_samples``,
    e.g. TuSimple ``h_samples``) inside the rows the cluster covers.
 
+The counts in network pixels (``min_cluster_pixels``, and ``min_samples``, a count of the subsample) are given at
+the network input ``reference_size`` (the 80x256 every shipped model was trained at, where they were chosen) and
+scaled to the lane map's own size (`PostprocessConfig.pixel_scale`): a lane covers ``s`` times the pixels on a map of
+``s`` times the area. At 80x256 nothing changes. ``max_points`` is a bound on DBSCAN's work, not a size, and is never
+scaled; ``y_step`` and ``outlier_px`` are original-image pixels (the label format's rows), which the input size does
+not change.
+
 Lanes come out left to right (by x at their lowest row), as ``(N, 2)`` float arrays of ``(x, y)`` in
 original-image pixels (``stamlane.types``).
 """
@@ -43,7 +50,11 @@ except ImportError:  # pragma: no cover
 
 from stamlane.types import Lanes
 
+REFERENCE_SIZE = (80, 256)
+"""Network input ``(H, W)`` the default pixel counts were chosen at: the shipped models' (docs/models.md)."""
+
 __all__ = [
+    "REFERENCE_SIZE",
     "LaneCurve",
     "PostprocessConfig",
     "cluster_lane_pixels",
@@ -70,10 +81,13 @@ class PostprocessConfig:
             ``delta_v`` = 0.5 of their lane's mean and pushes means ``2 * delta_d`` = 3 apart); 0.35 as
             LaneNet's reference implementation.
         min_samples: DBSCAN core-point count, measured on the subsample (25 of <= 2000 points: a thin
-            bridge of stray pixels between two lanes does not join them).
-        max_points: at most this many lane pixels go into DBSCAN; the rest are assigned afterwards.
+            bridge of stray pixels between two lanes does not join them); given for the subsample a map of
+            ``reference_size`` draws (`core_samples`).
+        max_points: at most this many lane pixels go into DBSCAN; the rest are assigned afterwards. A bound on the
+            work, never scaled.
         assign_radius: a pixel farther than this (embedding units) from every cluster centre is noise.
-        min_cluster_pixels: clusters with fewer lane pixels (network resolution) are dropped.
+        min_cluster_pixels: clusters with fewer lane pixels (network resolution) are dropped; given at
+            ``reference_size`` (`min_pixels`).
         y_step: original-image pixels between the rows x is sampled at (paper: 10).
         degree: polynomial degree of x = f(y); lowered when a cluster covers too few rows.
         outlier_px: residual (original pixels) below which a point is never an outlier.
@@ -85,6 +99,9 @@ class PostprocessConfig:
             vehicles up to a far limit shared by all lanes; a lane whose far part hides behind a vehicle
             otherwise ends early and misses the 85 % of points a TuSimple match needs. On the synthetic test
             clips a detector of the VISIBLE paint scores F1 0.65 without this and 0.84 with it.
+        reference_size: the network input ``(H, W)`` that ``min_cluster_pixels`` and ``min_samples`` are given at
+            (`REFERENCE_SIZE`, where the defaults were chosen); on a lane map of another size they are scaled by
+            the ratio of the areas (`pixel_scale`). ``None``: used as given at any size.
     """
 
     prob_thresh: float = 0.5
@@ -100,8 +117,16 @@ class PostprocessConfig:
     max_lanes: int = 8
     seed: int = 0
     extend: bool = False
+    reference_size: tuple[int, int] | None = REFERENCE_SIZE
 
     def __post_init__(self) -> None:
+        if self.reference_size is not None:
+            size = tuple(self.reference_size)  # a run's config or a model's metadata gives a list
+            if len(size) != 2 or not all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1 for v in size
+            ):
+                raise ValueError(f"reference_size must be (H, W), two ints >= 1, or None, got {self.reference_size!r}")
+            object.__setattr__(self, "reference_size", (int(size[0]), int(size[1])))
         if not 0.0 <= self.prob_thresh < 1.0:
             raise ValueError(f"prob_thresh must be in [0, 1), got {self.prob_thresh}")
         if self.cluster_thresh is not None and not self.prob_thresh <= self.cluster_thresh < 1.0:
@@ -115,9 +140,32 @@ class PostprocessConfig:
         if self.degree < 1:
             raise ValueError(f"degree must be >= 1, got {self.degree}")
 
+    def pixel_scale(self, size: tuple[int, int]) -> float:
+        """Network pixels at ``size`` ``(H, W)`` per pixel at ``reference_size``: the ratio of the areas (1.0 with no
+        reference size)."""
+        if self.reference_size is None:
+            return 1.0
+        return (size[0] * size[1]) / (self.reference_size[0] * self.reference_size[1])
+
+    def min_pixels(self, scale: float = 1.0) -> int:
+        """``min_cluster_pixels`` on a map of ``scale`` times the reference area (`pixel_scale`), at least 1."""
+        return self.min_cluster_pixels if scale == 1.0 else max(1, round(self.min_cluster_pixels * scale))
+
+    def core_samples(self, candidates: int, scale: float = 1.0) -> int:
+        """``min_samples`` for a DBSCAN of ``candidates`` pixels on a map of ``scale`` times the reference area.
+
+        A lane's density in the subsample is what a core point counts: the subsample a map draws
+        (``min(candidates, max_points)``) against the one the same road would draw at the reference size
+        (``min(candidates / scale, max_points)``), so ``min_samples`` keeps its meaning at any size and is unchanged
+        at ``scale`` 1. At least 1."""
+        if scale == 1.0:
+            return self.min_samples
+        drawn, drawn_at_reference = min(candidates, self.max_points), min(candidates / scale, self.max_points)
+        return max(1, round(self.min_samples * drawn / max(drawn_at_reference, 1e-9)))
+
 
 def cluster_lane_pixels(
-    embedding: np.ndarray, config: PostprocessConfig, confident: np.ndarray | None = None
+    embedding: np.ndarray, config: PostprocessConfig, confident: np.ndarray | None = None, scale: float = 1.0
 ) -> np.ndarray:
     """Cluster lane-pixel embeddings; DBSCAN on a subsample, nearest-centre assignment for all.
 
@@ -125,6 +173,8 @@ def cluster_lane_pixels(
         embedding: ``(N, E)`` float embeddings of the lane pixels.
         config: the decoding options.
         confident: ``(N,)`` bool, the pixels DBSCAN may use (``None``: all).
+        scale: the lane map's area over ``config.reference_size``'s (`PostprocessConfig.pixel_scale`), which
+            ``min_samples`` is scaled by (`PostprocessConfig.core_samples`).
 
     Returns:
         ``(N,)`` int labels: ``0..K-1`` clusters ordered by size (largest first), ``-1`` noise.
@@ -133,17 +183,16 @@ def cluster_lane_pixels(
         raise ValueError(f"expected embedding of shape (N, E), got {embedding.shape}")
     n = len(embedding)
     labels = np.full(n, -1, dtype=np.int64)
-    if n < config.min_samples:
+    subset = np.arange(n) if confident is None else np.flatnonzero(confident)
+    min_samples = config.core_samples(len(subset), scale)
+    if n < min_samples or len(subset) < min_samples:
         return labels
     emb = np.ascontiguousarray(embedding, dtype=np.float32)
-    subset = np.arange(n) if confident is None else np.flatnonzero(confident)
-    if len(subset) < config.min_samples:
-        return labels
     if len(subset) > config.max_points:
         rng = np.random.default_rng(config.seed)
         subset = np.sort(rng.choice(subset, size=config.max_points, replace=False))
     points = emb[subset]
-    sub_labels = dbscan(points, config.eps, config.min_samples)
+    sub_labels = dbscan(points, config.eps, min_samples)
     cluster_ids = np.unique(sub_labels[sub_labels >= 0])
     if len(cluster_ids) == 0:
         return labels
@@ -317,19 +366,22 @@ def decode_lanes(
     ys, xs = np.nonzero(lane_prob > config.prob_thresh)
     if len(ys) == 0:
         return []
+    scale = config.pixel_scale((lane_prob.shape[0], lane_prob.shape[1]))
     confident = None
     if config.cluster_thresh is not None and config.cluster_thresh > config.prob_thresh:
         confident = lane_prob[ys, xs] > config.cluster_thresh
-        if confident.sum() < config.min_samples:  # a weak network is never that sure: cluster every lane pixel
+        sure = int(confident.sum())
+        if sure < config.core_samples(sure, scale):  # a weak network is never that sure: cluster every lane pixel
             confident = None
-    labels = cluster_lane_pixels(embedding[:, ys, xs].T, config, confident)
+    labels = cluster_lane_pixels(embedding[:, ys, xs].T, config, confident, scale)
     counts = np.bincount(labels[labels >= 0], minlength=1)
     pts_net = np.stack([xs, ys, np.ones_like(xs)], axis=0).astype(np.float64)  # (3, N) homogeneous
     pts_orig = matrix @ pts_net
     pts_orig = (pts_orig[:2] / pts_orig[2:]).T  # (N, 2) (x, y) original pixels
     curves: list[LaneCurve] = []
+    min_pixels = config.min_pixels(scale)
     for cluster in range(len(counts)):
-        if counts[cluster] < config.min_cluster_pixels or len(curves) >= config.max_lanes:
+        if counts[cluster] < min_pixels or len(curves) >= config.max_lanes:
             continue
         curve = fit_curve(pts_orig[labels == cluster], config)
         if curve is not None:
