@@ -38,9 +38,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_frames
+from _harness import fail, write_image, write_result
 from real_roads import RealRoadsError, load, read_labels
 
 REPO = Path(__file__).resolve().parents[1]
@@ -216,13 +215,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--pictures", type=Path, help="write one PNG per photo here")
     parser.add_argument("--columns", type=int, default=real_frames.SUPPORT_COLUMNS, help="search half-width, columns")
     args = parser.parse_args(argv)
-    from stamlane.safety.guard import GuardError, atomic_path, check_outputs, write_atomic
+    from stamlane.safety.guard import GuardError, check_outputs
     from stamlane.training.quiet import quiet_libraries
 
     quiet_libraries()
     if args.columns < 0:
-        print(f"outer_lanes: error: --columns must be >= 0, got {args.columns}", file=sys.stderr)
-        return 2
+        return fail("outer_lanes", f"--columns must be >= 0, got {args.columns}")
     try:
         records, root = read_labels(args.shared)
         try:
@@ -253,17 +251,13 @@ def main(argv: list[str] | None = None) -> int:
                 "photos": photos,
             }
     except (RealRoadsError, real_frames.RealFramesError) as err:
-        print(f"outer_lanes: error: {err}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
+        return fail("outer_lanes", err)
     payload = {"split": "dev", "columns": args.columns, "present_rows": real_frames.PRESENT_ROWS, "results": results}
-    write_atomic(args.out / "outer-lanes.json", json.dumps(payload, indent=1, default=list) + "\n")
+    write_result(args.out / "outer-lanes.json", json.loads(json.dumps(payload, default=list)), quiet=True)
     if args.pictures:
-        args.pictures.mkdir(parents=True, exist_ok=True)
         for record, photo_panels in zip(records, panels, strict=True):
             drawn = picture(photo_panels[0][1]["view"], photo_panels)
-            with atomic_path(args.pictures / f"{Path(record['raw_file']).stem}.png") as tmp:
-                cv2.imwrite(str(tmp), drawn, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+            write_image(args.pictures / f"{Path(record['raw_file']).stem}.png", drawn, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     print(table(results), end="")
     return 0
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from stamlane.predict.postprocess import PostprocessConfig, decode_lanes
-from tests.benchmark_modules import benchmark_module
+from tests.benchmarks.scripts import benchmark_module
 
 
 @pytest.fixture(scope="module")
