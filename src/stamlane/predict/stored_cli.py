@@ -23,13 +23,14 @@ Any other option (``--model.encoder...``: another network) needs ``--config`` (`
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import asdict, replace
 from typing import Any
 
 __all__ = ["build_parser", "main_stored", "parse"]
 
 _TRAINER_SKIPPED = {"callbacks", "logger", "enable_checkpointing", "plugins", "profiler", "model_registry"}
-"""``lightning.Trainer`` options a prediction sets itself (no logger, no checkpoints, the writer as its callback)."""
+"""``lightning.Trainer`` options a prediction sets itself (no checkpoints, the writer as its callback; a logger only as
+``--trainer.logger true``, Lightning's default, since a prediction logs nothing)."""
 
 
 def _flat(prefix: str, value: Any) -> dict[str, Any]:
@@ -56,7 +57,9 @@ def build_parser(model: Any) -> Any:
     from stamlane.predict.stored_predict import prediction_trainer_options
     from stamlane.training.stored import data_root
 
-    parser = ArgumentParser(prog="stamlane predict", exit_on_error=False, description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(
+        prog="stamlane predict", exit_on_error=False, allow_abbrev=False, description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--ckpt_path", type=str, required=True, help="a checkpoint, a run folder or a shipped name")
     parser.add_argument("--source", type=str | None, default=None, help="a folder of frames or a video file")
     seed = (model.config or {}).get("seed_everything", 0)
@@ -65,13 +68,17 @@ def build_parser(model: Any) -> Any:
     parser.add_class_arguments(ClipDataModule, "data")
     parser.add_class_arguments(LanePredictionWriter, "predictions")
     parser.add_class_arguments(Trainer, "trainer", instantiate=False, skip=_TRAINER_SKIPPED)
+    parser.add_argument(
+        "--trainer.logger", type=bool, default=False, help="Lightning's default logger (predict logs nothing)"
+    )
     module = model.module
-    parser.add_argument("--model.postprocess", type=PostprocessConfig, default=module.postprocess)
+    parser.add_class_arguments(PostprocessConfig, "model.postprocess")
     parser.add_argument("--model.report_run_time", type=bool, default=bool(module.report_run_time))
     parser.add_argument("--model.bf16", type=bool, default=bool(module.bf16))
     known = set(parser.get_defaults().keys())
     defaults = _flat("data", model.data) | _flat("predictions", model.section("predictions"))
     defaults |= _flat("trainer", prediction_trainer_options(model.section("trainer")))
+    defaults |= _flat("model.postprocess", asdict(module.postprocess))
     defaults["predictions.output_dir"] = None  # the command chooses one per model and source
     recorded = model.data.get("root")
     try:

@@ -68,7 +68,7 @@ def predict_stored(
         writer: the lane writer, already given its folder (`name_predictions`).
         seed: ``lightning.seed_everything`` first, as ``stamlane predict`` has always done (None or False: not).
         **trainer: ``lightning.Trainer`` options (`prediction_trainer_options` of the run's trainer, then the
-            caller's); ``logger``, ``callbacks`` and checkpointing are the prediction's own.
+            caller's); ``callbacks`` and checkpointing are the prediction's own, and no logger unless given.
 
     Returns:
         ``writer``, holding what it wrote (``written``).
@@ -77,8 +77,8 @@ def predict_stored(
 
     if seed is not None and seed is not False:
         seed_everything(None if seed is True else int(seed), workers=True, verbose=False)
-    options = {"enable_model_summary": False, **trainer}
-    runner = Trainer(logger=False, callbacks=[writer], enable_checkpointing=False, **options)
+    options = {"enable_model_summary": False, "logger": False, **trainer}
+    runner = Trainer(callbacks=[writer], enable_checkpointing=False, **options)
     runner.predict(model.module, datamodule=data, return_predictions=False)
     return writer
 

@@ -224,6 +224,7 @@ class Run:
     text: str = field(repr=False)
     start_dir: str | None = None
     _stored: StoredModel | None = field(default=None, repr=False)
+    _content: dict[str, Any] | None = field(default=None, repr=False)
 
     def __enter__(self) -> Run:
         return self
@@ -233,7 +234,7 @@ class Run:
 
     def close(self) -> None:
         """Let the model go."""
-        self._stored = None
+        self._stored = self._content = None
 
     def data(self) -> dict[str, Any]:
         data = self.config.get("data")
@@ -308,8 +309,9 @@ class Run:
 
         probe = Probe.of(probe)
         try:
-            if self._stored is None:  # the first prediction builds the model and reads the checkpoint, once
-                self._stored = StoredModel.open(self.ckpt)
+            if self._stored is None:  # the first prediction builds the model; the checkpoint is read once in all
+                content, self._content = self._content, None
+                self._stored = StoredModel.of_content(self.ckpt, content) if content else StoredModel.open(self.ckpt)
             model = self._stored
             data = model.datamodule(
                 **({"root": str(root)} if root is not None else {}),
@@ -351,6 +353,7 @@ def open_run(where: str | Path) -> Run:
     path = Path(where)
     start: Any = None
     text: Any = None
+    content: Any = None
     try:
         if path.is_dir():  # a run folder: its config.yaml, read only inside it
             ckpt, source = path / "checkpoints" / "last.ckpt", path / "config.yaml"
@@ -370,7 +373,8 @@ def open_run(where: str | Path) -> Run:
         check_config_paths(config)
     except (CheckpointError, GuardError, PathError) as err:
         raise RunError(str(err)) from None
-    return Run(ckpt, config, source, text, start if isinstance(start, str) else None)
+    kept = content if not path.is_dir() else None  # read already: its first prediction does not read it again
+    return Run(ckpt, config, source, text, start if isinstance(start, str) else None, _content=kept)
 
 
 def predict(run: Run, split: str, probe: Probe | str, out: Path, **options: Any) -> Path:

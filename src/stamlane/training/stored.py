@@ -123,13 +123,24 @@ class StoredModel:
             CheckpointError: no such checkpoint, one over the budget or unreadable, or one whose network, data
                 options or config the registry refuses (one line naming the file).
         """
-        from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
+        from stamlane.safety.checkpoints import read_checkpoint
+
+        path = checkpoint_of(where)
+        return cls.of_content(path, read_checkpoint(path))
+
+    @classmethod
+    def of_content(cls, path: Path, content: dict[str, Any]) -> StoredModel:
+        """The stored model of a checkpoint's content, already read from ``path`` (by `open`, or by
+        `stamlane.training.runs.open_run`, which reads it for the run's config): the file is not read again.
+
+        Raises:
+            CheckpointError: see `open`.
+        """
+        from stamlane.safety.checkpoints import CheckpointError
         from stamlane.training.compat import clip_options, group_data
         from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
         from stamlane.training.registry import build_module, check_data_hparams, check_run_config
 
-        path = checkpoint_of(where)
-        content = read_checkpoint(path)
         module = build_module(content, path)
         data = content.get("datamodule_hyper_parameters")
         if data is not None:
