@@ -29,8 +29,9 @@ from typing import Any
 __all__ = ["build_parser", "main_stored", "parse"]
 
 _TRAINER_SKIPPED = {"callbacks", "logger", "enable_checkpointing", "plugins", "profiler", "model_registry"}
-"""``lightning.Trainer`` options a prediction sets itself (no checkpoints, the writer as its callback; a logger only as
-``--trainer.logger true``, Lightning's default, since a prediction logs nothing)."""
+"""``lightning.Trainer`` options a prediction sets itself: no checkpoints, the writer among its callbacks (others by
+``--trainer.callbacks``), a logger only as ``--trainer.logger true`` (Lightning's default; a prediction logs
+nothing)."""
 
 
 def _flat(prefix: str, value: Any) -> dict[str, Any]:
@@ -48,7 +49,7 @@ def build_parser(model: Any) -> Any:
     data root recorded relative to the folder the run was started in: where it is found, `stamlane.training.stored.
     data_root`)."""
     from jsonargparse import ArgumentParser
-    from lightning.pytorch import Trainer
+    from lightning.pytorch import Callback, Trainer
 
     from stamlane.data.datamodule import ClipDataModule
     from stamlane.data.labels import DataError
@@ -68,9 +69,8 @@ def build_parser(model: Any) -> Any:
     parser.add_class_arguments(ClipDataModule, "data")
     parser.add_class_arguments(LanePredictionWriter, "predictions")
     parser.add_class_arguments(Trainer, "trainer", instantiate=False, skip=_TRAINER_SKIPPED)
-    parser.add_argument(
-        "--trainer.logger", type=bool, default=False, help="Lightning's default logger (predict logs nothing)"
-    )
+    parser.add_argument("--trainer.logger", type=bool, default=False, help="Lightning's default logger, if true")
+    parser.add_argument("--trainer.callbacks", type=list[Callback] | None, default=None, help="besides the writer")
     module = model.module
     parser.add_class_arguments(PostprocessConfig, "model.postprocess")
     parser.add_argument("--model.report_run_time", type=bool, default=bool(module.report_run_time))
@@ -137,7 +137,7 @@ def main_stored(args: list[str]) -> None:
     elif config.data.root is not None and config.data.root == model.data.get("root"):
         data_root(config.data.root, model.start_dir, model.checkpoint)  # found nowhere: the line naming the flag
     name_predictions(writer, data, source, checkpoint_name(str(model.checkpoint), []))
-    trainer = {k: v for k, v in config.trainer.as_dict().items() if v is not None}
+    trainer = {k: v for k, v in config.trainer.as_dict().items() if v is not None and k != "callbacks"}
     check_prediction_outputs(
         writer, [getattr(data, "root", None), source], [model.checkpoint], folders=[trainer.get("default_root_dir")]
     )
@@ -146,7 +146,8 @@ def main_stored(args: list[str]) -> None:
     module.report_run_time, module.bf16 = config.model.report_run_time, config.model.bf16
     if source:
         warn_sequence(data, say=_first_process())
-    predict_stored(model, data, writer, seed=config.seed_everything, **trainer)
+    callbacks = list(init.trainer.callbacks or [])
+    predict_stored(model, data, writer, seed=config.seed_everything, callbacks=callbacks, **trainer)
 
 
 def _ckpt(args: list[str]) -> str:

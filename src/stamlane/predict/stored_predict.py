@@ -58,7 +58,13 @@ def prediction_trainer_options(trainer: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def predict_stored(
-    model: StoredModel, data: Any, writer: LanePredictionWriter, *, seed: int | bool | None = None, **trainer: Any
+    model: StoredModel,
+    data: Any,
+    writer: LanePredictionWriter,
+    *,
+    seed: int | bool | None = None,
+    callbacks: Sequence[Any] = (),
+    **trainer: Any,
 ) -> LanePredictionWriter:
     """Predict ``data`` with ``model`` into ``writer``'s folder: ``lightning.Trainer(**trainer).predict``.
 
@@ -67,8 +73,9 @@ def predict_stored(
         data: the LightningDataModule to predict (its ``predict_dataloader``).
         writer: the lane writer, already given its folder (`name_predictions`).
         seed: ``lightning.seed_everything`` first, as ``stamlane predict`` has always done (None or False: not).
+        callbacks: Lightning callbacks besides the writer.
         **trainer: ``lightning.Trainer`` options (`prediction_trainer_options` of the run's trainer, then the
-            caller's); ``callbacks`` and checkpointing are the prediction's own, and no logger unless given.
+            caller's); no checkpoints, and no logger unless one is given.
 
     Returns:
         ``writer``, holding what it wrote (``written``).
@@ -78,7 +85,7 @@ def predict_stored(
     if seed is not None and seed is not False:
         seed_everything(None if seed is True else int(seed), workers=True, verbose=False)
     options = {"enable_model_summary": False, "logger": False, **trainer}
-    runner = Trainer(callbacks=[writer], enable_checkpointing=False, **options)
+    runner = Trainer(callbacks=[*callbacks, writer], enable_checkpointing=False, **options)
     runner.predict(model.module, datamodule=data, return_predictions=False)
     return writer
 
