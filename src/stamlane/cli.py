@@ -124,7 +124,7 @@ def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]
     (`stamlane.training.runs.open_run`: its config checked against the closed registry, read in today's names), with
     its data root when it was recorded relative to the folder the run was started in
     (`stamlane.training.runs.Run.data_root`). Yields the arguments to put in front (none when a config is given or
-    nothing is needed). (``predict --ckpt_path`` opens the checkpoint as a stored model: `stamlane.predict.stored_cli`.)"""
+    nothing is needed). (``predict --ckpt_path`` opens the checkpoint as a stored model: `stamlane.training.predict_cli`.)"""
     ckpt = _option(rest, "--ckpt_path")
     if command not in ("validate", "test") or _given_config(rest) or ckpt in (None, "last", "best"):
         yield []
@@ -143,7 +143,7 @@ def _given_config(rest: list[str]) -> bool:
 
 def _stored_prediction(command: str, rest: list[str]) -> bool:
     """Whether ``rest`` asks ``predict`` of a stored model: a ``--ckpt_path`` (a checkpoint, a run folder, a shipped
-    name) without ``--config``, and no help asked for (`stamlane.predict.stored_cli`)."""
+    name) without ``--config``, and no help asked for (`stamlane.training.predict_cli`)."""
     ckpt = _option(rest, "--ckpt_path")
     return command == "predict" and ckpt not in (None, *CKPT_NAMES) and not _given_config(rest) and not _asks_help(rest)
 
@@ -279,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             if _stored_prediction(command, rest):  # the checkpoint opened once, a plain Trainer.predict
-                from stamlane.predict.stored_cli import main_stored
+                from stamlane.training.predict_cli import main_stored
 
                 main_stored(rest)
                 return 0

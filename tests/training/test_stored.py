@@ -126,7 +126,7 @@ def _predicted_clips(ckpt: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     import numpy as np
 
     from stamlane.cli import main
-    from stamlane.predict import stored_predict
+    from stamlane.training import stored_predict
     from stamlane.training.runs import open_run
 
     handed: list[object] = []

@@ -22,7 +22,6 @@ from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.data.datamodule import ClipDataModule, FramesDataModule
 from stamlane.predict.prediction_writer import LanePredictionWriter
-from stamlane.predict.stored_predict import name_predictions, warn_sequence
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs, temporary_name
 from stamlane.safety.paths import check_config_paths
@@ -33,6 +32,7 @@ from stamlane.training.launch import one_process_unless_asked, spawned
 from stamlane.training.lightning_compat import keep_command_line_hparams, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
+from stamlane.training.stored_predict import name_predictions, warn_sequence
 from stamlane.training.typed_values import refused_class
 
 __all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI", "checkpoint_name"]
@@ -346,7 +346,7 @@ class StamLaneCLI(LightningCLI):
             warn_sequence(self.datamodule, say=self.trainer.is_global_zero)
 
     def _name_predictions(self, source: str | None) -> None:
-        """The prediction writer's folder and legend name (`stamlane.predict.stored_predict.name_predictions`: one
+        """The prediction writer's folder and legend name (`stamlane.training.stored_predict.name_predictions`: one
         folder per model, the checkpoint's run, and source)."""
         ckpt = self.config_init["predict"].get("ckpt_path")
         configs = [str(c) for c in self.config["predict"].get("config") or []]

@@ -283,7 +283,7 @@ class Run:
         fills it, into ``out`` (``predictions.json``, ``per_image.jsonl``, overlays); returns ``out``.
 
         The run's checkpoint is opened once, at the first prediction (`stamlane.training.stored.StoredModel`), and
-        every prediction is a plain ``Trainer.predict`` of it (`stamlane.predict.stored_predict.predict_stored`).
+        every prediction is a plain ``Trainer.predict`` of it (`stamlane.training.stored_predict.predict_stored`).
 
         Args:
             split: the label file's stem.
@@ -296,15 +296,15 @@ class Run:
             RunError: the run's config or checkpoint refused, or options the data module refuses (one line).
         """
         from stamlane.predict.prediction_writer import LanePredictionWriter
-        from stamlane.predict.stored_predict import (
+        from stamlane.safety.boundary import one_line
+        from stamlane.training.lightning_cli import checkpoint_name
+        from stamlane.training.stored import StoredModel
+        from stamlane.training.stored_predict import (
             check_prediction_outputs,
             name_predictions,
             predict_stored,
             prediction_trainer_options,
         )
-        from stamlane.safety.boundary import one_line
-        from stamlane.training.lightning_cli import checkpoint_name
-        from stamlane.training.stored import StoredModel
         from stamlane.training.typed_values import parameter_hints
 
         probe = Probe.of(probe)

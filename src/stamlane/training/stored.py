@@ -141,12 +141,12 @@ class StoredModel:
         from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
         from stamlane.training.registry import build_module, check_data_hparams, check_run_config
 
+        text = content.get(CONFIG_KEY)  # the run's config first: what it names is refused before anything is built
+        config = check_run_config(text, path) if isinstance(text, str) else None
         module = build_module(content, path)
         data = content.get("datamodule_hyper_parameters")
         if data is not None:
             check_data_hparams(data, path)
-        text = content.get(CONFIG_KEY)
-        config = check_run_config(text, path) if isinstance(text, str) else None
         if not isinstance(data, dict) and config is not None and isinstance(config.get("data"), dict):
             data = config["data"]  # no data hyper-parameters stored: the run config's data section says the same
         # the data module of a prediction: the run's config, what `stamlane fit` read (else the data hyper-parameters)
@@ -190,8 +190,8 @@ class StoredModel:
     def predict(self, data: Any, writer: Any, **trainer_options: Any) -> None:
         """Predict ``data`` (a LightningDataModule) with this model through a plain ``lightning.Trainer.predict``,
         written by ``writer`` (`stamlane.predict.prediction_writer.LanePredictionWriter`); see
-        `stamlane.predict.stored_predict.predict_stored`."""
-        from stamlane.predict.stored_predict import predict_stored
+        `stamlane.training.stored_predict.predict_stored`."""
+        from stamlane.training.stored_predict import predict_stored
 
         predict_stored(self, data, writer, **trainer_options)
 

@@ -4,7 +4,7 @@
 video into files: a ``Trainer`` made for prediction alone (no logger, no checkpoints, one process unless asked), the
 model as it was opened (the checkpoint is not read again) and the lane writer
 (`stamlane.predict.prediction_writer.LanePredictionWriter`). ``stamlane predict --ckpt_path``
-(`stamlane.predict.stored_cli`), `stamlane.training.runs.Run.predict` and, through it, the experiment runner's
+(`stamlane.training.predict_cli`), `stamlane.training.runs.Run.predict` and, through it, the experiment runner's
 scores go through it. The same three steps before the writer writes are shared with ``stamlane predict --config``
 (`stamlane.training.lightning_cli.StamLaneCLI`): `name_predictions` (the output folder per model and source, claimed),
 `check_prediction_outputs` (no output among the inputs) and `warn_sequence` (a source that is no sequence).

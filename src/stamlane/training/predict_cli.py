@@ -2,7 +2,7 @@
 
 The checkpoint (a file, a run folder or a shipped model's name) is opened once as a
 `stamlane.training.stored.StoredModel`; its run's config gives every option's default, the options typed replace
-them, and the prediction is a plain ``lightning.Trainer.predict`` (`stamlane.predict.stored_predict`). The options
+them, and the prediction is a plain ``lightning.Trainer.predict`` (`stamlane.training.stored_predict`). The options
 are those of ``stamlane predict`` that a stored model can take, with LightningCLI's names:
 
 - ``--data.*``: the data module (`stamlane.data.datamodule.ClipDataModule`: ``--data.root``,
@@ -11,7 +11,7 @@ are those of ``stamlane predict`` that a stored model can take, with LightningCL
   (`stamlane.data.datamodule.FramesDataModule`, read with the run's clip and loader options);
 - ``--predictions.*``: the lane writer (`stamlane.predict.prediction_writer.LanePredictionWriter`);
 - ``--trainer.*``: ``lightning.Trainer`` options of a prediction (one process unless ``--trainer.devices`` and the
-  like are given: `stamlane.predict.stored_predict.prediction_trainer_options`);
+  like are given: `stamlane.training.stored_predict.prediction_trainer_options`);
 - ``--model.postprocess.*``, ``--model.report_run_time``, ``--model.bf16``: the decoding, the run times handed to
   the TuSimple file, bfloat16;
 - ``--seed_everything`` (the run's seed), ``--weights_only`` (a stored model is always read with
@@ -55,8 +55,8 @@ def build_parser(model: Any) -> Any:
     from stamlane.data.labels import DataError
     from stamlane.predict.postprocess import PostprocessConfig
     from stamlane.predict.prediction_writer import LanePredictionWriter
-    from stamlane.predict.stored_predict import prediction_trainer_options
     from stamlane.training.stored import data_root
+    from stamlane.training.stored_predict import prediction_trainer_options
 
     parser = ArgumentParser(
         prog="stamlane predict", exit_on_error=False, allow_abbrev=False, description=__doc__.split("\n\n")[0]
@@ -115,15 +115,15 @@ def main_stored(args: list[str]) -> None:
         GuardError, DataError, ValueError: an output among the inputs, bad data, a folder of another source's results.
     """
     from stamlane.data.datamodule import FramesDataModule
-    from stamlane.predict.stored_predict import (
+    from stamlane.safety.paths import check_config_paths
+    from stamlane.training.lightning_cli import checkpoint_name
+    from stamlane.training.stored import StoredModel, data_root
+    from stamlane.training.stored_predict import (
         check_prediction_outputs,
         name_predictions,
         predict_stored,
         warn_sequence,
     )
-    from stamlane.safety.paths import check_config_paths
-    from stamlane.training.lightning_cli import checkpoint_name
-    from stamlane.training.stored import StoredModel, data_root
 
     model = StoredModel.open(_ckpt(args))  # the one read of the checkpoint
     config, init = parse(model, args)
