@@ -8,9 +8,11 @@
   in today's names, `stamlane.training.registry` / `stamlane.training.compat`; the checkpoint read within the budget,
   `stamlane.safety.checkpoints`), and returns a `Run`;
 - `predict` (`Run.predict`) writes a run's predictions of a split with its history as a `Probe` fills it. An opened run
-  builds its model and loads its checkpoint once, at its first prediction; every later split and probe reuses them.
+  opens its checkpoint once, at its first prediction, as a `stamlane.training.stored.StoredModel` (not read again
+  when `open_run` read it), and each split and probe is a plain ``Trainer.predict`` of it
+  (`stamlane.training.stored_predict`).
 
-LightningCLI (`stamlane.training.lightning_cli.StamLaneCLI`) does the work, given its arguments as a list: the options
+Training is LightningCLI's (`stamlane.training.lightning_cli.StamLaneCLI`), given its arguments as a list: the options
 of a spec become the flags ``stamlane fit`` would read (`flags_of`), so that a run made here is the run ``stamlane fit``
 makes of the same config and options, bit for bit (tests/training/test_runs.py).
 """
