@@ -120,23 +120,32 @@ def _stream_args(rest: list[str]) -> list[str]:
 
 @contextmanager
 def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]]:
-    """``--config`` for ``predict|validate|test --ckpt_path CKPT`` given without one: the run opened through the one
-    gate (`stamlane.training.runs.open_run`: its config checked against the closed registry, read in today's names),
-    with its data root when it was recorded relative to the folder the run was started in
-    (`stamlane.training.runs.Run.data_root`); for ``predict``, no output folder (the run's config may name one: the
-    command chooses one per model and source, `stamlane.predict.prediction_writer.default_output_dir`). Yields the
-    arguments to put in front (none when a config is given or nothing is needed)."""
-    given = any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
+    """``--config`` for ``validate|test --ckpt_path CKPT`` given without one: the run opened through the one gate
+    (`stamlane.training.runs.open_run`: its config checked against the closed registry, read in today's names), with
+    its data root when it was recorded relative to the folder the run was started in
+    (`stamlane.training.runs.Run.data_root`). Yields the arguments to put in front (none when a config is given or
+    nothing is needed). (``predict --ckpt_path`` opens the checkpoint as a stored model: `stamlane.training.predict_cli`.)"""
     ckpt = _option(rest, "--ckpt_path")
-    if command == "fit" or given or ckpt in (None, "last", "best"):
+    if command not in ("validate", "test") or _given_config(rest) or ckpt in (None, "last", "best"):
         yield []
         return
+    from stamlane.training.registry import safe_config_file
     from stamlane.training.runs import open_run
 
-    with open_run(ckpt) as run:
+    with open_run(ckpt) as run, safe_config_file(run.text, run.source) as config:
         root = run.data_root() if _option(rest, "--data.root") is None else None
-        fresh = ["--predictions.output_dir=null"] if command == "predict" else []
-        yield ["--config", str(run.config_file), *(["--data.root", str(root)] if root else []), *fresh]
+        yield ["--config", str(config), *(["--data.root", str(root)] if root else [])]
+
+
+def _given_config(rest: list[str]) -> bool:
+    return any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
+
+
+def _stored_prediction(command: str, rest: list[str]) -> bool:
+    """Whether ``rest`` asks ``predict`` of a stored model: a ``--ckpt_path`` (a checkpoint, a run folder, a shipped
+    name) without ``--config``, and no help asked for (`stamlane.training.predict_cli`)."""
+    ckpt = _option(rest, "--ckpt_path")
+    return command == "predict" and ckpt not in (None, *CKPT_NAMES) and not _given_config(rest) and not _asks_help(rest)
 
 
 def _option(rest: list[str], name: str) -> str | None:
@@ -269,6 +278,11 @@ def main(argv: list[str] | None = None) -> int:
             quiet_libraries()
 
         try:
+            if _stored_prediction(command, rest):  # the checkpoint opened once, a plain Trainer.predict
+                from stamlane.training.predict_cli import main_stored
+
+                main_stored(rest)
+                return 0
             with _config_from_checkpoint(command, rest) as extra:
                 from stamlane.training.runs import run_cli  # once the libraries are quieted
 

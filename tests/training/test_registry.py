@@ -28,6 +28,7 @@ from stamlane.cli import main
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
 from stamlane.safety.checkpoints import CheckpointError
 from stamlane.training.module import StamLaneModule
+from stamlane.training.registry import safe_config_file
 
 REPO = Path(__file__).resolve().parents[2]
 torch.set_num_threads(1)
@@ -195,8 +196,10 @@ def test_missing_weights_are_one_line(tmp_path: Path, weights: dict) -> None:
 def test_a_checkpoint_with_missing_keys_is_one_line(
     tiny_synthetic: Callable[..., Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], weights: dict, cut: str
 ) -> None:
-    """``predict --ckpt_path`` with a checkpoint missing a weight or Lightning's version record: Lightning's restore
-    raised a RuntimeError / KeyError traceback."""
+    """``predict --ckpt_path`` with a checkpoint missing a weight or Lightning's version record, and its network's
+    hyper-parameters (Lightning's restore raised a RuntimeError / KeyError traceback): one line naming the file (the
+    stored model is built from the checkpoint's own record, `stamlane.training.stored.StoredModel`); with ``--config``
+    the network of the config is checked against the weights."""
     root = tiny_synthetic(128, 72, 2, train=1, val=1, test=1, challenging=0, seed=5)
     config = _run_config(
         data={
@@ -212,6 +215,10 @@ def test_a_checkpoint_with_missing_keys_is_one_line(
         torch.save({**content, "pytorch-lightning_version": "2.6.6"}, ckpt)
     out = tmp_path / "predictions"
     err = _one_line(capsys, main(["predict", "--ckpt_path", str(ckpt), f"--predictions.output_dir={out}"]))
+    assert str(ckpt) in err and "records no hyper_parameters" in err
+    with safe_config_file(config, "run") as path:
+        args = ["predict", "--config", str(path), "--ckpt_path", str(ckpt), f"--predictions.output_dir={out}"]
+        err = _one_line(capsys, main(args))
     assert str(ckpt) in err and (
         "1 weights missing" in err if cut == "a-weight" else "pytorch-lightning_version" in err
     )
@@ -576,7 +583,6 @@ def _parse(text: str) -> None:
     from jsonargparse import ArgumentError
 
     from stamlane.training.lightning_cli import StamLaneCLI
-    from stamlane.training.registry import safe_config_file
 
     with safe_config_file(text, "evil.ckpt") as path:
         try:

@@ -101,21 +101,22 @@ def _lanes(folder: Path) -> list[dict]:
 def test_an_opened_run_predicts_every_split_and_probe_with_one_model(
     tiny_root: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The shipped 4-frame model (trained: lanes that differ between probes), six passes with one model, against a
-    LightningCLI per pass: the same lanes and the same per-image scores, byte for byte."""
+    """The shipped 4-frame model (trained: lanes that differ between probes), six passes with one stored model (its
+    checkpoint read once), against a LightningCLI ``predict --config`` per pass: the same lanes and the same per-image
+    scores, byte for byte."""
     from stamlane.experiments.split_scores import score_split
-    from stamlane.training.lightning_cli import StamLaneCLI
+    from stamlane.safety import checkpoints
     from stamlane.weights import shipped_path
 
     built: list[object] = []
-    monkeypatch.setattr(StamLaneCLI, "instantiate_classes", _counting(StamLaneCLI.instantiate_classes, built))
+    monkeypatch.setattr(checkpoints, "read_checkpoint", _counting(checkpoints.read_checkpoint, built))
     passes = [("test", "exact"), ("test", "real"), ("val", "key"), ("test", "other_clip"), ("val", "exact")]
     passes += [("val", "warped_key")]  # exact first (the run's own alignment back after it), exact again later
     with open_run(shipped_path("stam4-synthetic")) as run:
         assert run.frames == 4 and run.aligns
         for split, probe in passes:
             run.predict(split, probe, tmp_path / "once" / f"{split}@{probe}", root=tiny_root)
-        assert len(built) == 1  # one model (and one checkpoint load) for every pass
+        assert len(built) == 1  # one model (one read of the checkpoint) for every pass
         for split, probe in passes:
             _fresh_pass(run, tiny_root, split, Probe.of(probe), tmp_path / "fresh" / f"{split}@{probe}")
     for split, probe in passes:
@@ -133,9 +134,9 @@ def _same(a: dict, b: dict) -> bool:
 
 
 def _counting(method: Callable, calls: list) -> Callable:
-    def counted(self: object, *args: object, **kwargs: object) -> object:
-        calls.append(self)
-        return method(self, *args, **kwargs)
+    def counted(*args: object, **kwargs: object) -> object:
+        calls.append(args)
+        return method(*args, **kwargs)
 
     return counted
 

@@ -55,10 +55,11 @@ def test_open_reads_the_network_and_its_settings() -> None:
     assert model.config is not None and model.config["data"]["clip"]["num_frames"] == 4
 
 
-def test_every_route_gets_the_same_settings(tmp_path: Path) -> None:
+def test_every_route_gets_the_same_settings(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``align: none``, the fast preset and a horizon row reach the predictor of `from_stored`, of ``stamlane
-    stream --ckpt`` (a file and a run folder), the data options ``stamlane predict`` reads (the run's config) and
-    the .onnx metadata of ``stamlane export``."""
+    stream --ckpt`` (a file and a run folder), the data that ``stamlane predict --ckpt_path`` (a split and a
+    ``--source``), `Run.predict` (and so the experiment runner's scores) hand to
+    ``Trainer.predict``, and the .onnx metadata of ``stamlane export``."""
     from stamlane.stream.cli import build_parser, load_predictor
     from stamlane.stream.metadata import deployment_metadata
     from stamlane.training.compat import clip_options
@@ -75,9 +76,12 @@ def test_every_route_gets_the_same_settings(tmp_path: Path) -> None:
         assert predictor.align_config == ALIGN_PRESETS["fast"] and predictor.transform.crop_top == pytest.approx(
             model.settings.crop_top
         )
-    with open_run(ckpt) as run:  # what `stamlane predict --ckpt_path` gives LightningCLI
-        predicted = clip_options(run.data())
-    assert (predicted.align, predicted.align_preset, predicted.horizon_row) == ("none", "fast", 300)
+    with open_run(ckpt) as run:  # the run's own record of its data (what `stamlane validate --ckpt_path` reads)
+        recorded = clip_options(run.data())
+    assert (recorded.align, recorded.align_preset, recorded.horizon_row) == ("none", "fast", 300)
+    for clip in _predicted_clips(ckpt, tmp_path, monkeypatch):
+        assert (clip.align, clip.align_preset, clip.horizon_row) == ("none", "fast", 300), clip
+        assert (clip.num_frames, list(clip.image_size)) == (model.settings.num_frames, list(model.settings.image_size))
     exported = deployment_metadata(model.module, model.settings.clip, ckpt, 17)["alignment"]
     assert exported["history"] == "unaligned" and exported["source"] == "none"
 
@@ -113,3 +117,35 @@ def test_settings_of_a_module_without_data_options() -> None:
     assert settings.clip is None and settings.num_frames == 1 and settings.aligns
     assert settings.align_preset == "standard" and settings.horizon_row is None
     assert settings.crop_top == pytest.approx(float(module.hparams.get("crop_top") or 0.0))
+
+
+def _predicted_clips(ckpt: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> list[object]:
+    """The clip options of the data each prediction route hands to ``Trainer.predict`` (`predict_stored`, stopped
+    there): ``stamlane predict --ckpt_path`` of a split and of a folder of frames, and `Run.predict` of a split with the real history and with another clip's."""
+    import cv2
+    import numpy as np
+
+    from stamlane.cli import main
+    from stamlane.training import stored_predict
+    from stamlane.training.runs import open_run
+
+    handed: list[object] = []
+
+    def stop(model: object, data: object, writer: object, **options: object) -> None:
+        handed.append(data)
+
+    monkeypatch.setattr(stored_predict, "predict_stored", stop)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(1, 3):
+        cv2.imwrite(str(frames / f"{i}.png"), np.zeros((72, 128, 3), np.uint8))
+    root = tmp_path / "data"
+    root.mkdir()
+    monkeypatch.chdir(tmp_path)
+    for args in (["--data.root", str(root), "--predictions.output_dir=split"], ["--source", str(frames)]):
+        assert main(["predict", "--ckpt_path", str(ckpt), *args]) == 0
+    with open_run(ckpt) as run:
+        for probe in ("real", "other_clip"):
+            run.predict("test", probe, tmp_path / f"run-{probe}", root=root)
+    assert len(handed) == 4 and type(handed[1]).__name__ == "FramesDataModule"
+    return [data.clip for data in handed]  # type: ignore[attr-defined]

@@ -40,6 +40,7 @@ import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
 from stamlane.align.homography import ALIGN_PRESETS, align_preset
+from stamlane.predict.writers import TusimpleWriter
 from stamlane.safety.boundary import run_command
 from stamlane.safety.budget import MAX_FPS, check_clip, check_frames, check_rate, check_size
 from stamlane.safety.guard import atomic_path, check_outputs, make_folder, temporary_name
@@ -354,7 +355,8 @@ def _stream(
     start = time.perf_counter()
     with ExitStack() as files, torch.inference_mode():
         jsonl = files.enter_context(open(paths["lanes"], "w"))
-        tusimple = files.enter_context(open(paths["tusimple"], "w")) if "tusimple" in paths else None
+        # the TuSimple lines and CULane files of `stamlane predict`'s writer (stamlane.predict.writers)
+        tusimple = files.enter_context(TusimpleWriter(paths["tusimple"])) if "tusimple" in paths else None
         scored = None
         if sequence is not None:
             y_step = predictor.postprocess.y_step

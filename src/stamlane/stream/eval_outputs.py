@@ -7,7 +7,7 @@ TuSimple clips and the generator's ``clips/<id>/1.jpg``). Then:
 
 ``predictions.json`` (``--tusimple``)
     TuSimple json-lines, one record per frame, ``{"raw_file": "<sequence>/<frame>", "lanes", "h_samples",
-    "run_time"}`` (`stamlane.predict.writers.tusimple_record`, as ``stamlane predict`` writes them): read by
+    "run_time"}`` (`stamlane.predict.writers.TusimpleWriter`, the writer of ``stamlane predict``'s): read by
     ``stamlane-eval tusimple`` (give ``--h-samples`` the ground truth's rows) and ``stamlane-eval video``, where the
     folder of ``raw_file`` is the sequence.
 ``lines/<sequence>/<frame stem>.lines.txt`` (``--culane``)
@@ -17,17 +17,16 @@ TuSimple clips and the generator's ``clips/<id>/1.jpg``). Then:
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 
+from stamlane.predict.writers import TusimpleWriter, write_culane_lines
 from stamlane.safety.budget import MAX_SIDE
 from stamlane.safety.guard import temporary_name
 
@@ -126,7 +125,8 @@ class EvalOutputs:
 
     Args:
         sequence: the sequence the frames are named under.
-        tusimple: the open json-lines file of the TuSimple records, or None.
+        tusimple: the writer of the TuSimple records (`stamlane.predict.writers.TusimpleWriter`, the one
+            ``stamlane predict`` writes its ``predictions.json`` with), or None.
         culane: the folder of the CULane files, or None.
         h_samples: the TuSimple rows; None: every ``y_step`` rows of the frame, from row 0.
         y_step: rows between the default ``h_samples``.
@@ -135,7 +135,7 @@ class EvalOutputs:
     def __init__(
         self,
         sequence: str,
-        tusimple: TextIO | None,
+        tusimple: TusimpleWriter | None,
         culane: Path | None,
         h_samples: list[int] | None,
         y_step: int,
@@ -146,11 +146,8 @@ class EvalOutputs:
 
     def write(self, frame: str, lanes: list[np.ndarray], run_time: float, height: int) -> None:
         """One frame: its name, its lanes ``(N, 2)`` ``(x, y)`` in frame pixels, milliseconds, the frame's rows."""
-        from stamlane.predict.writers import tusimple_record, write_culane_lines
-
         raw_file = f"{self.sequence}/{frame}"
         if self.tusimple is not None:
-            rows = self.h_samples or list(range(0, height, self.y_step))
-            self.tusimple.write(json.dumps(tusimple_record(raw_file, lanes, rows, run_time)) + "\n")
+            self.tusimple.write(raw_file, lanes, self.h_samples or list(range(0, height, self.y_step)), run_time)
         if self.culane is not None:
             write_culane_lines(self.culane, raw_file, lanes)  # <culane>/<sequence>/<frame stem>.lines.txt

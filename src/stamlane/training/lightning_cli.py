@@ -10,7 +10,6 @@ import dataclasses
 import re
 import sys
 import typing
-import warnings
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -21,19 +20,19 @@ from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI, SaveConfigCallback
 from stamlane_eval.integrations.lightning import LaneEvalCallback
 
-from stamlane.data.datamodule import ClipDataModule, FramesDataModule, SequenceWarning
-from stamlane.predict.prediction_writer import LanePredictionWriter, default_output_dir
+from stamlane.data.datamodule import ClipDataModule, FramesDataModule
+from stamlane.predict.prediction_writer import LanePredictionWriter
 from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
 from stamlane.safety.guard import check_outputs, temporary_name
-from stamlane.safety.owner import claim
 from stamlane.safety.paths import check_config_paths
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
 from stamlane.training.launch import one_process_unless_asked, spawned
-from stamlane.training.lightning_compat import keep_command_line_hparams, run_subcommand, subcommand_parser
+from stamlane.training.lightning_compat import keep_command_line_hparams, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
+from stamlane.training.stored_predict import name_predictions, warn_sequence
 from stamlane.training.typed_values import refused_class
 
 __all__ = ["CONFIG_KEY", "START_DIR_KEY", "ConfigInCheckpoint", "StamLaneCLI", "checkpoint_name"]
@@ -343,64 +342,17 @@ class StamLaneCLI(LightningCLI):
         self._name_predictions(source)
         self._check_outputs("predict")  # before the checkpoint is read: an output named like it is refused first
         self._safe_load("predict")
-        if source:
-            self._check_sequence()
-
-    def predict_again(self, datamodule: ClipDataModule, output_dir: Path, max_overlays: int) -> None:
-        """Predict ``datamodule`` into ``output_dir`` with the model this ``predict`` already built and loaded (its
-        checkpoint is not read again): the passes of `stamlane.training.runs.Run.predict` after its first. The
-        outputs are claimed and checked as the first pass's were (`before_predict`)."""
-        if self.subcommand != "predict":
-            raise ValueError(f"predict_again needs a predict command, this one is {self.subcommand!r}")
-        self.datamodule = datamodule
-        self.config_init["predict"]["ckpt_path"] = None  # the weights are in the model already
-        for writer in callbacks_of(self.trainer):
-            if isinstance(writer, LanePredictionWriter):
-                writer.use_output_dir(output_dir)
-                writer.given_output_dir, writer.max_overlays = True, max_overlays
-        run_subcommand(self, "predict")
+        if source:  # a video decoded now; frames that are no sequence said in one line
+            warn_sequence(self.datamodule, say=self.trainer.is_global_zero)
 
     def _name_predictions(self, source: str | None) -> None:
-        """Give the prediction writer its folder when none was given, ``outputs/predict/<model>/<source>``
-        (`stamlane.predict.prediction_writer.default_output_dir`: the checkpoint's run, and the source's name or the
-        data root and split), and the name its legends show when none was given (the checkpoint's run)."""
+        """The prediction writer's folder and legend name (`stamlane.training.stored_predict.name_predictions`: one
+        folder per model, the checkpoint's run, and source)."""
         ckpt = self.config_init["predict"].get("ckpt_path")
         configs = [str(c) for c in self.config["predict"].get("config") or []]
-        model = checkpoint_name(ckpt, configs)
-        if source:
-            path = Path(source).resolve()
-            what, origin = (path.stem if path.is_file() else path.name), str(path)
-        else:
-            labels = "+".join(Path(f).stem for f in self.datamodule.split_labels("predict"))
-            what = f"{Path(self.datamodule.root).resolve().name}-{labels}"
-            origin = f"{Path(self.datamodule.root).resolve()}: {labels}"
-        # one folder per model and source: a second source of the same name gets its own (stamlane.safety.owner)
-        owner = {"command": "predict", "source": origin}
         for writer in callbacks_of(self.trainer):
             if isinstance(writer, LanePredictionWriter):
-                if writer.given_output_dir:
-                    claim(writer.output_dir, owner, "--predictions.output_dir")
-                else:
-                    writer.use_output_dir(
-                        claim(default_output_dir(model, what), owner, "--predictions.output_dir", chosen=True)
-                    )
-                writer.owner = owner
-                if writer.model_name is None:
-                    writer.model_name = model
-
-    def _check_sequence(self) -> None:
-        """Read the source now (a video is decoded) and say in one line, on stderr, when its frames are not one
-        sequence and the history is used anyway (`stamlane.data.datamodule.SequenceWarning`)."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", SequenceWarning)
-            self.datamodule.prepare_data()
-            self.datamodule.setup("predict")
-        for warning in caught:
-            if issubclass(warning.category, SequenceWarning):
-                if self.trainer.is_global_zero:
-                    print(f"stamlane predict: warning: {warning.message}", file=sys.stderr, flush=True)
-            else:  # anything else is shown as it would have been
-                warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
+                name_predictions(writer, self.datamodule, source, checkpoint_name(ckpt, configs))
 
 
 def checkpoint_name(ckpt: str | None, configs: list[str]) -> str:

@@ -15,8 +15,6 @@ Each has no public equivalent; ``tests/training/test_lightning_compat.py`` fails
   no-op, so that the command line stays in charge (``--model.postprocess.*`` at predict time).
 - `subcommand_parser`: the parser of one LightningCLI subcommand, whose ``dump`` writes a run's config as
   ``stamlane fit`` would read it back (the config that travels inside every checkpoint).
-- `run_subcommand`: LightningCLI runs its subcommand once, in ``__init__``; `stamlane.training.runs.Run.predict`
-  predicts again with the model already built and loaded (another split or probe), through the same hooks.
 """
 
 from __future__ import annotations
@@ -31,7 +29,6 @@ __all__ = [
     "fit_data_fetcher",
     "keep_command_line_hparams",
     "plain_hyperparameters",
-    "run_subcommand",
     "subcommand_parser",
 ]
 
@@ -70,8 +67,3 @@ def keep_command_line_hparams(cli: Any) -> None:
 def subcommand_parser(cli: Any, subcommand: str) -> Any:
     """The jsonargparse parser of ``subcommand`` of a LightningCLI (``cli._parser``)."""
     return cli._parser(subcommand)
-
-
-def run_subcommand(cli: Any, subcommand: str) -> None:
-    """Run ``subcommand`` of a LightningCLI again, with its ``before_``/``after_`` hooks (``cli._run_subcommand``)."""
-    cli._run_subcommand(subcommand)

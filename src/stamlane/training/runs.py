@@ -8,9 +8,11 @@
   in today's names, `stamlane.training.registry` / `stamlane.training.compat`; the checkpoint read within the budget,
   `stamlane.safety.checkpoints`), and returns a `Run`;
 - `predict` (`Run.predict`) writes a run's predictions of a split with its history as a `Probe` fills it. An opened run
-  builds its model and loads its checkpoint once, at its first prediction; every later split and probe reuses them.
+  opens its checkpoint once, at its first prediction, as a `stamlane.training.stored.StoredModel` (not read again
+  when `open_run` read it), and each split and probe is a plain ``Trainer.predict`` of it
+  (`stamlane.training.stored_predict`).
 
-LightningCLI (`stamlane.training.lightning_cli.StamLaneCLI`) does the work, given its arguments as a list: the options
+Training is LightningCLI's (`stamlane.training.lightning_cli.StamLaneCLI`), given its arguments as a list: the options
 of a spec become the flags ``stamlane fit`` would read (`flags_of`), so that a run made here is the run ``stamlane fit``
 makes of the same config and options, bit for bit (tests/training/test_runs.py).
 """
@@ -20,7 +22,6 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Mapping, Sequence
-from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +31,7 @@ from stamlane.training.run_record import RecordError, RunRecord
 
 if TYPE_CHECKING:
     from stamlane.data.options import ClipOptions
+    from stamlane.training.stored import StoredModel
 
 __all__ = [
     "PROBES",
@@ -223,10 +225,8 @@ class Run:
     source: Path
     text: str = field(repr=False)
     start_dir: str | None = None
-    _stack: ExitStack = field(default_factory=ExitStack, repr=False)
-    _config_file: Path | None = field(default=None, repr=False)
-    _cli: Any = field(default=None, repr=False)
-    _align: Any = field(default=None, repr=False)
+    _stored: StoredModel | None = field(default=None, repr=False)
+    _content: dict[str, Any] | None = field(default=None, repr=False)
 
     def __enter__(self) -> Run:
         return self
@@ -235,20 +235,8 @@ class Run:
         self.close()
 
     def close(self) -> None:
-        """Let the model and the temporary config file go."""
-        self._cli = None
-        self._config_file = None
-        self._stack.close()
-
-    @property
-    def config_file(self) -> Path:
-        """A temporary file of the checked config (what LightningCLI reads: `stamlane.training.registry.
-        safe_config_file`), kept while the run is open."""
-        from stamlane.training.registry import safe_config_file
-
-        if self._config_file is None:
-            self._config_file = self._stack.enter_context(safe_config_file(self.text, self.source))
-        return self._config_file
+        """Let the model go."""
+        self._stored = self._content = None
 
     def data(self) -> dict[str, Any]:
         data = self.config.get("data")
@@ -280,40 +268,24 @@ class Run:
             raise RunError(f"{self.source}: {err}") from None
 
     def data_root(self) -> Path | None:
-        """The data root to give the run when it recorded its root relative to the folder it was started in
-        (``data/synthetic-v7``), so that it works from any folder: looked for under that folder (recorded in the
-        checkpoints of ``stamlane fit``), then under the run folder's ancestors, then here. None when the root is
-        absolute or found nowhere but here; a default synthetic set (``data.root: null``) found nowhere is generated
-        here, as ``fit`` would.
+        """The data root to give the run (`stamlane.training.stored.data_root` of its recorded root).
 
         Raises:
             DataError: a relative root found nowhere, naming the flag to give.
         """
-        from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT
-        from stamlane.data.labels import DataError
+        from stamlane.training.stored import data_root
 
         recorded = self.data().get("root")
-        root = Path(recorded) if isinstance(recorded, str) else Path(DEFAULT_SYNTHETIC_ROOT)
-        if root.is_absolute():
-            return None
-        bases = [Path(self.start_dir)] if self.start_dir else []
-        bases += list(Path(self.ckpt).resolve().parent.parents)
-        for base in bases:
-            if base.is_absolute() and (base / root).is_dir():
-                return None if (base / root).resolve() == root.resolve() else base / root
-        if root.is_dir() or recorded is None:
-            return None
-        where = f" (the run was started in {self.start_dir})" if self.start_dir else ""
-        raise DataError(
-            f"data root {root} of the run is relative to the folder it was started in{where} and found neither there "
-            f"nor beside the run nor here: give --data.root DIR"
-        )
+        return data_root(recorded if isinstance(recorded, str) else None, self.start_dir, self.ckpt)
 
     def predict(
         self, split: str, probe: Probe | str, out: Path, *, root: Path | None = None, max_overlays: int = 0
     ) -> Path:
         """Predict the label file ``<split>.json`` of the data root with the run's weights, its history as ``probe``
         fills it, into ``out`` (``predictions.json``, ``per_image.jsonl``, overlays); returns ``out``.
+
+        The run's checkpoint is opened once, at the first prediction (`stamlane.training.stored.StoredModel`), and
+        every prediction is a plain ``Trainer.predict`` of it (`stamlane.training.stored_predict.predict_stored`).
 
         Args:
             split: the label file's stem.
@@ -323,52 +295,43 @@ class Run:
             max_overlays: overlay pictures to write.
 
         Raises:
-            RunError: the run's config or checkpoint refused, or options that do not parse (one line).
+            RunError: the run's config or checkpoint refused, or options the data module refuses (one line).
         """
-        from jsonargparse import ArgumentError
-
+        from stamlane.predict.prediction_writer import LanePredictionWriter
         from stamlane.safety.boundary import one_line
+        from stamlane.training.lightning_cli import checkpoint_name
+        from stamlane.training.stored import StoredModel
+        from stamlane.training.stored_predict import (
+            check_prediction_outputs,
+            name_predictions,
+            predict_stored,
+            prediction_trainer_options,
+        )
+        from stamlane.training.typed_values import parameter_hints
 
         probe = Probe.of(probe)
-        options: dict[str, Any] = {
-            **({"data.root": root} if root is not None else {}),
-            "data.predict_labels": [f"{split}.json"],
-            "data.history_source": probe.history,
-            **({"data.clip.align": EXACT_ALIGN} if probe.exact else {}),
-            "trainer.logger": False,
-            "trainer.callbacks": [],
-            "trainer.enable_progress_bar": False,
-            "predictions.verbose": False,
-            "predictions.output_dir": out,
-            "predictions.max_overlays": max_overlays,
-        }
         try:
-            if self._cli is None:  # the first prediction builds the model and loads the checkpoint
-                args = ["predict", "--config", str(self.config_file), f"--ckpt_path={self.ckpt}", *flags_of(options)]
-                self._cli = run_cli(args, parser_kwargs={"exit_on_error": False})
-                first = self._cli.datamodule
-                self._align = first.clip.align if not probe.exact else self.clip.align
-            else:
-                self._cli.predict_again(self._datamodule(split, probe, root), Path(out), max_overlays)
-        except (ValueError, ArgumentError) as err:  # a tampered run folder or checkpoint: one line
+            if self._stored is None:  # the first prediction builds the model; the checkpoint is read once in all
+                content, self._content = self._content, None
+                self._stored = StoredModel.of_content(self.ckpt, content) if content else StoredModel.open(self.ckpt)
+            model = self._stored
+            data = model.datamodule(
+                **({"root": str(root)} if root is not None else {}),
+                predict_labels=[f"{split}.json"],
+                history_source=probe.history,
+                **({"clip": {"align": EXACT_ALIGN}} if probe.exact else {}),
+            )
+            _, names = parameter_hints(LanePredictionWriter)
+            stored = {k: v for k, v in model.section("predictions").items() if k in names}
+            options = {"output_dir": str(out), "max_overlays": max_overlays, "verbose": False}
+            writer = LanePredictionWriter(**{**stored, **options})
+            name_predictions(writer, data, None, checkpoint_name(str(self.ckpt), []))
+            check_prediction_outputs(writer, [data.root], [self.ckpt])
+            trainer = prediction_trainer_options(model.section("trainer")) | {"enable_progress_bar": False}
+            predict_stored(model, data, writer, seed=(model.config or {}).get("seed_everything", 0), **trainer)
+        except ValueError as err:  # a tampered run folder or checkpoint: one line
             raise RunError(f"{self.source}: {one_line(err)}") from None
         return Path(out)
-
-    def _datamodule(self, split: str, probe: Probe, root: Path | None) -> Any:
-        """The first prediction's data module with another split and probe (every other option as the run's)."""
-        import inspect
-
-        first = self._cli.datamodule
-        names = [n for n in inspect.signature(type(first).__init__).parameters if n != "self"]
-        kwargs = {n: first.hparams[n] for n in names}
-        kwargs |= {"augment": first.augment, "synth": first.synth, "loader": first.loader}
-        kwargs |= {
-            "clip": replace(first.clip, align=EXACT_ALIGN if probe.exact else self._align),
-            "root": str(root) if root is not None else first.hparams["root"],
-            "predict_labels": [f"{split}.json"],
-            "history_source": probe.history,
-        }
-        return type(first)(**kwargs)
 
 
 def open_run(where: str | Path) -> Run:
@@ -392,6 +355,7 @@ def open_run(where: str | Path) -> Run:
     path = Path(where)
     start: Any = None
     text: Any = None
+    content: Any = None
     try:
         if path.is_dir():  # a run folder: its config.yaml, read only inside it
             ckpt, source = path / "checkpoints" / "last.ckpt", path / "config.yaml"
@@ -411,7 +375,8 @@ def open_run(where: str | Path) -> Run:
         check_config_paths(config)
     except (CheckpointError, GuardError, PathError) as err:
         raise RunError(str(err)) from None
-    return Run(ckpt, config, source, text, start if isinstance(start, str) else None)
+    kept = content if not path.is_dir() else None  # read already: its first prediction does not read it again
+    return Run(ckpt, config, source, text, start if isinstance(start, str) else None, _content=kept)
 
 
 def predict(run: Run, split: str, probe: Probe | str, out: Path, **options: Any) -> Path:

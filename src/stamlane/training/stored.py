@@ -25,11 +25,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from stamlane.data.datamodule import ClipDataModule
     from stamlane.data.options import ClipOptions
     from stamlane.predict.postprocess import PostprocessConfig
     from stamlane.training.module import StamLaneModule
 
-__all__ = ["ModelSettings", "StoredModel", "checkpoint_of"]
+__all__ = ["ModelSettings", "StoredModel", "checkpoint_of", "data_root"]
 
 RUN_CHECKPOINT = Path("checkpoints") / "last.ckpt"
 """The final weights of a run folder (what ``stamlane fit`` writes and `stamlane.training.runs.open_run` opens)."""
@@ -102,12 +103,17 @@ class StoredModel:
         settings: how it sees frames and decodes lanes (`ModelSettings`).
         config: the run's config as plain data, checked against the registry in today's names, when the checkpoint
             carries one (None for a checkpoint of before configs travelled in them).
+        data: the options of its data module, in today's names (the run config's ``data`` section, else the
+            checkpoint's data hyper-parameters; empty when it records neither): what `datamodule` builds.
+        start_dir: the folder ``stamlane fit`` was started in (its relative paths are relative to it), if recorded.
     """
 
     checkpoint: Path
     module: StamLaneModule = field(repr=False)
     settings: ModelSettings
     config: dict[str, Any] | None = field(default=None, repr=False)
+    data: dict[str, Any] = field(default_factory=dict, repr=False)
+    start_dir: str | None = None
 
     @classmethod
     def open(cls, where: str | Path) -> StoredModel:
@@ -117,27 +123,77 @@ class StoredModel:
             CheckpointError: no such checkpoint, one over the budget or unreadable, or one whose network, data
                 options or config the registry refuses (one line naming the file).
         """
-        from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
-        from stamlane.training.compat import clip_options
-        from stamlane.training.lightning_cli import CONFIG_KEY
-        from stamlane.training.registry import build_module, check_data_hparams, check_run_config
+        from stamlane.safety.checkpoints import read_checkpoint
 
         path = checkpoint_of(where)
-        content = read_checkpoint(path)
+        return cls.of_content(path, read_checkpoint(path))
+
+    @classmethod
+    def of_content(cls, path: Path, content: dict[str, Any]) -> StoredModel:
+        """The stored model of a checkpoint's content, already read from ``path`` (by `open`, or by
+        `stamlane.training.runs.open_run`, which reads it for the run's config): the file is not read again.
+
+        Raises:
+            CheckpointError: see `open`.
+        """
+        from stamlane.safety.checkpoints import CheckpointError
+        from stamlane.training.compat import clip_options, group_data
+        from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
+        from stamlane.training.registry import build_module, check_data_hparams, check_run_config
+
+        text = content.get(CONFIG_KEY)  # the run's config first: what it names is refused before anything is built
+        config = check_run_config(text, path) if isinstance(text, str) else None
         module = build_module(content, path)
         data = content.get("datamodule_hyper_parameters")
         if data is not None:
             check_data_hparams(data, path)
-        text = content.get(CONFIG_KEY)
-        config = check_run_config(text, path) if isinstance(text, str) else None
         if not isinstance(data, dict) and config is not None and isinstance(config.get("data"), dict):
             data = config["data"]  # no data hyper-parameters stored: the run config's data section says the same
+        # the data module of a prediction: the run's config, what `stamlane fit` read (else the data hyper-parameters)
+        run_data = config["data"] if config is not None and isinstance(config.get("data"), dict) else data
         try:
             clip = clip_options(data) if isinstance(data, dict) else None
             settings = ModelSettings.of(module, clip)
+            grouped = group_data(run_data) if isinstance(run_data, dict) else {}
         except ValueError as err:
             raise CheckpointError(f"checkpoint {path}: {err}") from None
-        return cls(path, module, settings, config)
+        start = content.get(START_DIR_KEY)
+        options = {k: v for k, v in grouped.items() if not str(k).startswith("_")}
+        return cls(path, module, settings, config, options, start if isinstance(start, str) else None)
+
+    def section(self, name: str) -> dict[str, Any]:
+        """A section of the run's config (``trainer``, ``predictions``, ...) as plain data; empty without one."""
+        value = (self.config or {}).get(name)
+        return dict(value) if isinstance(value, dict) else {}
+
+    def datamodule(self, **options: Any) -> ClipDataModule:
+        """The run's data module (`stamlane.data.datamodule.ClipDataModule`, its stored data options in today's
+        names), each of ``options`` replacing its option: ``root``, ``predict_labels``, ``history_source``, or an
+        option group (``clip=ClipOptions(...)``) or a mapping of some of a group's options (``clip={"align":
+        "true"}``).
+
+        Raises:
+            ValueError: an option the data module refuses.
+        """
+        from stamlane.data.datamodule import ClipDataModule
+        from stamlane.data.options import GROUPS
+        from stamlane.training.typed_values import build_value, parameter_hints
+
+        hints, names = parameter_hints(ClipDataModule)
+        stored = {k: v for k, v in self.data.items() if k in names}
+        for group, value in options.items():
+            if group in GROUPS and isinstance(value, dict):
+                options[group] = {**(stored.get(group) or {}), **value}
+        kwargs = {k: build_value(v, hints.get(k, Any)) for k, v in {**stored, **options}.items()}
+        return ClipDataModule(**kwargs)
+
+    def predict(self, data: Any, writer: Any, **trainer_options: Any) -> None:
+        """Predict ``data`` (a LightningDataModule) with this model through a plain ``lightning.Trainer.predict``,
+        written by ``writer`` (`stamlane.predict.prediction_writer.LanePredictionWriter`); see
+        `stamlane.training.stored_predict.predict_stored`."""
+        from stamlane.training.stored_predict import predict_stored
+
+        predict_stored(self, data, writer, **trainer_options)
 
 
 def checkpoint_of(where: str | Path) -> Path:
@@ -156,3 +212,33 @@ def checkpoint_of(where: str | Path) -> Path:
             raise CheckpointError(f"{path} holds no {RUN_CHECKPOINT.as_posix()} (not a finished run folder)")
         return path / RUN_CHECKPOINT
     return path
+
+
+def data_root(recorded: str | None, start_dir: str | None, ckpt: str | Path) -> Path | None:
+    """The data root to give a run that recorded ``recorded`` relative to the folder it was started in
+    (``data/synthetic-v7``), so that it works from any folder: looked for under ``start_dir`` (recorded in the
+    checkpoints of ``stamlane fit``), then under the ancestors of the checkpoint ``ckpt``'s folder, then here. None
+    when the root is absolute or found nowhere but here; a default synthetic set (``recorded`` None) found nowhere is
+    generated here, as ``fit`` would.
+
+    Raises:
+        DataError: a relative root found nowhere, naming the flag to give.
+    """
+    from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT
+    from stamlane.data.labels import DataError
+
+    root = Path(recorded) if recorded is not None else Path(DEFAULT_SYNTHETIC_ROOT)
+    if root.is_absolute():
+        return None
+    bases = [Path(start_dir)] if start_dir else []
+    bases += list(Path(ckpt).resolve().parent.parents)
+    for base in bases:
+        if base.is_absolute() and (base / root).is_dir():
+            return None if (base / root).resolve() == root.resolve() else base / root
+    if root.is_dir() or recorded is None:
+        return None
+    where = f" (the run was started in {start_dir})" if start_dir else ""
+    raise DataError(
+        f"data root {root} of the run is relative to the folder it was started in{where} and found neither there "
+        f"nor beside the run nor here: give --data.root DIR"
+    )
