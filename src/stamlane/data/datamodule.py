@@ -320,6 +320,7 @@ class FramesDataModule(LightningDataModule):
             are never written beside the input, nor frames of an earlier decoding reused).
         history_source: ``"real"`` (each frame's predecessors) or ``"key"`` (each frame its own history: for
             pictures that are not one sequence).
+        progress: show a progress bar while a video is decoded (`stamlane.data.frames.decode_video`).
     """
 
     def __init__(
@@ -329,6 +330,7 @@ class FramesDataModule(LightningDataModule):
         loader: LoaderOptions = LoaderOptions(),
         frames_dir: str | None = None,
         history_source: str = "real",
+        progress: bool = True,
     ) -> None:
         super().__init__()
         path = Path(source)
@@ -349,7 +351,7 @@ class FramesDataModule(LightningDataModule):
             self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
             frames_dir = self._decoded.name
         self.root = Path(frames_dir) if frames_dir else path
-        self.clip, self.loader, self.history_source = clip, loader, history_source
+        self.clip, self.loader, self.history_source, self.progress = clip, loader, history_source, progress
         self.video_fps: float | None = None
         """The video's frame rate (None for a folder, or a video that declares none): the overlay video's."""
         self.dataset: FolderClips | None = None
@@ -359,7 +361,7 @@ class FramesDataModule(LightningDataModule):
         if self.is_video:
             self.video_fps = video_rate(self.source)
             if not any(self.root.glob("*.jpg")):
-                decode_video(self.source, self.root)
+                decode_video(self.source, self.root, progress=self.progress)
 
     def setup(self, stage: str | None = None) -> None:
         if self.dataset is not None:
