@@ -26,7 +26,7 @@ from stamlane.data.frame_store import FRAME_STORE
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
-from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.options import DEMO_SYNTH, AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.probes import FOLDER_HISTORIES, HISTORIES
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dataset import generate_dataset
@@ -111,7 +111,7 @@ class ClipDataModule(LightningDataModule):
             ``"vil100"`` (`stamlane.data.layouts.FORMATS`).
         clip: how a clip is read and resized (frames, stride, size, sky cut, alignment), in every split.
         augment: the training augmentation and key-frame corruption; validation/test/predict only resize.
-        synth: the synthetic set generated when ``root`` is None.
+        synth: the synthetic set generated when ``root`` is None (default the demo's, `DEMO_SYNTH`).
         loader: batch size and DataLoader workers.
         train_labels: label files (TuSimple json-lines) or list files (CULane, ApolloScape, VIL-100) of the train
             split, relative to ``root`` (None: ``train.json`` for TuSimple-layout sets).
@@ -133,7 +133,7 @@ class ClipDataModule(LightningDataModule):
         format: str = "tusimple",
         clip: ClipOptions = ClipOptions(),
         augment: AugmentOptions = AugmentOptions(),
-        synth: SynthOptions = SynthOptions(),
+        synth: SynthOptions = DEMO_SYNTH,
         loader: LoaderOptions = LoaderOptions(),
         train_labels: list[str] | None = None,
         val_labels: list[str] | None = None,
