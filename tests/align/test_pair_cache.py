@@ -17,11 +17,11 @@ from stamlane.align.cache import (
     PairCache,
     alignment_to_json,
     estimate_clip_cached,
-    frame_digest,
     pair_cache_folder,
     pair_key,
 )
 from stamlane.align.homography import AlignConfig, Alignment
+from stamlane.align.identity import frame_digest
 from stamlane.align.user_cache import CACHE_ENV, cache_home
 from stamlane.align.warp import estimate_clip
 from stamlane.synth import SynthConfig

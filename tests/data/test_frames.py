@@ -101,3 +101,21 @@ def test_the_data_module_warns_when_the_history_is_used_on_unrelated_frames(shar
 def test_the_data_module_refuses_a_history_a_folder_cannot_give(synthetic_root: Path) -> None:
     with pytest.raises(ValueError, match=r"history_source must be one of \('real', 'key'\) for a folder or video"):
         FramesDataModule(str(synthetic_root / "clips" / "test-0000"), history_source="other_clip")
+
+
+def test_a_video_decodes_with_a_progress_bar_only_when_asked(
+    synthetic_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``stamlane adapt --no-progress`` (`FramesDataModule(progress=False)`): a video's decoding shows no bar either."""
+    frames = sorted((synthetic_root / "clips" / "test-0000").glob("*.jpg"), key=lambda p: int(p.stem))[:3]
+    first = cv2.imread(str(frames[0]))
+    video = tmp_path / "drive.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (first.shape[1], first.shape[0]))
+    for frame in frames:
+        writer.write(cv2.imread(str(frame)))
+    writer.release()
+    for progress in (True, False):
+        data = FramesDataModule(str(video), ClipOptions(num_frames=1, align="none"), progress=progress)
+        data.prepare_data()
+        assert len(list(data.root.glob("*.jpg"))) == 3
+        assert ("decoding drive.avi" in capsys.readouterr().err) == progress

@@ -7,7 +7,9 @@ import dataclasses
 import pytest
 
 from stamlane.data.corruption import DEFAULT_KINDS
-from stamlane.data.options import GROUPS, AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.datamodule import ClipDataModule
+from stamlane.data.options import DEMO_SYNTH, GROUPS, AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.synth.layout import DEMO_SPLITS, SplitCounts
 
 
 def test_defaults_are_the_documented_ones() -> None:
@@ -24,7 +26,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert augment.crop_scale == (0.85, 1.0) and augment.flip_prob == 0.5
     assert (augment.brightness, augment.contrast, augment.saturation, augment.hue) == (0.2, 0.2, 0.2, 0.0)
     assert augment.key_corruption == 0.0 and augment.key_corruption_kinds == DEFAULT_KINDS
-    synth = SynthOptions()
+    synth = DEMO_SYNTH
     assert synth.splits().as_dict() == {
         "train": 120,
         "val": 20,
@@ -40,6 +42,16 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (synth.config().width, synth.config().height) == (640, 360)
     assert LoaderOptions() == LoaderOptions(batch_size=4, num_workers=0)
     assert set(GROUPS) == {"clip", "augment", "synth", "loader"}
+
+
+def test_the_split_counts_are_those_of_split_counts_alone() -> None:
+    """`SplitCounts` declares and checks the counts: each of its fields is a ``data.synth`` key, no other is a split."""
+    names = [f.name for f in dataclasses.fields(SplitCounts)]
+    assert [f.name for f in dataclasses.fields(SynthOptions)][: len(names)] == names
+    assert SynthOptions().splits() == SplitCounts() and DEMO_SYNTH.splits() == DEMO_SPLITS
+    assert SynthOptions(test=3, seed=5, size=(64, 96)).as_dict() == {**SplitCounts(test=3).as_dict()}
+    assert SynthOptions(test=3).total() == 3
+    assert ClipDataModule().synth == DEMO_SYNTH  # the demo's set when root is null
 
 
 def test_yaml_lists_become_tuples_and_the_groups_are_frozen() -> None:
@@ -69,7 +81,8 @@ def test_yaml_lists_become_tuples_and_the_groups_are_frozen() -> None:
         (lambda: AugmentOptions(brightness=1.0), "brightness must be in"),
         (lambda: AugmentOptions(key_corruption=2.0), r"key corruption prob must be in \[0, 1\], got 2.0"),
         (lambda: AugmentOptions(key_corruption_kinds=("fog",)), "key corruption kinds must be some of"),
-        (lambda: SynthOptions(train=-1), "synth.train must be >= 0, got -1"),
+        (lambda: SynthOptions(train=-1), "synth: clip count of split 'train' must be an int >= 0, got -1"),
+        (lambda: SynthOptions(reveal_traffic=2.5), "synth: clip count of split 'reveal_traffic' must be an int"),
         (lambda: SynthOptions(eval_key_step=-2), "synth.eval_key_step must be >= 0, got -2"),
         (lambda: SynthOptions(size=(0, 10)), r"synth.size must be \(H, W\) with positive sides, got \(0, 10\)"),
         (lambda: LoaderOptions(batch_size=0), "batch_size must be >= 1, got 0"),

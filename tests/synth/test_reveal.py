@@ -116,10 +116,10 @@ def test_synth_writes_the_reveal_splits_by_default_and_refuses_negative_counts(t
 
 
 def test_synth_demo_writes_the_set_the_data_options_generate():
-    from stamlane.data.options import SynthOptions
+    from stamlane.data.options import DEMO_SYNTH
     from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP
 
-    options = SynthOptions()
+    options = DEMO_SYNTH
     assert options.splits() == DEMO_SPLITS
     assert (options.train_key_step, options.eval_key_step, options.seed) == (TRAIN_KEY_STEP, EVAL_KEY_STEP, 0)
     assert options.config() == SynthConfig()

@@ -10,15 +10,17 @@ A clip folder is any folder holding numbered frames ``<n>.jpg`` / ``<n>.png`` (T
 a dataset root that is itself a clip folder is cached as ``<cache_dir>/__root__.json``.
 
 The data pipeline's own cache (`PairCache`, ``align: fly``) keeps ORB frame-pair estimates by CONTENT instead: one
-file per pair, named by the digest of both frames' pixels (`frame_digest`) with the estimation settings, the
-OpenCV and numpy versions and `PAIR_CACHE_VERSION` (`pair_key`), in the user's cache folder (`pair_cache_folder`:
-``alignment/`` of `stamlane.align.user_cache`, never inside the data); entries in the format above
-(`alignment_to_json`). A frame rewritten with other pixels has another digest, so a stale entry is never read; every
-training run, prediction pass, probe, model and seed on the same frames, wherever they lie, reads the pairs the
-first one estimated (`estimate_clip_cached`), and the homographies are the estimated ones bit for bit (JSON keeps
-a float64 exactly). A frame has one other identity, the digest of its file's bytes (`stamlane.data.frame_store`'s
-`file_identity`): the in-memory store needs it before the frame is decoded, the pair cache the pixels whatever the
-file's encoding, so neither can serve the other.
+file per pair, named by the digest of both frames' pixels (`stamlane.align.identity.frame_digest`: what identifies
+a frame, and why the pair cache keys by pixels) with the estimation settings, the OpenCV and numpy versions and
+`PAIR_CACHE_VERSION` (`pair_key`), in the user's cache folder (`pair_cache_folder`: ``alignment/`` of
+`stamlane.align.user_cache`, never inside the data); entries in the format above (`alignment_to_json`). A frame
+rewritten with other pixels has another digest, so a stale entry is never read; every training run, prediction
+pass, probe, model and seed on the same frames, wherever they lie, reads the pairs the first one estimated
+(`estimate_clip_cached`), and the homographies are the estimated ones bit for bit (JSON keeps a float64 exactly).
+
+Who reads and writes these caches: ``stamlane align`` writes the first (`merge_cache`); the data pipeline's
+`stamlane.data.alignment.ClipAligner` is the one owner of every alignment a dataset reads: this module's two
+caches, its own memo of clips and pairs, and a clip's alignment kept in the process's frame store.
 """
 
 from __future__ import annotations
@@ -42,10 +44,10 @@ from stamlane.align.homography import (
     FramePrep,
     check_plausible,
     estimate_prepared,
-    resolve_horizon_row,
 )
+from stamlane.align.identity import frame_digest
 from stamlane.align.user_cache import cache_folder, say_unwritable, writable_folder
-from stamlane.align.warp import Strategy
+from stamlane.align.warp import Strategy, alignments_to_key, clip_estimate
 from stamlane.safety.guard import GuardError, is_inside, read_inside, write_atomic
 
 __all__ = [
@@ -59,7 +61,6 @@ __all__ = [
     "cache_file",
     "estimate_clip_cached",
     "find_clip_dirs",
-    "frame_digest",
     "list_frames",
     "load_alignment",
     "merge_cache",
@@ -257,14 +258,6 @@ _MAX_ENTRY_BYTES = 1 << 16
 """An entry is a few hundred bytes; a larger file is not one of ours and is not read."""
 
 
-def frame_digest(image: np.ndarray) -> str:
-    """SHA-256 of a frame's shape, dtype and pixels (what the estimator reads), hex."""
-    image = np.ascontiguousarray(image)
-    digest = hashlib.sha256(f"{image.shape}{image.dtype.str}".encode())
-    digest.update(image.data.cast("B"))
-    return digest.hexdigest()
-
-
 def pair_key(hist_digest: str, key_digest: str, horizon_row: int, config: AlignConfig) -> str:
     """The name of one pair's entry: a digest of both frames' digests, the (resolved) horizon row, every estimation
     setting, the OpenCV and numpy versions (their ORB, RANSAC and Lucas-Kanade are part of the result) and
@@ -369,7 +362,6 @@ def estimate_clip_cached(
     horizon_row: int | None = None,
     config: AlignConfig | None = None,
     strategy: Strategy = "chain",
-    digests: list[str] | None = None,
 ) -> list[Alignment]:
     """`stamlane.align.warp.estimate_clip` with every frame pair it estimates looked up first in ``memo`` (this
     process) and ``cache`` (every process; None: none) and stored in both when estimated: the same alignments bit
@@ -380,20 +372,13 @@ def estimate_clip_cached(
         cache: the shared cache, or None.
         memo: pair key -> alignment, this process's copy (None: none).
         horizon_row, config, strategy: as `estimate_clip`.
-        digests: the frames' `frame_digest` when the caller has them.
 
     Returns:
         ``T`` alignments, oldest first; the key frame's (last) is the identity with ``ok=True``.
     """
-    from stamlane.align.warp import _check_frames, alignments_to_key
-
-    frames = _check_frames(frames)
-    if strategy not in ("direct", "chain"):
-        raise ValueError(f"strategy must be 'direct' or 'chain', got {strategy!r}")
-    cfg = config or AlignConfig()
+    frames, cfg, row = clip_estimate(frames, horizon_row, config, strategy)
     shape = frames[-1].shape[:2]
-    row = resolve_horizon_row(horizon_row, shape[0])
-    digests = digests or [frame_digest(f) for f in frames]
+    digests = [frame_digest(f) for f in frames]
     preps: dict[int, FramePrep] = {}
     memo = {} if memo is None else memo
 

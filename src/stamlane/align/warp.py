@@ -19,7 +19,15 @@ from stamlane.align.homography import (
     resolve_horizon_row,
 )
 
-__all__ = ["align_clip", "alignments_to_key", "chain_alignments", "chain_link", "estimate_clip", "warp_to_key"]
+__all__ = [
+    "align_clip",
+    "alignments_to_key",
+    "chain_alignments",
+    "chain_link",
+    "clip_estimate",
+    "estimate_clip",
+    "warp_to_key",
+]
 
 Strategy = Literal["direct", "chain"]
 
@@ -191,6 +199,23 @@ def _check_frames(frames: object) -> list[np.ndarray]:
     return list(frames)
 
 
+def clip_estimate(
+    frames: object, horizon_row: int | None, config: AlignConfig | None, strategy: str
+) -> tuple[list[np.ndarray], AlignConfig, int]:
+    """What every estimate of a clip starts from (`estimate_clip`, `stamlane.align.cache.estimate_clip_cached`):
+    the frames checked, the strategy checked, the settings and the horizon row of the frames' height.
+
+    Args and Raises: as ``align_clip``.
+
+    Returns:
+        the frames as a list, the settings (``config``, or the defaults) and the resolved horizon row.
+    """
+    checked = _check_frames(frames)
+    if strategy not in ("direct", "chain"):
+        raise ValueError(f"strategy must be 'direct' or 'chain', got {strategy!r}")
+    return checked, config or AlignConfig(), resolve_horizon_row(horizon_row, checked[-1].shape[0])
+
+
 def estimate_clip(
     frames: Sequence[np.ndarray] | np.ndarray,
     *,
@@ -205,13 +230,9 @@ def estimate_clip(
     Returns:
         ``T`` alignments, oldest first; the key frame's (last) is the identity with ``ok=True``.
     """
-    frames = _check_frames(frames)
-    if strategy not in ("direct", "chain"):
-        raise ValueError(f"strategy must be 'direct' or 'chain', got {strategy!r}")
-    cfg = config or AlignConfig()
-    shape = frames[-1].shape[:2]
-    row = resolve_horizon_row(horizon_row, shape[0])
+    frames, cfg, row = clip_estimate(frames, horizon_row, config, strategy)
     preps = [FramePrep(f, row, cfg) for f in frames]
+    shape = frames[-1].shape[:2]
     alignments = alignments_to_key(
         len(frames), lambda i, j: estimate_prepared(preps[i], preps[j], cfg), shape, row, cfg, strategy
     )

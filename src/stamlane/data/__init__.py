@@ -15,12 +15,13 @@ from stamlane.data.clips import NET_HOMOGRAPHIES, ClipDataset, ClipEntry
 from stamlane.data.collate import collate_clips
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import ApolloClips, CULaneClips, TuSimpleClips, VIL100Clips
-from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.options import DEMO_SYNTH, AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipParams, ClipTransform, net_homographies
 
 __all__ = [
     "ALIGN_MODES",
+    "DEMO_SYNTH",
     "NET_HOMOGRAPHIES",
     "WARP_MODES",
     "ApolloClips",

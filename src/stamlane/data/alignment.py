@@ -21,6 +21,15 @@ Modes:
 A failed estimate is the identity (``ok`` False), as ``stamlane.align`` returns it; the dataset never
 crashes on it.
 
+Every cache of alignments a dataset reads has one owner, the dataset's `ClipAligner`, and keys a frame by one of the
+identities of `stamlane.align.identity` (which says why there are two):
+    ``stamlane align``'s files  per clip folder, by frame name (``"cache"``; `stamlane.align.cache.load_alignment`).
+    the pair cache              on disk, shared by every process, by both frames' pixel digests and the settings
+                                (``"fly"`` and the pairs ``"cache"`` lacks; `stamlane.align.cache.PairCache`).
+    the memo                    the aligner's clips by their paths and pairs by their keys (`ClipAligner.forget`).
+    the frame store             the process's, a clip's alignment by its files' identities and the aligner's
+                                `ClipAligner.settings` (`ClipAligner.kept`; `stamlane.data.frame_store`).
+
 Where the alignment is applied is a separate choice (``WARP_MODES``, the datasets' ``warp`` option):
     ``"image"``   history IMAGES are warped onto the key frame before the network (the paper's pre-alignment).
     ``"feature"`` the frames stay unwarped and the homographies go with the sample in network pixels
@@ -31,6 +40,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Callable
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +51,7 @@ from stamlane.data.labels import DataError
 if TYPE_CHECKING:
     from stamlane.align.homography import Alignment
     from stamlane.align.warp import Strategy
+    from stamlane.data.frame_store import FrameStore
 
 __all__ = ["ALIGN_MODES", "ALIGN_STRATEGIES", "WARP_MODES", "ClipAligner"]
 
@@ -157,12 +168,44 @@ class ClipAligner:
         self._memo.clear()
         self._pairs.clear()
 
-    @staticmethod
-    def digests(frames: list[np.ndarray]) -> list[str]:
-        """The frames' content digests (`stamlane.align.cache.frame_digest`) that key the pair cache."""
-        from stamlane.align.cache import frame_digest
+    @property
+    def settings(self) -> tuple[object, ...]:
+        """Everything a clip's alignment depends on besides its frames: what keys it outside this object (`kept`)."""
+        return (
+            self.mode,
+            self.strategy,
+            self.preset,
+            self.horizon_row,
+            self.root,
+            self.cache_dir,
+            self.pair_cache is not None,
+        )
 
-        return [frame_digest(f) for f in frames]
+    def kept(
+        self,
+        store: FrameStore,
+        identities: tuple[str | None, ...],
+        frame_paths: list[str],
+        frames: Callable[[], list[np.ndarray]],
+    ) -> np.ndarray:
+        """``key_from_hist`` (T, 3, 3) of a clip, as ``self(frame_paths, frames())[0]`` gives it, kept in ``store``
+        (the process's frame store, `stamlane.data.frame_store`) under the frames' file identities
+        (`stamlane.align.identity.file_identity`) and `settings`: a later dataset of the same settings on the same
+        files reads it without decoding a frame (``frames`` is called only when the store lacks it).
+
+        Returns:
+            a read-only array (shared with the store).
+        """
+        if not self.reads_pixels:
+            unread = self(frame_paths, None)[0]
+            return unread
+        key = ("align", self.settings, identities)
+        mats: np.ndarray | None = store.get(key)
+        if mats is None:
+            mats = self(frame_paths, frames())[0].copy()
+            mats.setflags(write=False)
+            store.put(key, mats)
+        return mats
 
     def _estimate(self, frames: list[np.ndarray]) -> list[Alignment]:  # T - 1
         from stamlane.align.cache import estimate_clip_cached  # imported only when used

@@ -26,7 +26,7 @@ from stamlane.data.frame_store import FRAME_STORE
 from stamlane.data.frames import VIDEO_SUFFIXES, FolderClips, SequenceCheck, check_sequence, decode_video, video_rate
 from stamlane.data.labels import DataError
 from stamlane.data.layouts import FORMATS, make_clips
-from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.options import DEMO_SYNTH, AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.probes import FOLDER_HISTORIES, HISTORIES
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.dataset import generate_dataset
@@ -111,7 +111,7 @@ class ClipDataModule(LightningDataModule):
             ``"vil100"`` (`stamlane.data.layouts.FORMATS`).
         clip: how a clip is read and resized (frames, stride, size, sky cut, alignment), in every split.
         augment: the training augmentation and key-frame corruption; validation/test/predict only resize.
-        synth: the synthetic set generated when ``root`` is None.
+        synth: the synthetic set generated when ``root`` is None (default the demo's, `DEMO_SYNTH`).
         loader: batch size and DataLoader workers.
         train_labels: label files (TuSimple json-lines) or list files (CULane, ApolloScape, VIL-100) of the train
             split, relative to ``root`` (None: ``train.json`` for TuSimple-layout sets).
@@ -133,7 +133,7 @@ class ClipDataModule(LightningDataModule):
         format: str = "tusimple",
         clip: ClipOptions = ClipOptions(),
         augment: AugmentOptions = AugmentOptions(),
-        synth: SynthOptions = SynthOptions(),
+        synth: SynthOptions = DEMO_SYNTH,
         loader: LoaderOptions = LoaderOptions(),
         train_labels: list[str] | None = None,
         val_labels: list[str] | None = None,
@@ -320,6 +320,7 @@ class FramesDataModule(LightningDataModule):
             are never written beside the input, nor frames of an earlier decoding reused).
         history_source: ``"real"`` (each frame's predecessors) or ``"key"`` (each frame its own history: for
             pictures that are not one sequence).
+        progress: show a progress bar while a video is decoded (`stamlane.data.frames.decode_video`).
     """
 
     def __init__(
@@ -329,6 +330,7 @@ class FramesDataModule(LightningDataModule):
         loader: LoaderOptions = LoaderOptions(),
         frames_dir: str | None = None,
         history_source: str = "real",
+        progress: bool = True,
     ) -> None:
         super().__init__()
         path = Path(source)
@@ -349,7 +351,7 @@ class FramesDataModule(LightningDataModule):
             self._decoded = tempfile.TemporaryDirectory(prefix="stamlane-frames-")
             frames_dir = self._decoded.name
         self.root = Path(frames_dir) if frames_dir else path
-        self.clip, self.loader, self.history_source = clip, loader, history_source
+        self.clip, self.loader, self.history_source, self.progress = clip, loader, history_source, progress
         self.video_fps: float | None = None
         """The video's frame rate (None for a folder, or a video that declares none): the overlay video's."""
         self.dataset: FolderClips | None = None
@@ -359,7 +361,7 @@ class FramesDataModule(LightningDataModule):
         if self.is_video:
             self.video_fps = video_rate(self.source)
             if not any(self.root.glob("*.jpg")):
-                decode_video(self.source, self.root)
+                decode_video(self.source, self.root, progress=self.progress)
 
     def setup(self, stage: str | None = None) -> None:
         if self.dataset is not None:

@@ -8,8 +8,10 @@ under ``(file identity, key_from_hist, net_from_orig, network size)``, and each 
 identities and the aligner's settings; a later read is the same bytes, and the sample the same tensors bit for bit
 (the float conversion is `stamlane.data.transforms.to_network` either way).
 
-A file's identity is the digest of its bytes (`file_identity`, read again at every use): a
-frame written again with other pixels is another frame for the store, never an old picture. The store holds at most its budget
+A frame's identity here is the digest of its file's bytes (`stamlane.align.identity.file_identity`, where the
+identities of a frame are explained): a frame written again with other pixels is another frame for the store,
+never an old picture. A clip's alignment is kept by its owner, the dataset's aligner
+(`stamlane.data.alignment.ClipAligner.kept`), under the same identities. The store holds at most its budget
 (least recently used first out); it lives in the process, so `ClipDataModule` fills it in the main process before
 a test or prediction loader's workers start (`ClipDataset.materialise`): forked workers read it, and the next pass
 finds it filled. Training samples are augmented afresh every time and never stored.
@@ -17,36 +19,22 @@ finds it filled. Training samples are augmented afresh every time and never stor
 
 from __future__ import annotations
 
-import hashlib
 import threading
 from collections import OrderedDict
 from collections.abc import Hashable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from stamlane.align.identity import file_identity
 from stamlane.data.labels import DataError
 from stamlane.data.transforms import to_network
-from stamlane.safety.images import read_image_file
 
-__all__ = ["DEFAULT_MEMORY_MB", "FRAME_STORE", "FrameStore", "StoredSlots", "file_identity"]
+__all__ = ["DEFAULT_MEMORY_MB", "FRAME_STORE", "FrameStore", "StoredSlots"]
 
 DEFAULT_MEMORY_MB = 1024
 """The store's default budget (`stamlane.data.options.LoaderOptions.memory_mb`): the demo's scored splits at 80x256
 with 4 frames (about 2,700 key frames, 650 MB of warped frames for the aligned model), as uint8."""
-
-
-def file_identity(path: Path) -> str | None:
-    """The digest of a file's bytes (BLAKE2b, 128 bits), or None when it is not a regular file of at most
-    `stamlane.safety.images.MAX_IMAGE_BYTES` that can be read (the image reader then says why)."""
-    try:
-        data = read_image_file(path)
-    except OSError:
-        return None
-    if data is None:
-        return None
-    return hashlib.blake2b(data, digest_size=16).hexdigest()
 
 
 class FrameStore:
@@ -149,26 +137,10 @@ class _StoredClip:
         return size
 
     def alignment(self) -> np.ndarray:
-        """``key_from_hist`` (T, 3, 3) as the dataset's aligner gives it."""
-        aligner = self.dataset.aligner
-        if not aligner.reads_pixels:
-            unread: np.ndarray = aligner(self.entry.frame_paths, None)[0]
-            return unread
-        store = self.dataset.frame_store
-        settings = (
-            aligner.mode,
-            aligner.strategy,
-            aligner.preset,
-            aligner.horizon_row,
-            aligner.root,
-            aligner.cache_dir,
+        """``key_from_hist`` (T, 3, 3) as the dataset's aligner gives it, kept in the store by the aligner."""
+        mats: np.ndarray = self.dataset.aligner.kept(
+            self.dataset.frame_store, self.ids, self.entry.frame_paths, self.frames
         )
-        key = ("align", settings, aligner.pair_cache is not None, self.ids)
-        mats: np.ndarray | None = store.get(key)
-        if mats is None:
-            mats = aligner(self.entry.frame_paths, self.frames())[0].copy()
-            mats.setflags(write=False)
-            store.put(key, mats)
         return mats
 
 

@@ -98,13 +98,15 @@ def video_rate(video: str | Path) -> float | None:
     return fps if math.isfinite(fps) and 0 < fps <= MAX_FPS else None
 
 
-def decode_video(video: str | Path, out_dir: str | Path, every: int = 1) -> Path:
-    """Decode a video into ``out_dir/000000.jpg, 000001.jpg, ...`` (every ``every``-th frame); returns ``out_dir``."""
+def decode_video(video: str | Path, out_dir: str | Path, every: int = 1, progress: bool = True) -> Path:
+    """Decode a video into ``out_dir/000000.jpg, 000001.jpg, ...`` (every ``every``-th frame); returns ``out_dir``.
+
+    ``progress``: show a progress bar of the frames decoded (False: none, as ``stamlane adapt --no-progress``)."""
     capture = open_video(video, DataError)
     out = make_folder(out_dir)
     total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     index = written = 0
-    with tqdm(total=total, desc=f"decoding {Path(video).name}", unit="frame") as bar:
+    with tqdm(total=total, desc=f"decoding {Path(video).name}", unit="frame", disable=not progress) as bar:
         while True:
             ok, frame = capture.read()
             if not ok:

@@ -4,7 +4,8 @@
   and `FramesDataModule`, linked into the model (``num_frames``, ``image_size``, ``crop_top``), read back from a
   checkpoint by the streaming predictor.
 - `AugmentOptions` (``data.augment``): the training augmentation, one draw per clip.
-- `SynthOptions` (``data.synth``): the synthetic set generated when ``data.root`` is null.
+- `SynthOptions` (``data.synth``): the synthetic set generated when ``data.root`` is null (a `SplitCounts`: its
+  clips per split, and how it is made; the default `DEMO_SYNTH`).
 - `LoaderOptions` (``data.loader``): batches and worker processes, of both DataModules.
 
 On the command line a field is ``--data.<group>.<field>`` (``--data.clip.num_frames 2``); in YAML::
@@ -21,7 +22,7 @@ Configs written before the groups existed (flat ``data.num_frames`` ...) are rea
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from stamlane.align.homography import align_preset
@@ -33,7 +34,7 @@ from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SplitCounts
 
-__all__ = ["GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
+__all__ = ["DEMO_SYNTH", "GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
 
 
 def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple[Any, Any]:
@@ -165,20 +166,17 @@ class AugmentOptions:
 
 
 @dataclass(frozen=True)
-class SynthOptions:
+class SynthOptions(SplitCounts):
     """The synthetic set `ClipDataModule` generates (with a progress bar) when ``data.root`` is null and
     ``data/synthetic-v<format>`` is missing; the arguments of `stamlane.synth.generate_dataset`.
 
+    Its clips per split are the fields of `stamlane.synth.layout.SplitCounts`, declared and checked there alone
+    (``data.synth.train``, ``data.synth.reveal_traffic``, ...: a new split's count is a key here with no line of
+    this class); like ``SplitCounts()``, ``SynthOptions()`` has no clip. The DataModule's default is `DEMO_SYNTH`,
+    the demo's set (`stamlane.synth.layout.DEMO_SPLITS`), and a config or a flag that names some counts
+    (``--data.synth.train 8``) keeps the others of that default.
+
     Attributes:
-        train: clean clips of the train split (>= 0).
-        val: clean clips of the val split (>= 0).
-        test: clips of the test split (>= 0).
-        challenging: clips of the challenging split, one challenging factor each (>= 0).
-        train_factors: clips with a challenging factor added to the train split after its clean clips (>= 0).
-        val_factors: clips with a challenging factor added to the val split after its clean clips (>= 0).
-        reveal: clips of the ``reveal`` split (>= 0; `stamlane.synth.config.REVEAL`).
-        reveal_traffic: clips of the ``reveal-traffic`` split (>= 0; `stamlane.synth.config.REVEAL_TRAFFIC`).
-        train_motion: clips with the reveal splits' ego motion added to the train split after its factor clips.
         train_key_step: labelled key frames per train clip (`stamlane.synth.layout.key_frames`: 0 = the last
             frame only, 1 = every frame from the 8th, 3 = frames 8, 11, .., 20).
         eval_key_step: labelled key frames per clip of the val, test and challenging splits (as ``train_key_step``).
@@ -186,15 +184,6 @@ class SynthOptions:
         size: frame size ``(H, W)``, pixels.
     """
 
-    train: int = DEMO_SPLITS.train
-    val: int = DEMO_SPLITS.val
-    test: int = DEMO_SPLITS.test
-    challenging: int = DEMO_SPLITS.challenging
-    train_factors: int = DEMO_SPLITS.train_factors
-    val_factors: int = DEMO_SPLITS.val_factors
-    reveal: int = DEMO_SPLITS.reveal
-    reveal_traffic: int = DEMO_SPLITS.reveal_traffic
-    train_motion: int = DEMO_SPLITS.train_motion
     train_key_step: int = TRAIN_KEY_STEP
     eval_key_step: int = EVAL_KEY_STEP
     seed: int = 0
@@ -202,9 +191,10 @@ class SynthOptions:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _pair(self.size, int, "size"))
-        for name in SplitCounts.__dataclass_fields__:
-            if getattr(self, name) < 0:
-                raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
+        try:
+            super().__post_init__()  # the counts, checked by SplitCounts
+        except ValueError as err:
+            raise ValueError(f"synth: {err}") from None
         for name in ("train_key_step", "eval_key_step"):
             if getattr(self, name) < 0:
                 raise ValueError(f"synth.{name} must be >= 0, got {getattr(self, name)}")
@@ -213,13 +203,22 @@ class SynthOptions:
         check_size(self.size, "data.synth.size")
         self.config()  # the generator's size budget (`stamlane.safety.budget`), checked when the config is read
 
+    def as_dict(self) -> dict[str, int]:
+        """The clip counts alone by field name (`SplitCounts.as_dict`: the other options are no split's)."""
+        return {f.name: getattr(self, f.name) for f in fields(SplitCounts)}
+
     def splits(self) -> SplitCounts:
         """Clips per split (`stamlane.synth.dataset.generate_dataset`'s; ``dataset.json`` records them as a dict)."""
-        return SplitCounts(**{name: getattr(self, name) for name in SplitCounts.__dataclass_fields__})
+        return SplitCounts(**self.as_dict())
 
     def config(self) -> SynthConfig:
         """The generator's settings of the set (its frame size; the rest the generator's defaults)."""
         return SynthConfig(width=self.size[1], height=self.size[0])
+
+
+_DEMO_COUNTS: dict[str, Any] = DEMO_SPLITS.as_dict()  # keywords of SynthOptions: SplitCounts' fields
+DEMO_SYNTH = SynthOptions(**_DEMO_COUNTS)
+"""The demo's set (``stamlane demo``, ``stamlane synth --demo``): `ClipDataModule`'s default ``data.synth``."""
 
 
 @dataclass(frozen=True)

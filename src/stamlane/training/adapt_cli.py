@@ -183,11 +183,11 @@ def _outputs(args: argparse.Namespace, ckpt: Path, source: Path) -> Path:
     return out
 
 
-def _frames(source: Path, clip: Any, max_frames: int | None, stack: Any) -> Any:
+def _frames(source: Path, clip: Any, max_frames: int | None, stack: Any, progress: bool = True) -> Any:
     """The source's frames as ``predict --source`` reads them (`FramesDataModule`), at most ``max_frames``."""
     from stamlane.data.datamodule import FramesDataModule, SequenceWarning
 
-    frames = FramesDataModule(str(source), clip)
+    frames = FramesDataModule(str(source), clip, progress=progress)  # a video's decoding bar too
     stack.append(frames)
     with warnings.catch_warnings():
         warnings.simplefilter("error", SequenceWarning)  # unrelated pictures agree on nothing: refused
@@ -250,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     held: list[Any] = []
     progress = not args.no_progress
-    dataset = _frames(source, clip, args.max_frames, held)
+    dataset = _frames(source, clip, args.max_frames, held, progress)
     seen = teacher_pass(module, dataset, progress=progress)
     labelled = pseudo_label(seen, config)
     stats = labelled.stats
