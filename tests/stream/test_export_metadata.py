@@ -16,6 +16,7 @@ import pytest
 import torch
 
 from stamlane.cli import main as stamlane
+from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.stream.metadata import METADATA_KEYS, read_metadata
 
 from .conftest import CLIP, POSTPROCESS
@@ -66,8 +67,10 @@ def test_the_onnx_carries_the_checkpoints_preprocessing_and_decoding(exported: t
         "horizon_row": 40,
     }
     assert "ORB" in meta["alignment"]["by"]
-    # decoding: every field of the module's PostprocessConfig, the ones the config set among them
-    assert meta["postprocess"] == dataclasses.asdict(module.postprocess)
+    # decoding: every field of the module's PostprocessConfig (JSON: its tuples as lists), the ones the config set
+    # among them; the metadata alone rebuilds the module's decoding
+    assert meta["postprocess"] == json.loads(json.dumps(dataclasses.asdict(module.postprocess)))
+    assert PostprocessConfig(**meta["postprocess"]) == module.postprocess
     assert all(meta["postprocess"][k] == v for k, v in POSTPROCESS.items())
     assert meta["lane_channel"] == 1 and meta["precision"] == "float32"
     # inputs and outputs: what onnxruntime sees in the graph
