@@ -163,8 +163,8 @@ _NO_RUN = ("-h", "--help", "--print_config", "--print-config")
 
 
 def _missing_input(command: str, rest: list[str]) -> str | None:
-    """What is missing from a LightningCLI command line, said before torch and Lightning are imported (hundredths of
-    a second, not the 5-13 s of those imports): a ``--ckpt_path`` or ``--config`` file that does not exist, or
+    """What is missing from a LightningCLI command line, said before torch and Lightning are imported (so
+    without waiting for those imports): a ``--ckpt_path`` or ``--config`` file that does not exist, or
     neither of them where one is needed. None when nothing is missing; the message says what to give."""
     if _asks_help(rest):
         return None

@@ -139,9 +139,9 @@ ALIGN_PRESETS: dict[str, AlignConfig] = {
 }
 """Named `AlignConfig` settings, chosen by ``data.clip.align_preset`` and ``stamlane stream --align-preset``
 (``stamlane align`` writes ``standard``'s). ``standard``: every setting's default, what every shipped model and result was made
-with. ``fast``: the key frame's features at one scale (no pyramid) and 150 tracked corners instead of 300; on
-real-frame pairs at 640x360 (one core) 1.5x faster, 14.2 -> 9.2 ms a pair, with the same median corner error and
-success (0.144 / 0.142 px, 100 % of 120 pairs; `benchmarks/align_presets.py`, docs/alignment.md).
+with. ``fast``: the key frame's features at one scale (no pyramid) and 150 tracked corners instead of 300; faster
+on real-frame pairs with the same median corner error and success (`benchmarks/align_presets.py`, measured in
+docs/alignment.md).
 Its homographies differ from ``standard``'s, so a model's numbers change slightly with it: opt in. ``motion``:
 ``standard`` with the forward-motion prior of low frame rates (`stamlane.align.motion`; bottom-row scales 1.4 / 1.8
 / 2.4 span the 2.4-5.6 m a frame of 5 fps driving) and the ground region's sign in the plausibility check (which
@@ -426,8 +426,8 @@ def _fit(
     n = len(src)
     if n < cfg.min_matches:
         return Alignment.failed(f"too few matches: {n} < {cfg.min_matches}", n), None
-    # USAC_ACCURATE (GC-RANSAC with local optimisation): on the pairs of benchmarks/align.py it was 5-50x faster than
-    # cv2.RANSAC at the low inlier ratios of pyramid matching (0.2-0.6 vs 1-21 ms), and more accurate on weak texture
+    # USAC_ACCURATE (GC-RANSAC with local optimisation): on the pairs of benchmarks/align.py it was faster than
+    # cv2.RANSAC at the low inlier ratios of pyramid matching, and more accurate on weak texture (docs/results/timings/)
     h, mask = cv2.findHomography(src, dst, cv2.USAC_ACCURATE, cfg.ransac_threshold, maxIters=2000, confidence=0.999)
     if h is None or mask is None:
         return Alignment.failed("RANSAC found no homography (degenerate matches)", n), None
