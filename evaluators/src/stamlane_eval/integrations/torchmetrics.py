@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import warnings
+from abc import abstractmethod
 from collections.abc import Hashable, Iterable, Mapping, Sequence
 from typing import Any
 
@@ -239,12 +240,16 @@ def _name(sequence: Hashable) -> Hashable:
     return sequence.item() if isinstance(sequence, torch.Tensor) else sequence
 
 
+_FrameInput = tuple[Hashable, list[np.ndarray], list[np.ndarray], tuple[int, int] | None]
+"""One checked frame: its sequence, predicted lanes, annotated lanes, ``(H, W)`` or None (the metric's size)."""
+
+
 def _frames(
     preds: Sequence[Sequence[object]],
     target: Sequence[Sequence[object]],
     sequences: Sequence[Hashable] | None,
     sizes: Sequence[tuple[int, int]] | None,
-) -> list[tuple[Hashable, list[np.ndarray], list[np.ndarray], tuple[int, int] | None]]:
+) -> list[_FrameInput]:
     n = len(preds)
     if len(target) != n:
         raise ValueError(f"got {n} prediction frames and {len(target)} target frames")
@@ -263,7 +268,33 @@ def _frames(
     ]
 
 
-class VideoMetric(Metric):
+class _SequenceMetric(Metric):
+    """What the metrics of sequences share: ``update`` takes frames with the sequence of each, checks them
+    (`_frames`) and hands them to ``_add_frames``."""
+
+    def update(
+        self,
+        preds: Sequence[Sequence[object]],
+        target: Sequence[Sequence[object]],
+        sequences: Sequence[Hashable] | None = None,
+        sizes: Sequence[tuple[int, int]] | None = None,
+    ) -> None:
+        """Add frames, in time order within each sequence.
+
+        Args:
+            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
+            target: per frame, annotated lanes, same form.
+            sequences: per frame, the name of its sequence (default: one sequence).
+            sizes: per frame ``(H, W)``; default ``size``.
+        """
+        self._add_frames(_frames(preds, target, sequences, sizes))
+
+    @abstractmethod
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
+        """Add checked frames, `_FrameInput` each."""
+
+
+class VideoMetric(_SequenceMetric):
     """mIoU and F@t as MMA-Net computes them for VIL-100 (:mod:`stamlane_eval.video`).
 
     ``update`` takes frames in time order with the sequence each belongs to; the mIoU is averaged per sequence,
@@ -301,23 +332,9 @@ class VideoMetric(Metric):
         self.add_state("frame_miou", default=[], dist_reduce_fx="cat")
         self.add_state("frame_sequence", default=[], dist_reduce_fx="cat")
 
-    def update(
-        self,
-        preds: Sequence[Sequence[object]],
-        target: Sequence[Sequence[object]],
-        sequences: Sequence[Hashable] | None = None,
-        sizes: Sequence[tuple[int, int]] | None = None,
-    ) -> None:
-        """Add frames.
-
-        Args:
-            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
-            target: per frame, annotated lanes, same form.
-            sequences: per frame, the name of its sequence (default: one sequence).
-            sizes: per frame ``(H, W)``; default ``size``.
-        """
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
         per_frame, mious, keys = [], [], []
-        for i, (seq, p, g, size) in enumerate(_frames(preds, target, sequences, sizes)):
+        for i, (seq, p, g, size) in enumerate(frames):
             try:
                 r = culane.evaluate_image(p, g, self.iou_thresholds, culane.LANE_WIDTH, size or self.size, "official")
             except ValueError as e:
@@ -350,7 +367,7 @@ class VideoMetric(Metric):
         return out
 
 
-class TemporalStabilityMetric(Metric):
+class TemporalStabilityMetric(_SequenceMetric):
     """RVLD's temporal stability (:mod:`stamlane_eval.temporal`): Ns, Nj, Nm summed, Rs, Rj, Rm from the sums.
 
     ``update`` takes frames in time order with the sequence each belongs to. The metric keeps the last frame of
@@ -394,23 +411,8 @@ class TemporalStabilityMetric(Metric):
             self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
         self._last: dict[Hashable, temporal.TemporalFrame] = {}
 
-    def update(
-        self,
-        preds: Sequence[Sequence[object]],
-        target: Sequence[Sequence[object]],
-        sequences: Sequence[Hashable] | None = None,
-        sizes: Sequence[tuple[int, int]] | None = None,
-    ) -> None:
-        """Add frames, in time order within each sequence.
-
-        Args:
-            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
-            target: per frame, annotated lanes, same form.
-            sequences: per frame, the name of its sequence (default: one sequence).
-            sizes: per frame ``(H, W)``; default ``size``.
-        """
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
         per_pair = []
-        frames = _frames(preds, target, sequences, sizes)
         for i, (seq, p, g, size) in enumerate(frames):
             prev = self._last.get(seq)
             try:
