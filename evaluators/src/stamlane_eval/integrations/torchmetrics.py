@@ -54,6 +54,15 @@ def _add_counts(
         state.copy_(new[:, k])
 
 
+def _add_sum_states(metric: Metric, counts: Sequence[str], k: int, totals: Sequence[str]) -> None:
+    """Add the states of a metric that counts, zero and summed across processes (``dist_reduce_fx="sum"``):
+    ``counts``, ``(k,)`` int64 (one value per threshold), then ``totals``, 0-d int64."""
+    for name in counts:
+        metric.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
+    for name in totals:
+        metric.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+
+
 class TuSimpleMetric(Metric):
     """TuSimple accuracy / FP / FN (official ``lane.py``), the paper's F1 and lane-count precision/recall/F1.
 
@@ -181,10 +190,7 @@ class CULaneMetric(Metric):
         self.width = int(width)
         self.size = (int(size[0]), int(size[1]))
         self.variant = variant
-        k = len(self.iou_thresholds)
-        for name in ("tp", "fp", "fn"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        self.add_state("images", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
 
     def update(
         self,
@@ -325,10 +331,7 @@ class VideoMetric(_SequenceMetric):
         super().__init__(**kwargs)
         self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
         self.size = (int(size[0]), int(size[1]))
-        k = len(self.iou_thresholds)
-        for name in ("tp", "fp", "fn"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        self.add_state("images", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
         self.add_state("frame_miou", default=[], dist_reduce_fx="cat")
         self.add_state("frame_sequence", default=[], dist_reduce_fx="cat")
 
@@ -404,11 +407,7 @@ class TemporalStabilityMetric(_SequenceMetric):
         self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
         self.size = None if size is None or protocol == "openlane-v" else (int(size[0]), int(size[1]))
         self.protocol = protocol
-        k = len(self.iou_thresholds)
-        for name in ("ns", "nj", "nm"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        for name in ("images", "pairs"):
-            self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("ns", "nj", "nm"), len(self.iou_thresholds), ("images", "pairs"))
         self._last: dict[Hashable, temporal.TemporalFrame] = {}
 
     def _add_frames(self, frames: list[_FrameInput]) -> None:
