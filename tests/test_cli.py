@@ -17,6 +17,7 @@ from stamlane_eval.cli import main as eval_main
 from stamlane.cli import main
 from stamlane.safety.owner import OWNER_NAME
 from stamlane.training.lightning_cli import StamLaneCLI
+from tests.training.tiny_runs import shrunk_demo_args
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((REPO / "configs").glob("*.yaml"))
@@ -34,25 +35,7 @@ def tiny_set(tiny_synthetic: Callable[..., Path]) -> Path:
 
 def _args(root: Path, out: Path, *extra: str) -> list[str]:
     """The demo config shrunk: 2 frames at 64x128, width 1/8, 2 clips a batch (2 steps an epoch)."""
-    return [
-        "--config",
-        str(REPO / "configs" / "demo.yaml"),
-        f"--data.root={root}",
-        "--data.clip.num_frames=2",
-        "--data.clip.image_size=[64, 128]",
-        "--data.loader.batch_size=2",
-        "--data.loader.num_workers=0",
-        "--data.clip.align=none",
-        "--model.encoder.width=0.125",
-        "--model.bf16=false",
-        "--model.channels_last=false",
-        f"--trainer.default_root_dir={out}",
-        f"--trainer.logger.save_dir={out}",
-        "--trainer.enable_progress_bar=false",
-        "--trainer.enable_model_summary=false",
-        f"--predictions.output_dir={out / 'predictions'}",
-        *extra,
-    ]
+    return shrunk_demo_args(root, out, *extra, size="[64, 128]", width=0.125)
 
 
 @pytest.mark.parametrize("config", CONFIGS, ids=[c.stem for c in CONFIGS])

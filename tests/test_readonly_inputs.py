@@ -17,6 +17,7 @@ import pytest
 from stamlane.align.cache import pair_cache_folder
 from stamlane.align.user_cache import CACHE_ENV
 from stamlane.cli import main
+from tests.training.tiny_runs import shrunk_demo_args
 
 REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.usefixtures("plain_argv")
@@ -57,25 +58,7 @@ def work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def _args(root: Path, out: Path, *extra: str) -> list[str]:
     """The demo config shrunk: 2 frames at 64x128 aligned on the fly, width 1/8, 2 clips a batch."""
-    return [
-        "--config",
-        str(REPO / "configs" / "demo.yaml"),
-        f"--data.root={root}",
-        "--data.clip.num_frames=2",
-        "--data.clip.image_size=[64, 128]",
-        "--data.clip.align=fly",
-        "--data.loader.batch_size=2",
-        "--data.loader.num_workers=0",
-        "--model.encoder.width=0.125",
-        "--model.bf16=false",
-        "--model.channels_last=false",
-        f"--trainer.default_root_dir={out}",
-        f"--trainer.logger.save_dir={out}",
-        "--trainer.enable_progress_bar=false",
-        "--trainer.enable_model_summary=false",
-        f"--predictions.output_dir={out / 'predictions'}",
-        *extra,
-    ]
+    return shrunk_demo_args(root, out, *extra, size="[64, 128]", width=0.125, align="fly")
 
 
 def _entries(work: Path) -> int:

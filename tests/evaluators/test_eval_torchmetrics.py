@@ -2,11 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
-import socket
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -18,6 +13,8 @@ pytest.importorskip("torchmetrics")
 
 from stamlane_eval import culane, tusimple  # noqa: E402
 from stamlane_eval.integrations.torchmetrics import CULaneMetric, TuSimpleMetric  # noqa: E402
+
+from .conftest import run_ddp_pair  # noqa: E402
 
 
 def _tusimple_update(metric: TuSimpleMetric, preds: list[dict], gts: list[dict]) -> None:
@@ -106,24 +103,8 @@ def test_culane_metric_equals_function(variant: str, golden: ModuleType) -> None
         assert float(got[f"f1@{t:g}"]) == c.f1
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_ddp_two_processes_equal_one(tmp_path: Path, golden: ModuleType) -> None:
-    out, port = tmp_path / "ddp.json", _free_port()
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
-    procs = [
-        subprocess.Popen(
-            [sys.executable, str(WORKER), str(r), "2", str(port), str(out)], env=env, stderr=subprocess.PIPE
-        )
-        for r in range(2)
-    ]
-    errs = [p.communicate(timeout=120)[1].decode() for p in procs]
-    assert [p.returncode for p in procs] == [0, 0], errs
-    ddp = json.loads(out.read_text())
+    ddp = run_ddp_pair(WORKER, tmp_path / "ddp.json", timeout=120)
     preds, gts = golden.tusimple_records()
     one = TuSimpleMetric()
     _tusimple_update(one, preds, gts)

@@ -4,12 +4,7 @@ LaneEvalCallback logs them from a Trainer."""
 from __future__ import annotations
 
 import importlib.util
-import json
 import math
-import os
-import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +18,8 @@ from stamlane_eval import temporal, video  # noqa: E402
 from stamlane_eval.integrations.lightning import LaneEvalCallback  # noqa: E402
 from stamlane_eval.integrations.torchmetrics import TemporalStabilityMetric, VideoMetric  # noqa: E402
 from stamlane_eval.video import Frame  # noqa: E402
+
+from .conftest import run_ddp_pair  # noqa: E402
 
 WORKER = Path(__file__).parent / "ddp_video_worker.py"
 
@@ -86,24 +83,8 @@ def test_bad_updates() -> None:
         TemporalStabilityMetric(protocol="culane")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_ddp_two_processes_equal_one(tmp_path: Path) -> None:
-    out, port = tmp_path / "ddp.json", _free_port()
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
-    procs = [
-        subprocess.Popen(
-            [sys.executable, str(WORKER), str(r), "2", str(port), str(out)], env=env, stderr=subprocess.PIPE
-        )
-        for r in range(2)
-    ]
-    errs = [p.communicate(timeout=180)[1].decode() for p in procs]
-    assert [p.returncode for p in procs] == [0, 0], errs
-    ddp = json.loads(out.read_text())
+    ddp = run_ddp_pair(WORKER, tmp_path / "ddp.json", timeout=180)
     tm, vm = TemporalStabilityMetric(), VideoMetric()
     _batches(tm)
     _batches(vm)

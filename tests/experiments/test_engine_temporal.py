@@ -17,17 +17,10 @@ from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.summary import Summary
 from stamlane.synth.generator import FIRST_KEY, TEMPORAL_LABELS
+from tests.experiments import tiny_experiments
 
 torch.set_num_threads(1)
-SHRINK = (
-    "--data.clip.image_size=[32, 64]",
-    "--data.loader.batch_size=2",
-    "--data.loader.num_workers=0",
-    "--data.clip.align=true",
-    "--model.encoder.width=0.125",
-    "--model.channels_last=false",
-    "--trainer.enable_progress_bar=false",
-)
+SHRINK = (*tiny_experiments.SHRINK, "--trainer.enable_progress_bar=false")
 
 
 ROW = Row.paper_row("f2_mixed_cs_features")

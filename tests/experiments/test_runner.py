@@ -15,17 +15,10 @@ from stamlane.experiments.recipes import Recipe, Row
 from stamlane.experiments.runner import Runner, frame_files_digest
 from stamlane.experiments.store import RunStore
 from stamlane.training.runs import RunRecord
+from tests.experiments.tiny_experiments import SHRINK
 
 torch.set_num_threads(1)
 pytestmark = pytest.mark.usefixtures("plain_argv")
-SHRINK = (
-    "--data.clip.image_size=[32, 64]",
-    "--data.loader.batch_size=2",
-    "--data.loader.num_workers=0",
-    "--data.clip.align=true",
-    "--model.encoder.width=0.125",
-    "--model.channels_last=false",
-)
 ROW = Row.paper_row("f2_mixed_cs_features")
 
 

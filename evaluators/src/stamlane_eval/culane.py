@@ -346,18 +346,32 @@ def _match_official(ious: np.ndarray) -> list[tuple[int, int]]:
 
 
 # -------------------------------------------------------------------------------------------- per image
+def check_lane(lane: object, i: int, what: str) -> np.ndarray:
+    """THE check of one lane's points (CULane, video and temporal metrics): float64 ``(N, 2)`` ``(x, y)``, finite.
+
+    Args:
+        lane: the lane's points, ``(N, 2)`` ``(x, y)`` (an empty lane may have any empty shape).
+        i: the lane's index in its image (for the message).
+        what: ``"predicted"`` or ``"annotated"`` (for the message).
+
+    Returns:
+        the points, ``(N, 2)`` float64.
+
+    Raises:
+        ValueError: naming the lane, for another shape or a NaN/inf coordinate.
+    """
+    arr = np.asarray(lane, dtype=np.float64)
+    if arr.size == 0:
+        arr = arr.reshape(0, 2)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
+    return arr
+
+
 def _check_lanes(lanes: Sequence[np.ndarray], what: str) -> list[np.ndarray]:
-    out = []
-    for i, lane in enumerate(lanes):
-        arr = np.asarray(lane, dtype=np.float64)
-        if arr.size == 0:
-            arr = arr.reshape(0, 2)
-        if arr.ndim != 2 or arr.shape[1] != 2:
-            raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
-        if not np.isfinite(arr).all():
-            raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
-        out.append(arr)
-    return out
+    return [check_lane(lane, i, what) for i, lane in enumerate(lanes)]
 
 
 def evaluate_image(

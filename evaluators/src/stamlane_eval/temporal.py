@@ -36,6 +36,7 @@ import numpy as np
 
 from stamlane_eval._long_runs import map_sequences
 from stamlane_eval.aggregate import count_update, stability_rates
+from stamlane_eval.culane import check_lane
 from stamlane_eval.io.limits import CanvasBudget, check_image_size
 from stamlane_eval.video import Frame
 
@@ -157,13 +158,7 @@ def _check_protocol(protocol: str) -> None:
 
 def _unique_points(lane: np.ndarray, protocol: str, i: int, what: str) -> list[tuple[float, float]] | None:
     """The points of one lane as the script interpolates them, or None for a lane it drops."""
-    arr = np.asarray(lane, dtype=np.float64)
-    if arr.size == 0:
-        arr = arr.reshape(0, 2)
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"{what} lane {i}: expected an (N, 2) array of (x, y) points, got shape {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{what} lane {i}: non-finite coordinate (NaN/inf)")
+    arr = check_lane(lane, i, what)
     # a lane far outside the image, annotated or predicted (x = 150,000), is scored as the script scores it: drawn
     # clipped, nothing of it on the image, up to the int32 range of its drawing (_spline)
     if protocol == "openlane-v":

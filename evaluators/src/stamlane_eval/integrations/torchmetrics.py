@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import warnings
+from abc import abstractmethod
 from collections.abc import Hashable, Iterable, Mapping, Sequence
 from typing import Any
 
@@ -51,6 +52,15 @@ def _add_counts(
     new = torch.tensor(sums, dtype=torch.int64, device=states[0].device)
     for k, state in enumerate(states):
         state.copy_(new[:, k])
+
+
+def _add_sum_states(metric: Metric, counts: Sequence[str], k: int, totals: Sequence[str]) -> None:
+    """Add the states of a metric that counts, zero and summed across processes (``dist_reduce_fx="sum"``):
+    ``counts``, ``(k,)`` int64 (one value per threshold), then ``totals``, 0-d int64."""
+    for name in counts:
+        metric.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
+    for name in totals:
+        metric.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
 
 
 class TuSimpleMetric(Metric):
@@ -180,10 +190,7 @@ class CULaneMetric(Metric):
         self.width = int(width)
         self.size = (int(size[0]), int(size[1]))
         self.variant = variant
-        k = len(self.iou_thresholds)
-        for name in ("tp", "fp", "fn"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        self.add_state("images", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
 
     def update(
         self,
@@ -239,12 +246,16 @@ def _name(sequence: Hashable) -> Hashable:
     return sequence.item() if isinstance(sequence, torch.Tensor) else sequence
 
 
+_FrameInput = tuple[Hashable, list[np.ndarray], list[np.ndarray], tuple[int, int] | None]
+"""One checked frame: its sequence, predicted lanes, annotated lanes, ``(H, W)`` or None (the metric's size)."""
+
+
 def _frames(
     preds: Sequence[Sequence[object]],
     target: Sequence[Sequence[object]],
     sequences: Sequence[Hashable] | None,
     sizes: Sequence[tuple[int, int]] | None,
-) -> list[tuple[Hashable, list[np.ndarray], list[np.ndarray], tuple[int, int] | None]]:
+) -> list[_FrameInput]:
     n = len(preds)
     if len(target) != n:
         raise ValueError(f"got {n} prediction frames and {len(target)} target frames")
@@ -263,7 +274,33 @@ def _frames(
     ]
 
 
-class VideoMetric(Metric):
+class _SequenceMetric(Metric):
+    """What the metrics of sequences share: ``update`` takes frames with the sequence of each, checks them
+    (`_frames`) and hands them to ``_add_frames``."""
+
+    def update(
+        self,
+        preds: Sequence[Sequence[object]],
+        target: Sequence[Sequence[object]],
+        sequences: Sequence[Hashable] | None = None,
+        sizes: Sequence[tuple[int, int]] | None = None,
+    ) -> None:
+        """Add frames, in time order within each sequence.
+
+        Args:
+            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
+            target: per frame, annotated lanes, same form.
+            sequences: per frame, the name of its sequence (default: one sequence).
+            sizes: per frame ``(H, W)``; default ``size``.
+        """
+        self._add_frames(_frames(preds, target, sequences, sizes))
+
+    @abstractmethod
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
+        """Add checked frames, `_FrameInput` each."""
+
+
+class VideoMetric(_SequenceMetric):
     """mIoU and F@t as MMA-Net computes them for VIL-100 (:mod:`stamlane_eval.video`).
 
     ``update`` takes frames in time order with the sequence each belongs to; the mIoU is averaged per sequence,
@@ -294,30 +331,13 @@ class VideoMetric(Metric):
         super().__init__(**kwargs)
         self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
         self.size = (int(size[0]), int(size[1]))
-        k = len(self.iou_thresholds)
-        for name in ("tp", "fp", "fn"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        self.add_state("images", default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
         self.add_state("frame_miou", default=[], dist_reduce_fx="cat")
         self.add_state("frame_sequence", default=[], dist_reduce_fx="cat")
 
-    def update(
-        self,
-        preds: Sequence[Sequence[object]],
-        target: Sequence[Sequence[object]],
-        sequences: Sequence[Hashable] | None = None,
-        sizes: Sequence[tuple[int, int]] | None = None,
-    ) -> None:
-        """Add frames.
-
-        Args:
-            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
-            target: per frame, annotated lanes, same form.
-            sequences: per frame, the name of its sequence (default: one sequence).
-            sizes: per frame ``(H, W)``; default ``size``.
-        """
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
         per_frame, mious, keys = [], [], []
-        for i, (seq, p, g, size) in enumerate(_frames(preds, target, sequences, sizes)):
+        for i, (seq, p, g, size) in enumerate(frames):
             try:
                 r = culane.evaluate_image(p, g, self.iou_thresholds, culane.LANE_WIDTH, size or self.size, "official")
             except ValueError as e:
@@ -350,7 +370,7 @@ class VideoMetric(Metric):
         return out
 
 
-class TemporalStabilityMetric(Metric):
+class TemporalStabilityMetric(_SequenceMetric):
     """RVLD's temporal stability (:mod:`stamlane_eval.temporal`): Ns, Nj, Nm summed, Rs, Rj, Rm from the sums.
 
     ``update`` takes frames in time order with the sequence each belongs to. The metric keeps the last frame of
@@ -387,30 +407,11 @@ class TemporalStabilityMetric(Metric):
         self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
         self.size = None if size is None or protocol == "openlane-v" else (int(size[0]), int(size[1]))
         self.protocol = protocol
-        k = len(self.iou_thresholds)
-        for name in ("ns", "nj", "nm"):
-            self.add_state(name, default=torch.zeros(k, dtype=torch.int64), dist_reduce_fx="sum")
-        for name in ("images", "pairs"):
-            self.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
+        _add_sum_states(self, ("ns", "nj", "nm"), len(self.iou_thresholds), ("images", "pairs"))
         self._last: dict[Hashable, temporal.TemporalFrame] = {}
 
-    def update(
-        self,
-        preds: Sequence[Sequence[object]],
-        target: Sequence[Sequence[object]],
-        sequences: Sequence[Hashable] | None = None,
-        sizes: Sequence[tuple[int, int]] | None = None,
-    ) -> None:
-        """Add frames, in time order within each sequence.
-
-        Args:
-            preds: per frame, predicted lanes, each ``(N, 2)`` ``(x, y)`` in original pixels (array or tensor).
-            target: per frame, annotated lanes, same form.
-            sequences: per frame, the name of its sequence (default: one sequence).
-            sizes: per frame ``(H, W)``; default ``size``.
-        """
+    def _add_frames(self, frames: list[_FrameInput]) -> None:
         per_pair = []
-        frames = _frames(preds, target, sequences, sizes)
         for i, (seq, p, g, size) in enumerate(frames):
             prev = self._last.get(seq)
             try:
