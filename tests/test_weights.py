@@ -154,5 +154,5 @@ def test_the_default_model_is_a_name_nobody_typed(tiny_synthetic, tmp_path, monk
     assert len(list((out / "lines").rglob("*.lines.txt"))) == 4
     assert main(["predict", "--source", str(clip), "--ckpt_path", DEFAULT]) == 2  # typed: the folder here wins
     err = capsys.readouterr().err.strip()
-    assert err == f"stamlane predict: checkpoint {DEFAULT} is a folder, not a file", err
+    assert err == f"stamlane predict: {DEFAULT} holds no checkpoints/last.ckpt (not a finished run folder)", err
     assert resolve("n" * 300) == "n" * 300  # a name too long for the file system: no file here, no exception

@@ -201,19 +201,25 @@ def _shipped_names() -> str:
 
 
 def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
-    """``rest`` with a shipped model's name given to ``--ckpt_path`` replaced by its file (`stamlane.weights`; a file
-    or folder of that name here wins, as the user typed the name; ``model.init_weights`` is resolved where it is
+    """``rest`` with a shipped model's name or a run folder given to ``--ckpt_path`` replaced by its checkpoint file
+    (`stamlane.training.stored.checkpoint_of`: a folder's ``checkpoints/last.ckpt``; a shipped name's file, where no
+    file or folder of that name is here, as the user typed the name; ``model.init_weights`` is resolved where it is
     read, `StamLaneModule.setup`, wherever it was written), and ``stamlane predict
     --source X`` given no checkpoint, no config and no model option run with the default shipped model (said in one
-    line on stderr): its file, whatever lies here under its name, since nobody typed that name."""
-    from stamlane.weights import DEFAULT, SHIPPED, resolve, shipped_path
+    line on stderr): its file, whatever lies here under its name, since nobody typed that name.
+
+    Raises:
+        CheckpointError: a folder given to ``--ckpt_path`` that is no finished run (no ``checkpoints/last.ckpt``).
+    """
+    from stamlane.training.stored import checkpoint_of
+    from stamlane.weights import DEFAULT, SHIPPED, shipped_path
 
     out = []
     for i, arg in enumerate(rest):
         if arg.startswith("--ckpt_path="):
-            arg = "--ckpt_path=" + resolve(arg.split("=", 1)[1])
+            arg = "--ckpt_path=" + str(checkpoint_of(arg.split("=", 1)[1]))
         elif i and rest[i - 1] == "--ckpt_path":
-            arg = resolve(arg)
+            arg = str(checkpoint_of(arg))
         out.append(arg)
     given = _option(out, "--ckpt_path") is not None or any(
         a in ("--config", "-c") or a.startswith(("--config=", "-c=", "--model.")) for a in out
@@ -255,10 +261,11 @@ def main(argv: list[str] | None = None) -> int:
     if command in TOOLS:
         return int(importlib.import_module(TOOLS[command]).main(rest) or 0)
     if command in LIGHTNING_COMMANDS:
-        try:  # every path through the gate first: a name too long, a FIFO or a device is one line, never opened
-            check_command_files(rest, missing_ok=True)
+        try:  # every path through the gate first (a run folder as its checkpoint, a shipped name as its file): a
+            # name too long, a FIFO or a device is one line, never opened
             shipped = _with_shipped_weights(command, rest)
-        except PathError as err:
+            check_command_files(shipped, missing_ok=True)
+        except (PathError, ValueError) as err:  # ValueError: checkpoint_of's CheckpointError (its module imports torch)
             print(f"stamlane {command}: {one_line(err)}", file=sys.stderr)
             return 2
         rest = shipped

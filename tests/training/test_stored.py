@@ -149,3 +149,29 @@ def _predicted_clips(ckpt: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
             run.predict("test", probe, tmp_path / f"run-{probe}", root=root)
     assert len(handed) == 4 and type(handed[1]).__name__ == "FramesDataModule"
     return [data.clip for data in handed]  # type: ignore[attr-defined]
+
+
+def test_every_command_takes_a_run_folder_as_its_checkpoint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--ckpt_path RUN`` is ``RUN/checkpoints/last.ckpt`` for predict, validate and test (`cli._with_shipped_weights`
+    through `checkpoint_of`); a folder that holds no finished run is one line, exit status 2."""
+    from stamlane.cli import main
+    from stamlane.training import runs, stored_predict
+
+    ckpt = _variant(tmp_path, {})
+    handed: list[object] = []
+    monkeypatch.setattr(stored_predict, "predict_stored", lambda model, data, writer, **options: handed.append(model))
+    monkeypatch.setattr(runs, "run_cli", lambda args, **options: handed.append(args))
+    root = tmp_path / "data"
+    root.mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert main(["predict", "--ckpt_path", str(ckpt.parent.parent), "--data.root", str(root)]) == 0
+    assert isinstance(handed[0], StoredModel) and handed[0].checkpoint == ckpt
+    for command in ("validate", "test"):
+        assert main([command, f"--ckpt_path={ckpt.parent.parent}", "--data.root", str(root)]) == 0
+        assert f"--ckpt_path={ckpt}" in handed[-1]  # type: ignore[operator]
+    capsys.readouterr()
+    assert main(["validate", "--ckpt_path", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"stamlane validate: {tmp_path} holds no checkpoints/last.ckpt (not a finished run folder)"

@@ -203,12 +203,13 @@ def checkpoint_of(where: str | Path) -> Path:
     Raises:
         CheckpointError: a folder that holds no ``checkpoints/last.ckpt``.
     """
-    from stamlane.safety.checkpoints import CheckpointError
     from stamlane.weights import resolve
 
     path = Path(resolve(str(where)))
     if path.is_dir():
         if not (path / RUN_CHECKPOINT).is_file():
+            from stamlane.safety.checkpoints import CheckpointError  # torch: only on the way out (the CLI's fast lines)
+
             raise CheckpointError(f"{path} holds no {RUN_CHECKPOINT.as_posix()} (not a finished run folder)")
         return path / RUN_CHECKPOINT
     return path
