@@ -246,3 +246,24 @@ def test_the_reference_size_is_checked_and_taken_from_a_list() -> None:
     for bad in ((80,), (0, 256), (80.5, 256), (True, 256)):
         with pytest.raises(ValueError, match="reference_size must be"):
             PostprocessConfig(reference_size=bad)  # type: ignore[arg-type]
+
+
+def test_the_same_road_at_the_paper_size_decodes_to_the_same_lanes() -> None:
+    """256x512, the paper's input: 3.2x the rows and 2x the columns of 80x256 (no whole factor). The streak's 48
+    pixels become 307: drawn as a lane with the counts as given, dropped with them scaled to the map's area (6.4x)."""
+    import cv2
+
+    prob, emb = _road(80, 256)
+    big_prob = cv2.resize(prob, (512, 256), interpolation=cv2.INTER_NEAREST)
+    big_emb = np.stack([cv2.resize(e, (512, 256), interpolation=cv2.INTER_NEAREST) for e in emb])
+    to_small = np.diag([256 / 512, 80 / 256, 1.0])  # the big map's pixels -> the small map's, as original pixels
+    rows = list(range(24, 80, 4))
+    small = decode_lanes(prob, emb, config=PostprocessConfig(max_points=10_000), orig_size=(80, 256), y_samples=rows)
+    scaled = decode_lanes(big_prob, big_emb, to_small, PostprocessConfig(max_points=10_000), rows, (80, 256))
+    plain = PostprocessConfig(max_points=10_000, reference_size=None)
+    assert (
+        len(small) == len(scaled) == 2 and len(decode_lanes(big_prob, big_emb, to_small, plain, rows, (80, 256))) == 3
+    )
+    for big, one in zip(scaled, small):  # the same lanes in the same (small map's) pixels: the nearest-neighbour
+        # resize at 3.2x rounds a 3-pixel line's rows, moving the fit by about one small-map pixel (lane.py: 20 of 1280)
+        np.testing.assert_allclose(np.interp(one[:, 1], big[:, 1], big[:, 0]), one[:, 0], atol=1.5)
