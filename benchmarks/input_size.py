@@ -50,6 +50,10 @@ def parse_size(text: str) -> tuple[int, int]:
     return int(match[1]), int(match[2])
 
 
+MAX_FRAMES = 1000
+"""The most ``--frames``: they are held in memory at 640x360 (0.7 MB each, 0.7 GB at the most)."""
+
+
 def read_frames(source: Path, count: int) -> list:
     """The first ``count`` frames of ``source`` (a video or an image folder), resized to `STREAM_SIZE`."""
     import cv2
@@ -99,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/input_size.json"))
     args = parser.parse_args(argv)
-    ranges = {"frames": Within(2, 10_000), "repeats": Within(1, 50), "threads": Within(1, 256)}
+    ranges = {"frames": Within(2, MAX_FRAMES), "repeats": Within(1, 50), "threads": Within(1, 256)}
     if (problem := option_problem(vars(args), ranges=ranges)) is not None:
         return fail(prog, problem)
     if (status := guard_out(prog, args.out)) is not None:

@@ -172,6 +172,7 @@ def _missing_input(command: str, rest: list[str]) -> str | None:
     configs = [a.split("=", 1)[1] for a in rest if a.startswith(("--config=", "-c="))]
     configs += [rest[i + 1] for i, a in enumerate(rest[:-1]) if a in ("--config", "-c")]
     if ckpt is not None and ckpt not in CKPT_NAMES and not inspect_path(ckpt).exists:
+        ckpt = ckpt or "''"  # an empty value typed: shown as one
         if command == "fit":
             return (
                 f"checkpoint {ckpt} does not exist: give the path of the run to resume's checkpoint "
@@ -214,12 +215,15 @@ def _with_shipped_weights(command: str, rest: list[str]) -> list[str]:
     from stamlane.training.stored import checkpoint_of
     from stamlane.weights import DEFAULT, SHIPPED, shipped_path
 
+    def checkpoint(value: str) -> str:
+        return str(checkpoint_of(value)) if value else value  # an empty value is no folder ("." is): left as typed
+
     out = []
     for i, arg in enumerate(rest):
         if arg.startswith("--ckpt_path="):
-            arg = "--ckpt_path=" + str(checkpoint_of(arg.split("=", 1)[1]))
+            arg = "--ckpt_path=" + checkpoint(arg.split("=", 1)[1])
         elif i and rest[i - 1] == "--ckpt_path":
-            arg = str(checkpoint_of(arg))
+            arg = checkpoint(arg)
         out.append(arg)
     given = _option(out, "--ckpt_path") is not None or any(
         a in ("--config", "-c") or a.startswith(("--config=", "-c=", "--model.")) for a in out

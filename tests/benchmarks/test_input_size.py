@@ -46,7 +46,8 @@ def test_times_every_model_at_every_size(bench, tmp_path: Path, capsys: pytest.C
     ("extra", "words"),
     [
         (["--sizes", "81x256"], "multiples of"),
-        (["--frames", "1"], "--frames must be in 2..10000"),
+        (["--frames", "1"], "--frames must be in 2..1000"),
+        (["--frames", "1001"], "--frames must be in 2..1000"),
         (["--frames", "9"], "fewer than --frames 9"),
         (["--ckpt", "no-such-model"], "no-such-model"),
     ],

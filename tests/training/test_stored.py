@@ -175,3 +175,6 @@ def test_every_command_takes_a_run_folder_as_its_checkpoint(
     assert main(["validate", "--ckpt_path", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"stamlane validate: {tmp_path} holds no checkpoints/last.ckpt (not a finished run folder)"
+    for empty in (["--ckpt_path="], ["--ckpt_path", ""]):  # no folder ("." would be one): said as typed
+        assert main(["test", *empty]) == 2
+        assert capsys.readouterr().err.startswith("stamlane test: checkpoint '' does not exist: give the path")
