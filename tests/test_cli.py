@@ -380,3 +380,35 @@ def test_a_run_is_quiet_keeps_its_best_and_works_from_any_folder(
     assert main(["validate", f"--ckpt_path={ckpt}"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "data root data/tiny" in err and err.endswith("give --data.root DIR"), err
+
+
+def _logged(folder: Path) -> list[dict[str, str]]:
+    """The rows of a validation's or test's ``metrics.csv`` (strings: compared to the bit)."""
+    with open(folder / "metrics.csv") as file:
+        return list(csv.DictReader(file))
+
+
+def test_a_stored_run_scores_as_its_config_does(tiny_set: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``validate|test --ckpt_path CKPT`` (the stored model, one read, `stamlane.training.stored_cli`) logs the same
+    numbers, to the bit, as LightningCLI given the run's config and the checkpoint; its logs follow a
+    ``--trainer.default_root_dir`` given; ``--source`` and ``--weights_only false`` are one line, exit status 2."""
+    assert main(["fit", *_args(tiny_set, tmp_path, "--trainer.max_steps=2")]) == 0
+    run = tmp_path / "stam4" / "version_0"
+    ckpt = run / "checkpoints" / "last.ckpt"
+    for command in ("validate", "test"):
+        capsys.readouterr()
+        assert main([command, "--ckpt_path", str(ckpt)]) == 0
+        stored = tmp_path / f"stam4-{command}"
+        assert f"stamlane {command}: metrics logged under {stored / 'version_0'}" in capsys.readouterr().out
+        assert main([command, "--config", str(run / "config.yaml"), "--ckpt_path", str(ckpt)]) == 0
+        rows = _logged(stored / "version_0")
+        assert rows and any(f"{'val' if command == 'validate' else 'test'}/tusimple_f1" in row for row in rows)
+        assert rows == _logged(stored / "version_1")
+    root = tmp_path / "elsewhere"
+    assert main(["validate", "--ckpt_path", str(ckpt), f"--trainer.default_root_dir={root}"]) == 0
+    assert (root / "stam4-validate" / "version_0" / "metrics.csv").is_file()
+    capsys.readouterr()
+    for extra, said in (("--source=frames", "--source is for predict only"), ("--weights_only=false", "weights_only")):
+        assert main(["test", "--ckpt_path", str(ckpt), extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and err.startswith("stamlane test: ") and said in err, err

@@ -195,7 +195,7 @@ def test_the_checker_catches_a_wrong_flag_and_a_missing_path(tmp_path: Path) -> 
 # command, README's tour) is parsed whole by the parser that would read it: the tools' argparse parsers, stamlane-eval's,
 # and for fit / validate / test / predict `stamlane.cli.main` itself (shipped names, ``predict --stream``, the config a
 # checkpoint carries) up to the end of `StamLaneCLI.parse_arguments` (``predict --ckpt_path`` without ``--config``: of
-# `stamlane.training.predict_cli.parse`, the stored model opened), where nothing has been built yet. Required
+# `stamlane.training.stored_cli.parse`, the stored model opened), where nothing has been built yet. Required
 # arguments, their order and every value's type count; files need not exist, except the two LightningCLI reads while
 # parsing: a ``--config`` that is not here is a run's config (the one the shipped stam4-synthetic run carries), a
 # ``--ckpt_path`` that is not here a run's checkpoint (that run's). A synopsis ``[--opt A|B]`` is parsed without its
@@ -380,12 +380,12 @@ def parse_only(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
             super().parse_arguments(parser, args)
             raise _Parsed
 
-    from stamlane.training import predict_cli as stored_cli
+    from stamlane.training import stored_cli
 
     parse = stored_cli.parse
 
-    def parse_only(model: Any, args: list[str]) -> Any:  # predict --ckpt_path: a stored model's options
-        parse(model, args)
+    def parse_only(model: Any, args: list[str], command: str = "predict") -> Any:  # a stored model's options
+        parse(model, args, command)
         raise _Parsed
 
     with pytest.MonkeyPatch.context() as patch:

@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 from stamlane.safety.boundary import one_line, peer_failure, share_failure
 from stamlane.safety.paths import (
@@ -118,34 +116,16 @@ def _stream_args(rest: list[str]) -> list[str]:
     return rest
 
 
-@contextmanager
-def _config_from_checkpoint(command: str, rest: list[str]) -> Iterator[list[str]]:
-    """``--config`` for ``validate|test --ckpt_path CKPT`` given without one: the run opened through the one gate
-    (`stamlane.training.runs.open_run`: its config checked against the closed registry, read in today's names), with
-    its data root when it was recorded relative to the folder the run was started in
-    (`stamlane.training.runs.Run.data_root`). Yields the arguments to put in front (none when a config is given or
-    nothing is needed). (``predict --ckpt_path`` opens the checkpoint as a stored model: `stamlane.training.predict_cli`.)"""
-    ckpt = _option(rest, "--ckpt_path")
-    if command not in ("validate", "test") or _given_config(rest) or ckpt in (None, "last", "best"):
-        yield []
-        return
-    from stamlane.training.registry import safe_config_file
-    from stamlane.training.runs import open_run
-
-    with open_run(ckpt) as run, safe_config_file(run.text, run.source) as config:
-        root = run.data_root() if _option(rest, "--data.root") is None else None
-        yield ["--config", str(config), *(["--data.root", str(root)] if root else [])]
-
-
 def _given_config(rest: list[str]) -> bool:
     return any(a in ("--config", "-c") or a.startswith(("--config=", "-c=")) for a in rest)
 
 
-def _stored_prediction(command: str, rest: list[str]) -> bool:
-    """Whether ``rest`` asks ``predict`` of a stored model: a ``--ckpt_path`` (a checkpoint, a run folder, a shipped
-    name) without ``--config``, and no help asked for (`stamlane.training.predict_cli`)."""
+def _stored_command(command: str, rest: list[str]) -> bool:
+    """Whether ``rest`` asks ``predict``, ``validate`` or ``test`` of a stored model: a ``--ckpt_path`` (a checkpoint,
+    a run folder, a shipped name) without ``--config``, and no help asked for (`stamlane.training.stored_cli`)."""
     ckpt = _option(rest, "--ckpt_path")
-    return command == "predict" and ckpt not in (None, *CKPT_NAMES) and not _given_config(rest) and not _asks_help(rest)
+    stored = ckpt not in (None, *CKPT_NAMES) and not _given_config(rest) and not _asks_help(rest)
+    return command in ("predict", "validate", "test") and stored
 
 
 def _option(rest: list[str], name: str) -> str | None:
@@ -289,17 +269,16 @@ def main(argv: list[str] | None = None) -> int:
             quiet_libraries()
 
         try:
-            if _stored_prediction(command, rest):  # the checkpoint opened once, a plain Trainer.predict
-                from stamlane.training.predict_cli import main_stored
+            if _stored_command(command, rest):  # the checkpoint opened once, a plain Trainer.predict|validate|test
+                from stamlane.training.stored_cli import main_stored
 
-                main_stored(rest)
+                main_stored(rest, command)
                 return 0
-            with _config_from_checkpoint(command, rest) as extra:
-                from stamlane.training.runs import run_cli  # once the libraries are quieted
+            from stamlane.training.runs import run_cli  # once the libraries are quieted
 
-                # the arguments as given (never sys.argv's); a bad option or config raises instead of printing
-                # jsonargparse's hundred-line usage
-                run_cli([command, *extra, *rest], report=True, parser_kwargs={"exit_on_error": False})
+            # the arguments as given (never sys.argv's); a bad option or config raises instead of printing
+            # jsonargparse's hundred-line usage
+            run_cli([command, *rest], report=True, parser_kwargs={"exit_on_error": False})
         except ArgumentError as err:
             print(f"stamlane {command}: {one_line(err)} (see stamlane {command} --help)", file=sys.stderr)
             return 2

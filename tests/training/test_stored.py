@@ -155,14 +155,14 @@ def test_every_command_takes_a_run_folder_as_its_checkpoint(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``--ckpt_path RUN`` is ``RUN/checkpoints/last.ckpt`` for predict, validate and test (`cli._with_shipped_weights`
-    through `checkpoint_of`); a folder that holds no finished run is one line, exit status 2."""
+    through `checkpoint_of`), each opened once as a stored model; a folder that holds no finished run is one line, exit status 2."""
     from stamlane.cli import main
-    from stamlane.training import runs, stored_predict
+    from stamlane.training import stored_cli, stored_predict
 
     ckpt = _variant(tmp_path, {})
     handed: list[object] = []
     monkeypatch.setattr(stored_predict, "predict_stored", lambda model, data, writer, **options: handed.append(model))
-    monkeypatch.setattr(runs, "run_cli", lambda args, **options: handed.append(args))
+    monkeypatch.setattr(stored_cli, "_score", lambda command, model, *rest: handed.append((command, model)))
     root = tmp_path / "data"
     root.mkdir()
     monkeypatch.chdir(tmp_path)
@@ -170,7 +170,8 @@ def test_every_command_takes_a_run_folder_as_its_checkpoint(
     assert isinstance(handed[0], StoredModel) and handed[0].checkpoint == ckpt
     for command in ("validate", "test"):
         assert main([command, f"--ckpt_path={ckpt.parent.parent}", "--data.root", str(root)]) == 0
-        assert f"--ckpt_path={ckpt}" in handed[-1]  # type: ignore[operator]
+        said, model = handed[-1]  # type: ignore[misc]
+        assert said == command and isinstance(model, StoredModel) and model.checkpoint == ckpt
     capsys.readouterr()
     assert main(["validate", "--ckpt_path", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()

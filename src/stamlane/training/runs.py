@@ -313,7 +313,10 @@ class Run:
         try:
             if self._stored is None:  # the first prediction builds the model; the checkpoint is read once in all
                 content, self._content = self._content, None
-                self._stored = StoredModel.of_content(self.ckpt, content) if content else StoredModel.open(self.ckpt)
+                beside = (self.source, self.text) if self.source != self.ckpt else None  # its config.yaml: read
+                self._stored = (
+                    StoredModel.of_content(self.ckpt, content, beside) if content else StoredModel.open(self.ckpt)
+                )
             model = self._stored
             data = model.datamodule(
                 **({"root": str(root)} if root is not None else {}),
@@ -342,15 +345,13 @@ def open_run(where: str | Path) -> Run:
         RunError: no checkpoint, a checkpoint over the budget or unreadable, a config that is no file of the run
             folder or that the registry refuses (one line).
     """
-    from stamlane_eval.cli_tools import check_input_file
-    from stamlane_eval.io import read_text
-
     from stamlane.safety.budget import MAX_RECORD_BYTES
     from stamlane.safety.checkpoints import CheckpointError, read_checkpoint
     from stamlane.safety.guard import GuardError, read_inside
-    from stamlane.safety.paths import MAX_CONFIG_BYTES, PathError, check_config_paths
+    from stamlane.safety.paths import PathError, check_config_paths
     from stamlane.training.lightning_cli import CONFIG_KEY, START_DIR_KEY
     from stamlane.training.registry import check_run_config
+    from stamlane.training.stored import config_beside
 
     path = Path(where)
     start: Any = None
@@ -366,11 +367,10 @@ def open_run(where: str | Path) -> Run:
             content = read_checkpoint(path)
             ckpt, source, text, start = path, path, content.get(CONFIG_KEY), content.get(START_DIR_KEY)
             if not isinstance(text, str):  # a checkpoint of before configs travelled in them: the run's config.yaml
-                source = path.resolve().parent.parent / "config.yaml"
-                if not source.is_file():
+                beside = config_beside(path)
+                if beside is None:
                     raise RunError(f"checkpoint {path} carries no config and none is beside it: give --config")
-                check_input_file(source, "run config")
-                text = read_text(source, limit=MAX_CONFIG_BYTES)
+                source, text = beside
         config = check_run_config(text, source)
         check_config_paths(config)
     except (CheckpointError, GuardError, PathError) as err:

@@ -20,6 +20,7 @@ same on every route (tests/training/test_stored.py).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -124,14 +125,18 @@ class StoredModel:
                 options or config the registry refuses (one line naming the file).
         """
         from stamlane.safety.checkpoints import read_checkpoint
+        from stamlane.training.lightning_cli import CONFIG_KEY
 
         path = checkpoint_of(where)
-        return cls.of_content(path, read_checkpoint(path))
+        content = read_checkpoint(path)
+        beside = config_beside(path) if not isinstance(content.get(CONFIG_KEY), str) else None
+        return cls.of_content(path, content, beside)
 
     @classmethod
-    def of_content(cls, path: Path, content: dict[str, Any]) -> StoredModel:
+    def of_content(cls, path: Path, content: dict[str, Any], beside: tuple[Path, str] | None = None) -> StoredModel:
         """The stored model of a checkpoint's content, already read from ``path`` (by `open`, or by
         `stamlane.training.runs.open_run`, which reads it for the run's config): the file is not read again.
+        ``beside``: the run's config where the checkpoint carries none (`config_beside`: its file and text).
 
         Raises:
             CheckpointError: see `open`.
@@ -143,6 +148,8 @@ class StoredModel:
 
         text = content.get(CONFIG_KEY)  # the run's config first: what it names is refused before anything is built
         config = check_run_config(text, path) if isinstance(text, str) else None
+        if config is None and beside is not None:
+            config = check_run_config(beside[1], beside[0])
         module = build_module(content, path)
         data = content.get("datamodule_hyper_parameters")
         if data is not None:
@@ -213,6 +220,29 @@ def checkpoint_of(where: str | Path) -> Path:
             raise CheckpointError(f"{path} holds no {RUN_CHECKPOINT.as_posix()} (not a finished run folder)")
         return path / RUN_CHECKPOINT
     return path
+
+
+def config_beside(ckpt: Path) -> tuple[Path, str] | None:
+    """The config of the run a checkpoint of before configs travelled in them belongs to: ``RUN/config.yaml`` for
+    ``RUN/checkpoints/NAME.ckpt`` (its file and text, read within the config budget); None where there is none.
+
+    Raises:
+        CheckpointError: a config there that is no readable file (a FIFO, a device, over the budget).
+    """
+    source = ckpt.resolve().parent.parent / "config.yaml"
+    if ckpt.resolve().parent.name != "checkpoints" or not os.path.lexists(source):
+        return None
+    from stamlane_eval.cli_tools import check_input_file
+    from stamlane_eval.io import read_text
+
+    from stamlane.safety.checkpoints import CheckpointError
+    from stamlane.safety.paths import MAX_CONFIG_BYTES
+
+    try:
+        check_input_file(source, "run config")
+        return source, read_text(source, limit=MAX_CONFIG_BYTES)
+    except (OSError, ValueError) as err:
+        raise CheckpointError(str(err) if str(source) in str(err) else f"run config {source}: {err}") from None
 
 
 def data_root(recorded: str | None, start_dir: str | None, ckpt: str | Path) -> Path | None:

@@ -4,7 +4,7 @@
 video into files: a ``Trainer`` made for prediction alone (no logger, no checkpoints, one process unless asked), the
 model as it was opened (the checkpoint is not read again) and the lane writer
 (`stamlane.predict.prediction_writer.LanePredictionWriter`). ``stamlane predict --ckpt_path``
-(`stamlane.training.predict_cli`), `stamlane.training.runs.Run.predict` and, through it, the experiment runner's
+(`stamlane.training.stored_cli`), `stamlane.training.runs.Run.predict` and, through it, the experiment runner's
 scores go through it. The same three steps before the writer writes are shared with ``stamlane predict --config``
 (`stamlane.training.lightning_cli.StamLaneCLI`): `name_predictions` (the output folder per model and source, claimed),
 `check_prediction_outputs` (no output among the inputs) and `warn_sequence` (a source that is no sequence).
@@ -44,14 +44,17 @@ PREDICT_TRAINER_OPTIONS = (
 (steps, validation, logger, checkpoints, processes) are training's."""
 
 
-def prediction_trainer_options(trainer: Mapping[str, Any]) -> dict[str, Any]:
-    """The ``lightning.Trainer`` options of a prediction of a run whose trainer section is ``trainer``: its
-    `PREDICT_TRAINER_OPTIONS` that are set, in one process (``devices: 1``, ``num_nodes: 1``, ``strategy: auto``: a
-    run trained on 8 GPUs is predicted in one), except under a launcher that starts the processes itself
-    (``torchrun``, SLURM's ``srun``: `stamlane.training.launch.launched_by_cluster`), where its own are kept."""
+def prediction_trainer_options(
+    trainer: Mapping[str, Any], keep: Sequence[str] | None = PREDICT_TRAINER_OPTIONS
+) -> dict[str, Any]:
+    """The ``lightning.Trainer`` options of a prediction (or, ``keep`` None, a validation or test) of a run whose
+    trainer section is ``trainer``: its options named in ``keep`` (None: all) that are set, in one process
+    (``devices: 1``, ``num_nodes: 1``, ``strategy: auto``: a run trained on 8 GPUs is scored in one), except under a
+    launcher that starts the processes itself (``torchrun``, SLURM's ``srun``:
+    `stamlane.training.launch.launched_by_cluster`), where its own are kept."""
     from stamlane.training.launch import launched_by_cluster
 
-    options = {k: trainer[k] for k in PREDICT_TRAINER_OPTIONS if trainer.get(k) is not None}
+    options = {k: v for k, v in trainer.items() if (keep is None or k in keep) and v is not None}
     if launched_by_cluster():
         return options | {k: trainer[k] for k in ("devices", "num_nodes", "strategy") if trainer.get(k) is not None}
     return options | {"devices": 1, "num_nodes": 1, "strategy": "auto"}
