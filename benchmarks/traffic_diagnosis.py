@@ -29,8 +29,10 @@ settings), their frames through the JPEG round trip the data loader reads, their
     with every match against the fit without the matches on vehicles (`fit_homography`).
 
 ``--align-preset NAME`` (of `ALIGN_PRESETS`; default ``standard``, the shipped models') aligns the ORB chain of (a)-(c);
-another preset's (c) also runs ``standard`` on each window right after it: its errors (``standard_px``) and both chains'
-thread CPU time a window (``chain_ms``, ``standard_ms``); the support and stage-1 columns stay ``standard``'s.
+another preset's (b) also runs the 4-frame models on the history ``standard`` aligns (the probe ``standard``, and
+``real − standard`` paired over clips), and its (c) runs ``standard`` on each window right after it: its errors
+(``standard_px``) and both chains' thread CPU time a window (``chain_ms``, ``standard_ms``); the support and stage-1
+columns stay ``standard``'s.
 
 Writes ``diagnosis.json`` and ``summary.md`` (the tables: `table`). Exit status 2 with one line on a bad option or a
 checkpoint that cannot be read.
@@ -290,27 +292,40 @@ def alignment_rows(kind: str, seed: int, j: int, preset: str = "standard") -> li
 
 
 # ------------------------------------------------------------------------------------------------ the run
-def key_frame_rows(kind: str, seed: int, j: int, models: list[Model], preset: str = "standard") -> list[dict]:
-    """(a) and (b) for the ``j``-th clip of ``kind``: a row per key frame."""
+def chain_matrices(window: list[np.ndarray], preset: str) -> np.ndarray:
+    """The key-from-history homographies of a window aligned as the models align on the fly (ORB, chain), with the
+    alignment preset ``preset``."""
     from stamlane.align import estimate_clip
 
+    return np.stack([a.key_from_hist for a in estimate_clip(window, strategy="chain", config=align_preset(preset))])
+
+
+def key_frame_rows(kind: str, seed: int, j: int, models: list[Model], preset: str = "standard") -> list[dict]:
+    """(a) and (b) for the ``j``-th clip of ``kind``: a row per key frame (another ``preset`` than ``standard``: the
+    4-frame models also run on the history the ``standard`` chain aligns, the probe ``standard``)."""
     clip = render(kind, seed, j, paint_contrast=True)
     frames = [jpeg(f, 92) for f in clip.frames]
     rows = []
     for key in clip_keys(kind, len(frames)):
         window = frames[key - HISTORY : key + 1]
-        orb = np.stack([a.key_from_hist for a in estimate_clip(window, strategy="chain", config=align_preset(preset))])
-        exact = np.stack([clip.key_from_hist(key, key - HISTORY + t) for t in range(HISTORY + 1)])
+        chains = {name: chain_matrices(window, name) for name in dict.fromkeys((preset, "standard"))}
+        orb, exact = chains[preset], np.stack([clip.key_from_hist(key, key - HISTORY + t) for t in range(HISTORY + 1)])
         hidden = hidden_points(clip, key)
         masks = {name: history_shows(clip, key, list(mats[::-1])) for name, mats in (("exact", exact), ("orb", orb))}
         shown = {(n, r) for n, r in hidden if any(masks["exact"][n][r] >> b & 1 for b in range(1, HISTORY + 1))}
         row: dict[str, Any] = {"clip": j, "key": key, "shown": {k: shown_counts(m, hidden) for k, m in masks.items()}}
         preds: dict[str, dict[str, Any]] = {}
+        aligned = {
+            "real": orb,
+            "exact": exact,
+            "copies": np.repeat(np.eye(3)[None], 4, 0),
+            "standard": chains["standard"],
+        }
         for model in models:
-            probes = PROBES if model.frames > 1 else ("real",)
+            probes = (*PROBES, *(("standard",) if preset != "standard" else ())) if model.frames > 1 else ("real",)
             for probe in probes:
                 history = [window[-1]] * len(window) if probe == "copies" else window
-                mats = exact if probe == "exact" else orb if probe == "real" else np.repeat(np.eye(3)[None], 4, 0)
+                mats = aligned[probe]
                 xs = model.lanes(history, mats, clip.h_samples)
                 preds.setdefault(model.name, {})[probe] = {
                     "lanes": xs,
@@ -398,13 +413,14 @@ def summarise(key_rows: list[dict], align_rows: list[dict], names: list[str], re
             for g, group in enumerate(POINT_GROUPS):
                 row[group] = _estimate(points[probe][:, 2 * g : 2 * g + 2], groups, resamples)
             entry[probe] = row
-        if "copies" in rates:
-            for probe in ("real", "exact"):
-                use = {"f1": _paired(rates[probe], rates["copies"], groups, resamples, f1_of_rates)}
-                for g, group in enumerate(POINT_GROUPS):
-                    cols = slice(2 * g, 2 * g + 2)
-                    use[group] = _paired(points[probe][:, cols], points["copies"][:, cols], groups, resamples)
-                entry[f"{probe}_minus_copies"] = use
+        pairs = [(probe, "copies") for probe in ("real", "exact") if "copies" in rates]
+        pairs += [("real", "standard")] if "standard" in rates else []
+        for probe, base in pairs:
+            use = {"f1": _paired(rates[probe], rates[base], groups, resamples, f1_of_rates)}
+            for g, group in enumerate(POINT_GROUPS):
+                cols = slice(2 * g, 2 * g + 2)
+                use[group] = _paired(points[probe][:, cols], points[base][:, cols], groups, resamples)
+            entry[f"{probe}_minus_{base}"] = use
         models[name] = entry
     out["models"] = models
     out["alignment"] = alignment_summary(align_rows, resamples)
@@ -498,7 +514,7 @@ def table(out: dict) -> str:
     for kind, entry in kinds.items():
         for name, model in entry["summary"]["models"].items():
             for probe, row in model.items():
-                if probe.endswith("_minus_copies"):
+                if "_minus_" in probe:
                     cells = [_pct(row[k], "+") for k in ("f1", *POINT_GROUPS)]
                     rows.append([kind, name, probe.replace("_minus_", " − "), *cells])
                 else:

@@ -132,6 +132,22 @@ def test_a_tiny_run_writes_its_numbers_and_their_table(bench, tmp_path: Path, ca
     assert "| oncoming_close | stam4-synthetic | real − copies |" in capsys.readouterr().out
 
 
+def test_another_preset_is_paired_with_standard_on_the_same_key_frames(bench, tmp_path: Path) -> None:
+    """``--align-preset motion``: the 4-frame model also reads the history the standard chain aligns, and the
+    difference is paired over the same clips (the history the 1-frame model never reads: not run)."""
+    out = tmp_path / "traffic"
+    argv = ["--clips", "2", "--kinds", "oncoming_close", "--ckpt", "stam4-synthetic", "single-synthetic"]
+    assert bench.main([*argv, "--resamples", "100", "--align-preset", "motion", "--out", str(out)]) == 0
+    models = json.loads((out / "diagnosis.json").read_text())["kinds"]["oncoming_close"]["summary"]["models"]
+    stam4 = models["stam4-synthetic"]
+    assert {"standard", "real_minus_standard"} <= set(stam4) and set(models["single-synthetic"]) == {"real"}
+    f1 = {p: stam4[p]["f1"]["value"] for p in ("real", "standard")}
+    assert stam4["real_minus_standard"]["f1"]["value"] == pytest.approx(f1["real"] - f1["standard"])
+    low, high = (stam4["real_minus_standard"]["f1"][k] for k in ("low", "high"))
+    assert low <= f1["real"] - f1["standard"] <= high
+    assert "| oncoming_close | stam4-synthetic | real − standard |" in (out / "summary.md").read_text()
+
+
 @pytest.mark.parametrize(
     "argv",
     [
