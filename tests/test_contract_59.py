@@ -17,7 +17,6 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import cv2
-import lightning
 import numpy as np
 import pytest
 import torch
@@ -25,18 +24,11 @@ import torch
 from stamlane.cli import main
 from stamlane.safety.budget import MAX_STREAM_BYTES, BudgetError, check_stream_buffers, stream_bytes
 from stamlane.safety.guard import GuardError, check_outputs, make_folder
+from tests.tiny_checkpoint import save_tiny_checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "src" / "stamlane" / "weights" / "stam4-synthetic.ckpt"
 torch.set_num_threads(1)
-
-HPARAMS = {
-    "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
-    "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
-    "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
-    "num_frames": 2,
-    "image_size": [32, 64],
-}
 
 
 def _refused(capsys: pytest.CaptureFixture[str], code: int, *says: str) -> str:
@@ -46,26 +38,6 @@ def _refused(capsys: pytest.CaptureFixture[str], code: int, *says: str) -> str:
     for word in says:
         assert word in ours[0], (word, ours[0])
     return ours[0]
-
-
-def _checkpoint(path: Path, num_frames: int, image_size: list[int]) -> Path:
-    from lightning.pytorch.cli import instantiate_module
-
-    from stamlane.training.module import StamLaneModule
-
-    torch.manual_seed(0)
-    module = instantiate_module(StamLaneModule, HPARAMS)
-    hparams = HPARAMS | {"num_frames": num_frames, "image_size": image_size}
-    torch.save(
-        {
-            "state_dict": module.state_dict(),
-            "hyper_parameters": hparams | {"_instantiator": "lightning.pytorch.cli.instantiate_module"},
-            "datamodule_hyper_parameters": {"num_frames": num_frames, "image_size": image_size},
-            "pytorch-lightning_version": lightning.__version__,
-        },
-        path,
-    )
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -84,8 +56,8 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return {
         "set": root,
         "frames": frames,
-        "ckpt": _checkpoint(folder / "small.ckpt", 2, [32, 64]),
-        "huge": _checkpoint(folder / "huge.ckpt", 1, [8192, 8192]),
+        "ckpt": save_tiny_checkpoint(folder / "small.ckpt", 2, [32, 64]),
+        "huge": save_tiny_checkpoint(folder / "huge.ckpt", 1, [8192, 8192]),
     }
 
 

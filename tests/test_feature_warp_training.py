@@ -12,7 +12,6 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from lightning.pytorch import Trainer
 
 import stamlane.training.module
 from stamlane.cli import main as cli_main
@@ -24,6 +23,7 @@ from stamlane.models import STAM, LaneDecoder, SimpleAdd, VGGEncoder, forward_fe
 from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.stream import StreamingPredictor
 from stamlane.training.module import StamLaneModule
+from tests.cpu_trainer import cpu_trainer
 
 torch.set_num_threads(1)
 REPO = Path(__file__).resolve().parents[1]
@@ -178,18 +178,7 @@ def test_fit_validate_predict_on_feature_warp_data_and_stream_the_result(
     clip = FEATURE
     data = ClipDataModule(root=str(root), clip=clip, loader=LoaderOptions(batch_size=2), predict_labels=["test.json"])
     module = _module(bf16=True, channels_last=True, report_run_time=False)
-    trainer = Trainer(
-        max_steps=3,
-        accelerator="cpu",
-        logger=False,
-        enable_checkpointing=False,
-        enable_progress_bar=False,
-        enable_model_summary=False,
-        num_sanity_val_steps=0,
-        limit_val_batches=1,
-        check_val_every_n_epoch=None,
-        val_check_interval=3,
-    )
+    trainer = cpu_trainer(max_steps=3, limit_val_batches=1, check_val_every_n_epoch=None, val_check_interval=3)
     before = [p.detach().clone() for p in module.parameters()]
     trainer.fit(module, datamodule=data)
     assert any(not torch.equal(a, b) for a, b in zip(before, module.parameters()))

@@ -31,6 +31,7 @@ from hypothesis import strategies as st
 
 from stamlane.cli import main
 from stamlane.experiments.summary import Difference, ModelEntry, Summary, Value
+from tests.tiny_checkpoint import save_tiny_checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
 torch.set_num_threads(1)
@@ -268,40 +269,15 @@ def test_show(
 
 
 # ---------------------------------------------------------------------------------------------- stream
-HPARAMS = {
-    "encoder": {"class_path": "stamlane.models.VGGEncoder", "init_args": {"width": 0.125}},
-    "fusion": {"class_path": "stamlane.models.STAM", "init_args": {"mode": "mixed", "reduction": 4}},
-    "decoder": {"class_path": "stamlane.models.LaneDecoder", "init_args": {"embed_dim": 4}},
-    "num_frames": 2,
-    "image_size": [32, 64],
-    "_instantiator": "lightning.pytorch.cli.instantiate_module",
-}
 
 
 @pytest.fixture(scope="module")
 def stream_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A checkpoint as `stamlane fit` writes it, one whose recorded T is 100,000, and a folder of 3 frames."""
-    import lightning
-    from lightning.pytorch.cli import instantiate_module
-
-    from stamlane.training.module import StamLaneModule
-
-    torch.manual_seed(0)
-    module = instantiate_module(StamLaneModule, {k: v for k, v in HPARAMS.items() if k != "_instantiator"})
     folder = tmp_path_factory.mktemp("stream")
-    found = {}
-    for name, frames in (("good", 2), ("huge", 100_000)):
-        path = folder / f"{name}.ckpt"
-        torch.save(
-            {
-                "state_dict": module.state_dict(),
-                "hyper_parameters": HPARAMS | {"num_frames": frames},
-                "datamodule_hyper_parameters": {"num_frames": frames, "image_size": [32, 64]},
-                "pytorch-lightning_version": lightning.__version__,
-            },
-            path,
-        )
-        found[name] = path
+    found = {
+        name: save_tiny_checkpoint(folder / f"{name}.ckpt", frames) for name, frames in (("good", 2), ("huge", 100_000))
+    }
     frames_dir = folder / "frames"
     frames_dir.mkdir()
     for i in range(3):

@@ -26,6 +26,7 @@ EXPORTED_BEFORE = (
 
 def test_every_name_the_single_module_exported_is_still_exported() -> None:
     assert set(EXPORTED_BEFORE) <= set(io.__all__)
+    assert len(set(io.__all__)) == len(io.__all__)  # built from the modules' own lists: no name twice
     for name in io.__all__:
         assert getattr(io, name) is not None, name
 

@@ -10,30 +10,14 @@ import pytest
 import torch
 from torch import nn
 
-from stamlane.models import STAM, STPSA, ConvLSTMFusion, CosineWeightedSum, KeyFrameOnly, SimpleAdd, STDANet
+from stamlane.models import STDANet
+from tests.benchmarks.scripts import load_script
 
 C = 16
 
-STAM_CONFIGS = [
-    dict(mode=mode, order=order, reading=reading)
-    for reading in ("gates", "features")
-    for mode, order in (("parallel", "cs"), ("serial", "cs"), ("serial", "sc"), ("mixed", "cs"), ("mixed", "sc"))
-]
-
-
-def _stam_factory(config: dict) -> Callable[[int], nn.Module]:
-    return lambda channels: STAM(channels, **config)
-
-
-FUSIONS: dict[str, Callable[[int], nn.Module]] = {
-    **{f"stam-{c['mode']}-{c['order']}-{c['reading']}": _stam_factory(c) for c in STAM_CONFIGS},
-    "key_frame_only": KeyFrameOnly,
-    "simple_add": SimpleAdd,
-    "convlstm": ConvLSTMFusion,
-    "cosine": CosineWeightedSum,
-    "stdanet": STDANet,
-    "stpsa": STPSA,
-}
+FUSIONS: dict[str, Callable[[int], nn.Module]] = load_script("model").FUSIONS
+"""Every fusion by the name the model benchmark times it under (``benchmarks/model.py``, the one table of them): STAM
+in each mode, order and reading, the Table 4 aggregators and the single-frame baseline."""
 
 
 def _build(name: str, seed: int = 0) -> nn.Module:

@@ -7,12 +7,12 @@ import functools
 import numpy as np
 import pytest
 import torch
-from lightning.pytorch import Trainer
 from torch.utils.data import DataLoader
 
 from stamlane.models import STAM, LaneDecoder, VGGEncoder
 from stamlane.predict.postprocess import PostprocessConfig
 from stamlane.training.module import PolyLR, StamLaneModule
+from tests.cpu_trainer import cpu_trainer
 
 torch.set_num_threads(1)
 H, W, T = 32, 64, 2
@@ -104,16 +104,7 @@ def test_poly_lr() -> None:
 def test_fit_bf16_channels_last_and_weights_only_checkpoint(tmp_path) -> None:
     module = _module(bf16=True, channels_last=True)
     batches = DataLoader([_batch()] * 2, batch_size=None, collate_fn=lambda b: b)
-    trainer = Trainer(
-        max_steps=2,
-        accelerator="cpu",
-        logger=False,
-        enable_checkpointing=False,
-        enable_progress_bar=False,
-        enable_model_summary=False,
-        num_sanity_val_steps=0,
-        limit_val_batches=0,
-    )
+    trainer = cpu_trainer(max_steps=2, limit_val_batches=0)
     trainer.fit(module, train_dataloaders=batches)
     conv = module.net.encoder.stages[1][1]
     assert conv.weight.is_contiguous(memory_format=torch.channels_last)

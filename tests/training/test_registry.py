@@ -105,6 +105,14 @@ def _frames(folder: Path) -> Path:
     return folder
 
 
+def _reading(command: str, ckpt: Path, folder: Path) -> list[str]:
+    """The arguments of ``stamlane stream`` (on two frames) or ``stamlane export`` reading the checkpoint ``ckpt``,
+    their inputs and outputs under ``folder``."""
+    if command == "stream":
+        return ["stream", str(_frames(folder / "frames")), "--ckpt", str(ckpt), "--out", str(folder / "o")]
+    return ["export", "--ckpt_path", str(ckpt), "--output", str(folder / "m.onnx")]
+
+
 def _shell(side: Path) -> dict:
     """A 'fusion' whose class_path starts with ``stamlane.`` and reaches ``os.system`` by attributes."""
     return {"class_path": "stamlane.experiments.demo.os.system", "init_args": {"command": f"touch {side}"}}
@@ -125,10 +133,7 @@ def test_a_prefix_that_reaches_os_system_runs_nothing(
 ) -> None:
     side = tmp_path / "pwned"
     ckpt = _save(tmp_path / "evil.ckpt", {**NET, "fusion": _shell(side)}, weights)
-    argv = {
-        "stream": ["stream", str(_frames(tmp_path / "frames")), "--ckpt", str(ckpt), "--out", str(tmp_path / "o")],
-        "export": ["export", "--ckpt_path", str(ckpt), "--output", str(tmp_path / "m.onnx")],
-    }[command]
+    argv = _reading(command, ckpt, tmp_path)
     err = _one_line(capsys, main(argv))
     assert "'stamlane.experiments.demo.os.system'" in err and "fusion" in err and str(ckpt) in err
     assert not side.exists()
@@ -158,10 +163,7 @@ def test_hyper_parameters_import_nothing(
 ) -> None:
     value = yaml.safe_load(yaml.safe_dump(value).replace("{canary}", canary[0]))
     ckpt = _save(tmp_path / "evil.ckpt", {**NET, key: value}, weights)
-    argv = {
-        "stream": ["stream", str(_frames(tmp_path / "frames")), "--ckpt", str(ckpt), "--out", str(tmp_path / "o")],
-        "export": ["export", "--ckpt_path", str(ckpt), "--output", str(tmp_path / "m.onnx")],
-    }[command]
+    argv = _reading(command, ckpt, tmp_path)
     err = _one_line(capsys, main(argv))
     assert str(ckpt) in err and key in err, err
 
@@ -530,6 +532,25 @@ _PLACES = [
 _TAGS = ["!!python/name:{canary}.s", "!!python/object/apply:os.system ['touch {side}']", "!!binary aGk=", "!!set {{a}}"]
 
 
+def _placed(place: tuple[str, str | None], value: object) -> str:
+    """The run config of `_run_config` with ``value`` at ``place`` (one of `_PLACES`: a key of a section, or the
+    whole section), as YAML text."""
+    config = yaml.safe_load(_run_config())
+    section, key = place
+    if key is None:
+        config[section] = value
+    else:
+        config.setdefault(section, {})[key] = value
+    return yaml.safe_dump(config)
+
+
+def _refused_in_one_line(err: CheckpointError) -> None:
+    """A hostile value refused as it must be: in one line naming the file (``evil.ckpt``)."""
+    message = str(err)
+    assert "\n" not in message and "evil.ckpt" in message, message
+    event("refused")
+
+
 @settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_any_hostile_stored_config_is_refused_in_one_line_or_fully_registered(
@@ -544,23 +565,16 @@ def test_any_hostile_stored_config_is_refused_in_one_line_or_fully_registered(
     name, side = canary
     enc = tmp_path / "enc.yaml"
     enc.write_text(f"class_path: {name}.s\n")
-    config = yaml.safe_load(_run_config())
-    section, key = data.draw(st.sampled_from(_PLACES), label="place")
+    place = data.draw(st.sampled_from(_PLACES), label="place")
     value = data.draw(_hostile_values(_names(name, enc)), label="value")
-    if key is None:
-        config[section] = value
-    else:
-        config.setdefault(section, {})[key] = value
-    text = yaml.safe_dump(config)
+    text = _placed(place, value)
     if data.draw(st.integers(0, 3), label="tagged") == 0:
         tag = data.draw(st.sampled_from(_TAGS), label="tag").format(canary=name, side=side)
         text += f"source: {tag}\n"
     try:
         checked = check_run_config(text, "evil.ckpt")
     except CheckpointError as err:
-        message = str(err)
-        assert "\n" not in message and "evil.ckpt" in message, message
-        event("refused")
+        _refused_in_one_line(err)
     else:
         event("accepted")
         assert all(c in registry() for c in _class_paths(checked)), checked
@@ -610,9 +624,7 @@ def test_any_hostile_hyper_parameters_build_nothing_foreign(
     try:
         module = build_module({"state_dict": weights, "hyper_parameters": {**NET, key: value}}, "evil.ckpt")
     except CheckpointError as err:
-        message = str(err)
-        assert "\n" not in message and "evil.ckpt" in message, message
-        event("refused")
+        _refused_in_one_line(err)
     else:
         event("accepted")
         built = {f"{type(m).__module__}.{type(m).__qualname__}" for m in module.net.modules()}
@@ -644,13 +656,7 @@ def test_every_command_answers_a_hostile_checkpoint_in_one_line(
     (run / "checkpoints").mkdir(parents=True)
     ckpt = run / "checkpoints" / "last.ckpt"
     if command in ("predict", "validate"):
-        config = yaml.safe_load(_run_config())
-        section, key = data.draw(st.sampled_from(_PLACES), label="place")
-        if key is None:
-            config[section] = value
-        else:
-            config.setdefault(section, {})[key] = value
-        text = yaml.safe_dump(config)
+        text = _placed(data.draw(st.sampled_from(_PLACES), label="place"), value)
         if command == "validate":
             (run / "config.yaml").write_text(text)
         _save(ckpt, NET, weights, config=text if command == "predict" else None)
@@ -658,10 +664,7 @@ def test_every_command_answers_a_hostile_checkpoint_in_one_line(
     else:
         key = data.draw(st.sampled_from(sorted(NET)), label="key")
         _save(ckpt, {**NET, key: value}, weights)
-        argv = {
-            "stream": ["stream", str(_frames(folder / "frames")), "--ckpt", str(ckpt), "--out", str(folder / "o")],
-            "export": ["export", "--ckpt_path", str(ckpt), "--output", str(folder / "m.onnx"), "--opset", "17"],
-        }[command]
+        argv = _reading(command, ckpt, folder) + (["--opset", "17"] if command == "export" else [])
     code = main(argv)
     err = capsys.readouterr().err.strip()
     ours = [line for line in err.splitlines() if line.startswith("stamlane ")]

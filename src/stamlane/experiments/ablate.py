@@ -26,21 +26,12 @@ from pathlib import Path
 
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
+from stamlane.experiments import workspace
 from stamlane.experiments.engine import Experiment
 from stamlane.experiments.recipes import RECIPES, Row
 from stamlane.experiments.runner import check_fit_arguments
 from stamlane.experiments.store import ExperimentError
 from stamlane.experiments.table_index import PaperRow, TableIndex, baseline_pairs, load_tables
-from stamlane.experiments.workspace import (
-    FIT_ARGUMENTS_HELP,
-    add_bf16_argument,
-    bf16_of,
-    check_data,
-    claimed_out,
-    fit_arguments,
-    prepare_data,
-    split_name,
-)
 from stamlane.safety.paths import MAX_CONFIG_BYTES, require
 
 __all__ = ["build_parser", "main"]
@@ -49,7 +40,7 @@ __all__ = ["build_parser", "main"]
 def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
-    p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0], epilog=FIT_ARGUMENTS_HELP)
+    p = OneLineParser(prog="stamlane ablate", description=__doc__.split("\n")[0], epilog=workspace.FIT_ARGUMENTS_HELP)
     p.add_argument("--table", nargs="+", metavar="N", help="table number(s): 1 2 3 4 7 8")
     p.add_argument("--rows", nargs="+", metavar="ID", help="only these rows of the tables (ids as in --list)")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2], metavar="S", help="seeds (default 0 1 2)")
@@ -59,9 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", type=Path, help=f"data root, a TuSimple-layout set (default {DEFAULT_SYNTHETIC_ROOT})")
     p.add_argument("--base", type=Path, help="base config (default: the index's, configs/demo.yaml)")
     p.add_argument(
-        "--splits", nargs="+", type=split_name, default=["test", "challenging"], help="label files scored (stems)"
+        "--splits",
+        nargs="+",
+        type=workspace.split_name,
+        default=["test", "challenging"],
+        help="label files scored (stems)",
     )
-    add_bf16_argument(p)
+    workspace.add_bf16_argument(p)
     p.add_argument("--out", type=Path, default=Path("outputs/ablate"), help="results folder (default outputs/ablate)")
     p.add_argument("--tables", type=Path, help="table index (default configs/paper/tables.yaml)")
     p.add_argument("--list", action="store_true", help="print the tables and their rows, then exit")
@@ -118,7 +113,7 @@ def _report(out: Path, index: TableIndex, tables: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stamlane ablate`` (``argv`` without the subcommand)."""
-    argv, extra = fit_arguments(list(sys.argv[1:] if argv is None else argv))
+    argv, extra = workspace.fit_arguments(list(sys.argv[1:] if argv is None else argv))
     args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args
@@ -156,17 +151,18 @@ def _ablate(args: argparse.Namespace, extra: list[str]) -> int:
         raise ValueError("--pretrain-steps is for the two-stage recipe (--recipe cpu)")
     recipe = replace(recipe, steps=args.steps or recipe.steps)
     recipe = replace(recipe, pretrain_steps=args.pretrain_steps or recipe.pretrain_steps)
-    check_data(args.data, must_exist=True)
-    root = prepare_data(args.data, args.out, generate=False)
+    workspace.check_data(args.data, must_exist=True)
+    root = workspace.prepare_data(args.data, args.out, generate=False)
     missing = [s for s in args.splits if not (root / f"{s}.json").is_file()]
     if missing:
         raise ValueError(f"--splits: {root} has no {missing[0]}.json")
+    bf16 = workspace.bf16_of(args.bf16)
     experiment = Experiment(
-        rows, recipe, args.seeds, root, args.out, bf16=bf16_of(args.bf16), splits=tuple(args.splits), extra=tuple(extra)
+        rows, recipe, args.seeds, root, args.out, bf16=bf16, splits=tuple(args.splits), extra=tuple(extra)
     )
     outputs = [args.out / "summary.json", args.out / "tables.md"]
-    # the runs never land among the frames and labels, nor replace the base or the index
-    with claimed_out(args.out, outputs, [base, index.path], protected=[root]):  # a second run on --out: refused
+    # the runs never land among the frames and labels, nor replace the base or the index; a second run on --out: refused
+    with workspace.claimed_out(args.out, outputs, [base, index.path], protected=[root]):
         experiment.run(_pairs(rows))
     print(_report(args.out, index, args.table))
     print(f"stamlane ablate: tables written to {args.out / 'tables.md'}", file=sys.stderr)

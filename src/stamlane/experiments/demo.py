@@ -37,20 +37,11 @@ from pathlib import Path
 import numpy as np
 from stamlane_eval.cli_tools import OneLineParser, parse_or_status
 
+from stamlane.experiments import workspace
 from stamlane.experiments.engine import REVEAL_PROBES, Experiment
 from stamlane.experiments.recipes import CONFIG_DIR, RECIPES, Recipe, Row
 from stamlane.experiments.runner import TEMPORAL_SPLIT, check_fit_arguments
 from stamlane.experiments.store import ExperimentError
-from stamlane.experiments.workspace import (
-    FIT_ARGUMENTS_HELP,
-    add_bf16_argument,
-    bf16_of,
-    check_data,
-    claimed_out,
-    fit_arguments,
-    prepare_data,
-    split_name,
-)
 from stamlane.safety.boundary import run_command
 from stamlane.safety.guard import atomic_path
 
@@ -88,13 +79,13 @@ def pairs(rows: list[Row]) -> list[tuple[str, str]]:
 def build_parser() -> argparse.ArgumentParser:
     from stamlane.synth.layout import DEFAULT_SYNTHETIC_ROOT
 
-    p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0], epilog=FIT_ARGUMENTS_HELP)
+    p = OneLineParser(prog="stamlane demo", description=__doc__.split("\n")[0], epilog=workspace.FIT_ARGUMENTS_HELP)
     p.add_argument("--out", type=Path, default=Path("outputs/demo"), help="output folder (default outputs/demo)")
     p.add_argument("--data", type=Path, help=f"synthetic set (default {DEFAULT_SYNTHETIC_ROOT}; made if missing)")
     p.add_argument("--seeds", type=int, default=1, help="training seeds per model (default 1)")
     p.add_argument("--pretrain-steps", type=int, default=1200, help="stage 1: single-frame steps from scratch")
     p.add_argument("--finetune-steps", type=int, default=300, help="stage 2: steps of each model from stage 1")
-    add_bf16_argument(p)
+    workspace.add_bf16_argument(p)
     p.add_argument("--no-noalign", action="store_true", help="skip the 4-frame model without alignment")
     p.add_argument("--single-clean", action="store_true", help="also the single frame without key-frame corruption")
     p.add_argument(
@@ -113,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--splits",
         nargs="+",
-        type=split_name,
+        type=workspace.split_name,
         default=list(SPLITS),
         metavar="SPLIT",
         help="label files scored besides the reveal splits (default: test challenging challenging-frames)",
@@ -223,14 +214,15 @@ def run(args: argparse.Namespace, extra: Sequence[str] = ()) -> None:
     rows += [SINGLE_CLEAN] if args.single_clean else []
     have = {m.name for m in rows} | {m.paper for m in rows}
     rows += [Row.paper_row(r) for r in dict.fromkeys(args.rows) if r not in have]
-    check_data(args.data, quick=args.quick)
+    workspace.check_data(args.data, quick=args.quick)
     if extra:  # before the data are made: a fit argument every run would refuse is said now
         check_fit_arguments(CONFIG_DIR / rows[0].configs[0], extra)
     steps = (3, 2) if args.quick else (args.pretrain_steps, args.finetune_steps)
     recipe = replace(RECIPES["cpu"], pretrain_steps=steps[0], steps=steps[1])
-    bf16 = bf16_of(args.bf16, quick=args.quick)
+    bf16 = workspace.bf16_of(args.bf16, quick=args.quick)
     outputs = [args.out / name for name in OUTPUTS]  # the experiment never writes among the frames and labels
-    with claimed_out(args.out, outputs, [args.data], protected=[args.data]):  # a second demo on --out is refused
+    # a second demo on --out is refused
+    with workspace.claimed_out(args.out, outputs, [args.data], protected=[args.data]):
         _run(args, rows, recipe, bf16, tuple(extra))
 
 
@@ -240,7 +232,7 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool, 
     from stamlane.safety.guard import write_atomic
 
     start = time.perf_counter()
-    root = prepare_data(args.data, args.out, quick=args.quick)
+    root = workspace.prepare_data(args.data, args.out, quick=args.quick)
     print(f"[stamlane] synthetic set {root} ready in {(time.perf_counter() - start) / 60:.1f} min", flush=True)
     splits = tuple(s for s in dict.fromkeys(args.splits) if s != TEMPORAL_SPLIT)
     missing = [s for s in splits if not (root / f"{s}.json").is_file()]
@@ -284,7 +276,7 @@ def _run(args: argparse.Namespace, rows: list[Row], recipe: Recipe, bf16: bool, 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stamlane demo`` (``argv`` without the subcommand)."""
-    argv, extra = fit_arguments(list(sys.argv[1:] if argv is None else argv))
+    argv, extra = workspace.fit_arguments(list(sys.argv[1:] if argv is None else argv))
     args = parse_or_status(build_parser(), argv)
     if isinstance(args, int):
         return args

@@ -63,6 +63,36 @@ def _add_sum_states(metric: Metric, counts: Sequence[str], k: int, totals: Seque
         metric.add_state(name, default=torch.tensor(0, dtype=torch.int64), dist_reduce_fx="sum")
 
 
+class _LaneCountMetric(Metric):
+    """What the metrics that match lanes by IoU share (CULane, video): TP / FP / FN counts per threshold and the
+    images, summed across processes, and their precision / recall / F1 (``stamlane_eval.aggregate.prf``)."""
+
+    full_state_update = False
+    higher_is_better = True
+    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images
+    tp: torch.Tensor
+    fp: torch.Tensor
+    fn: torch.Tensor
+    images: torch.Tensor
+
+    def _add_count_states(self, iou_thresholds: Sequence[float]) -> None:
+        """Keep the thresholds (``iou_thresholds``) and add the count states, zero."""
+        self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
+        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
+
+    def _counts_out(self) -> dict[str, torch.Tensor]:
+        """``{f"precision@{t}", f"recall@{t}", f"f1@{t}"}`` (float64) and ``{f"tp@{t}", f"fp@{t}", f"fn@{t}"}``
+        (int64) for each threshold."""
+        out = {}
+        for i, t in enumerate(self.iou_thresholds):
+            counts = (int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
+            for name, v in zip(("precision", "recall", "f1"), prf(*counts), strict=True):
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.float64)
+            for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
+                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.int64)
+        return out
+
+
 class TuSimpleMetric(Metric):
     """TuSimple accuracy / FP / FN (official ``lane.py``), the paper's F1 and lane-count precision/recall/F1.
 
@@ -157,7 +187,7 @@ class TuSimpleMetric(Metric):
         return out
 
 
-class CULaneMetric(Metric):
+class CULaneMetric(_LaneCountMetric):
     """CULane / ApolloScape area metric (official C++ tool or lanedet) at one or more IoU thresholds.
 
     Args:
@@ -166,14 +196,6 @@ class CULaneMetric(Metric):
         size: image ``(H, W)``; ``update(..., sizes=...)`` may give each image its own.
         variant: ``"official"`` or ``"lanedet"``.
     """
-
-    full_state_update = False
-    higher_is_better = True
-    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images
-    tp: torch.Tensor
-    fp: torch.Tensor
-    fn: torch.Tensor
-    images: torch.Tensor
 
     def __init__(
         self,
@@ -186,11 +208,10 @@ class CULaneMetric(Metric):
         super().__init__(**kwargs)
         if variant not in culane.VARIANTS:
             raise ValueError(f"variant must be one of {culane.VARIANTS}, got {variant!r}")
-        self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
+        self._add_count_states(iou_thresholds)
         self.width = int(width)
         self.size = (int(size[0]), int(size[1]))
         self.variant = variant
-        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
 
     def update(
         self,
@@ -225,14 +246,7 @@ class CULaneMetric(Metric):
 
     def compute(self) -> dict[str, torch.Tensor]:
         """``{f"precision@{t}", f"recall@{t}", f"f1@{t}", f"tp@{t}", f"fp@{t}", f"fn@{t}"}`` for each threshold."""
-        out = {}
-        for i, t in enumerate(self.iou_thresholds):
-            counts = (int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
-            for name, v in zip(("precision", "recall", "f1"), prf(*counts), strict=True):
-                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.float64)
-            for name, v in zip(("tp", "fp", "fn"), counts, strict=True):
-                out[metric_key(name, t)] = torch.tensor(v, dtype=torch.int64)
-        return out
+        return self._counts_out()
 
 
 def _sequence_key(name: Hashable) -> int:
@@ -300,7 +314,7 @@ class _SequenceMetric(Metric):
         """Add checked frames, `_FrameInput` each."""
 
 
-class VideoMetric(_SequenceMetric):
+class VideoMetric(_SequenceMetric, _LaneCountMetric):
     """mIoU and F@t as MMA-Net computes them for VIL-100 (:mod:`stamlane_eval.video`).
 
     ``update`` takes frames in time order with the sequence each belongs to; the mIoU is averaged per sequence,
@@ -312,13 +326,7 @@ class VideoMetric(_SequenceMetric):
         size: image ``(H, W)``; ``update(..., sizes=...)`` may give each frame its own.
     """
 
-    full_state_update = False
-    higher_is_better = True
-    # the states (add_state): (k,) int64 counts per threshold, 0-d int64 images; "cat" lists of (n,) tensors
-    tp: torch.Tensor
-    fp: torch.Tensor
-    fn: torch.Tensor
-    images: torch.Tensor
+    # the states (add_state) besides the counts: "cat" lists of (n,) tensors
     frame_miou: list[torch.Tensor]
     frame_sequence: list[torch.Tensor]
 
@@ -329,9 +337,8 @@ class VideoMetric(_SequenceMetric):
         **kwargs: object,
     ) -> None:
         super().__init__(**kwargs)
-        self.iou_thresholds = tuple(float(t) for t in iou_thresholds)
+        self._add_count_states(iou_thresholds)
         self.size = (int(size[0]), int(size[1]))
-        _add_sum_states(self, ("tp", "fp", "fn"), len(self.iou_thresholds), ("images",))
         self.add_state("frame_miou", default=[], dist_reduce_fx="cat")
         self.add_state("frame_sequence", default=[], dist_reduce_fx="cat")
 
@@ -360,14 +367,7 @@ class VideoMetric(_SequenceMetric):
                 per_sequence.setdefault(key, []).append(value)
         # frames of a sequence in the order they came; no list is empty, so no mIoU is None
         mious = [m for m in map(sequence_miou, per_sequence.values()) if m is not None]
-        out = {"miou": torch.tensor(dataset_miou(mious), dtype=torch.float64)}
-        for i, t in enumerate(self.iou_thresholds):
-            c = culane.counts_to_prf(int(self.tp[i]), int(self.fp[i]), int(self.fn[i]))
-            for name in ("precision", "recall", "f1"):
-                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.float64)
-            for name in ("tp", "fp", "fn"):
-                out[metric_key(name, t)] = torch.tensor(getattr(c, name), dtype=torch.int64)
-        return out
+        return {"miou": torch.tensor(dataset_miou(mious), dtype=torch.float64), **self._counts_out()}
 
 
 class TemporalStabilityMetric(_SequenceMetric):

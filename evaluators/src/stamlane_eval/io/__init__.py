@@ -15,110 +15,19 @@ the problem.
 Every public name is importable from ``stamlane_eval.io`` itself.
 """
 
-from stamlane_eval.io.culane import (
-    IMAGE_SUFFIXES,
-    cpp_stream_doubles,
-    cpp_tool_text,
-    culane_entries,
-    culane_lines_path,
-    images_beside,
-    read_culane_folders,
-    read_culane_lines,
-)
+from stamlane_eval.io import culane, limits, tusimple, video, vil100
+from stamlane_eval.io.culane import *  # noqa: F403
 from stamlane_eval.io.files import Inside, LaneFileError, image_key, inside, read_text, write_atomic, write_jsonl
-from stamlane_eval.io.limits import (
-    MAX_COMPARED_CELLS,
-    MAX_COORDINATE,
-    MAX_DRAWN_PIXELS,
-    MAX_FILE_BYTES,
-    MAX_IMAGE_POINTS,
-    MAX_IMAGE_SIDE,
-    MAX_LANE_POINTS,
-    MAX_LANE_WIDTH,
-    MAX_LANES,
-    MAX_TUSIMPLE_VALUES,
-    CanvasBudget,
-    check_image_size,
-)
-from stamlane_eval.io.tusimple import (
-    LABEL_RULES,
-    TuSimpleFile,
-    TuSimpleInputError,
-    check_tusimple,
-    duplicate_raw_file,
-    iter_tusimple,
-    lane_py_line,
-    read_tusimple,
-    tusimple_lanes,
-    tusimple_lanes_by_image,
-    tusimple_points,
-    tusimple_record_error,
-)
-from stamlane_eval.io.video import (
-    TUSIMPLE_SUFFIXES,
-    Frame,
-    TuSimpleFrames,
-    VideoInput,
-    is_tusimple_input,
-    listed_frames,
-    read_sizes,
-    read_tusimple_frames,
-    read_video,
-    tusimple_frame_key,
-    video_frames,
-)
-from stamlane_eval.io.vil100 import read_vil100_json
+from stamlane_eval.io.limits import *  # noqa: F403
+from stamlane_eval.io.tusimple import *  # noqa: F403
+from stamlane_eval.io.video import *  # noqa: F403
+from stamlane_eval.io.vil100 import *  # noqa: F403
 
-__all__ = [
-    "IMAGE_SUFFIXES",
-    "LABEL_RULES",
-    "MAX_COMPARED_CELLS",
-    "MAX_COORDINATE",
-    "MAX_DRAWN_PIXELS",
-    "MAX_FILE_BYTES",
-    "MAX_IMAGE_POINTS",
-    "MAX_IMAGE_SIDE",
-    "MAX_LANES",
-    "MAX_LANE_POINTS",
-    "MAX_LANE_WIDTH",
-    "MAX_TUSIMPLE_VALUES",
-    "TUSIMPLE_SUFFIXES",
-    "CanvasBudget",
-    "Frame",
-    "Inside",
-    "LaneFileError",
-    "TuSimpleFile",
-    "TuSimpleFrames",
-    "TuSimpleInputError",
-    "VideoInput",
-    "check_image_size",
-    "check_tusimple",
-    "cpp_stream_doubles",
-    "cpp_tool_text",
-    "culane_entries",
-    "culane_lines_path",
-    "duplicate_raw_file",
-    "image_key",
-    "images_beside",
-    "inside",
-    "is_tusimple_input",
-    "iter_tusimple",
-    "lane_py_line",
-    "listed_frames",
-    "read_culane_folders",
-    "read_culane_lines",
-    "read_sizes",
-    "read_text",
-    "read_tusimple",
-    "read_tusimple_frames",
-    "read_video",
-    "read_vil100_json",
-    "tusimple_frame_key",
-    "tusimple_lanes",
-    "tusimple_lanes_by_image",
-    "tusimple_points",
-    "tusimple_record_error",
-    "video_frames",
-    "write_atomic",
-    "write_jsonl",
-]
+# the public names of each module are its own __all__; of files, all but name_problem and path_problem (the checks of
+# a path's bytes, for stamlane and the CLI only)
+__all__ = ["Inside", "LaneFileError", "image_key", "inside", "read_text", "write_atomic", "write_jsonl"]
+__all__ += culane.__all__
+__all__ += limits.__all__
+__all__ += tusimple.__all__
+__all__ += video.__all__
+__all__ += vil100.__all__
