@@ -20,30 +20,19 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import yaml
-from _harness import guard_out, write_result
+from _harness import fail, guard_out, write_result
 
-from stamlane.data.layouts import make_clips
-from stamlane.data.options import ClipOptions
-from stamlane.data.transforms import ClipTransform
-from stamlane.training.module import StamLaneModule
+from stamlane.training.stored import StoredModel
 
 SOURCES = ("real", "key", "other_clip")
 
 
 def shares(run: Path, root: Path, split: str, source: str) -> dict[str, list[tuple[float, float]]]:
     """Per clip factor (``clean`` without one): per key frame, the history's share on lane cells and on the others."""
-    module = StamLaneModule.from_checkpoint(run / "checkpoints" / "last.ckpt")
-    data = yaml.safe_load((run / "config.yaml").read_text())["data"]
-    size = tuple(data["image_size"])
-    dataset = make_clips(
-        "tusimple",
-        root,
-        [f"{split}.json"],
-        clip=ClipOptions(num_frames=data["num_frames"], image_size=size, align=data["align"]),
-        transform=ClipTransform(size, crop_top=data.get("crop_top", 0.0)),
-        history_source=source,
-    )
+    model = StoredModel.open(run)  # a run folder, a checkpoint or a shipped name: read once, its own data options
+    module = model.module
+    data = model.datamodule(root=str(root), test_labels=[f"{split}.json"], history_source=source)
+    dataset = data.make_dataset("test")
     factors = json.loads((root / "dataset.json").read_text()).get("clip_factors", {})
     captured: dict[str, torch.Tensor] = {}
     net = module.net
@@ -67,7 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     from stamlane.synth.generator import DEFAULT_SYNTHETIC_ROOT
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path, nargs="+", help="run folders (config.yaml, checkpoints/last.ckpt)")
+    p.add_argument(
+        "run", type=Path, nargs="+", help="run folders (checkpoints/last.ckpt), checkpoints or shipped names"
+    )
     p.add_argument("--split", default="challenging")
     p.add_argument("--data", type=Path, default=Path(DEFAULT_SYNTHETIC_ROOT))
     p.add_argument("--out", type=Path)
@@ -77,10 +68,13 @@ def main(argv: list[str] | None = None) -> int:
         return refused
     torch.set_num_threads(2)
     results: dict[str, dict[str, list]] = {s: defaultdict(list) for s in SOURCES}
-    for run in args.run:
-        for source in SOURCES:
-            for factor, values in shares(run, args.data, args.split, source).items():
-                results[source][factor] += values
+    try:
+        for run in args.run:
+            for source in SOURCES:
+                for factor, values in shares(run, args.data, args.split, source).items():
+                    results[source][factor] += values
+    except (OSError, ValueError) as err:  # a checkpoint refused (CheckpointError), a split or data set not there
+        return fail("fusion_share.py", err)
     print(f"history's share of the fused features (%), lane cells / other cells, {len(args.run)} run(s), {args.split}")
     print("| factor | " + " | ".join(SOURCES) + " |")
     print("|---|" + "---|" * len(SOURCES))
