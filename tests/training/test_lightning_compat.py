@@ -18,6 +18,7 @@ from stamlane.training.lightning_compat import (
     drop_hyperparameters,
     fit_data_fetcher,
     keep_command_line_hparams,
+    start_method,
 )
 from stamlane.training.module import StamLaneModule
 
@@ -78,3 +79,14 @@ def test_a_subcommand_has_a_parser_that_dumps_its_config(tmp_path) -> None:
     assert runs == ["validate"]
     dumped = subcommand_parser(cli, "validate").dump(cli.config["validate"], skip_none=False)
     assert "limit_val_batches: 1" in dumped and "default_root_dir" in dumped
+
+
+def test_a_strategy_says_how_it_starts_its_processes() -> None:
+    """DDP's ``_start_method``: ``popen`` by default, the multiprocessing method of ``ddp_spawn``; a one-process
+    strategy records none."""
+    from lightning.pytorch.strategies import DDPStrategy, SingleDeviceStrategy
+
+    assert start_method(DDPStrategy()) == "popen"
+    assert start_method(DDPStrategy(start_method="spawn")) == "spawn"
+    assert start_method(SingleDeviceStrategy(torch.device("cpu"))) == "popen"
+    assert not hasattr(SingleDeviceStrategy(torch.device("cpu")), "_start_method")  # the default is ours, not read

@@ -57,5 +57,7 @@ def one_process_unless_asked(subcommand: str | None, trainer: Any, given: Sequen
 def spawned(trainer: Any) -> bool:
     """True in the process that started the ranks of ``ddp_spawn`` (``start_method`` spawn, fork, forkserver): it
     trains nothing itself, and its trainer does not hold the ranks' step count nor their checkpoints' paths."""
-    method = getattr(trainer.strategy, "_start_method", "popen")
+    from stamlane.training.lightning_compat import start_method
+
+    method = start_method(trainer.strategy)
     return trainer.world_size > 1 and method != "popen" and not torch.distributed.is_initialized()

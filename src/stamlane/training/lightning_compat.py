@@ -15,6 +15,9 @@ Each has no public equivalent; ``tests/training/test_lightning_compat.py`` fails
   no-op, so that the command line stays in charge (``--model.postprocess.*`` at predict time).
 - `subcommand_parser`: the parser of one LightningCLI subcommand, whose ``dump`` writes a run's config as
   ``stamlane fit`` would read it back (the config that travels inside every checkpoint).
+- `start_method`: how a DDP strategy starts its processes (the script run again per rank, or a multiprocessing
+  start method): `stamlane.training.launch.spawned` tells the process that only started the ranks of
+  ``ddp_spawn`` from one that trains.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ __all__ = [
     "fit_data_fetcher",
     "keep_command_line_hparams",
     "plain_hyperparameters",
+    "start_method",
     "subcommand_parser",
 ]
 
@@ -60,10 +64,17 @@ def plain_hyperparameters(module: Any) -> None:
 
 def keep_command_line_hparams(cli: Any) -> None:
     """Replacement of LightningCLI's ``_parse_ckpt_path``: the config built from ``--config`` and the command
-    line is used as it is (``stamlane predict --ckpt_path X`` without ``--config`` reads the run's config
-    from the checkpoint first, see ``stamlane.cli``)."""
+    line is used as it is (``stamlane predict|validate|test --ckpt_path X`` without ``--config`` do not come here:
+    they open the checkpoint as a stored model, `stamlane.training.stored_cli`)."""
 
 
 def subcommand_parser(cli: Any, subcommand: str) -> Any:
     """The jsonargparse parser of ``subcommand`` of a LightningCLI (``cli._parser``)."""
     return cli._parser(subcommand)
+
+
+def start_method(strategy: Any) -> str:
+    """How ``strategy`` starts its processes: ``"popen"`` (the script run again for each rank, DDP's default) or a
+    multiprocessing start method (``"spawn"``, ``"fork"``, ``"forkserver"``: ``ddp_spawn`` and its kin); a strategy
+    of one process, which records none, ``"popen"``."""
+    return str(getattr(strategy, "_start_method", "popen"))
