@@ -59,9 +59,11 @@ def test_every_route_gets_the_same_settings(tmp_path: Path, monkeypatch: pytest.
     """``align: none``, the fast preset and a horizon row reach the predictor of `from_stored`, of ``stamlane
     stream --ckpt`` (a file and a run folder), the data that ``stamlane predict --ckpt_path`` (a split and a
     ``--source``), `Run.predict` (and so the experiment runner's scores) hand to
-    ``Trainer.predict``, and the .onnx metadata of ``stamlane export``."""
+    ``Trainer.predict``, the data ``validate`` and ``test --ckpt_path`` score, and the .onnx metadata of ``stamlane
+    export``."""
     from stamlane.stream.cli import build_parser, load_predictor
     from stamlane.stream.metadata import deployment_metadata
+    from stamlane.training import stored_cli
     from stamlane.training.compat import clip_options
     from stamlane.training.runs import open_run
 
@@ -76,9 +78,12 @@ def test_every_route_gets_the_same_settings(tmp_path: Path, monkeypatch: pytest.
         assert predictor.align_config == ALIGN_PRESETS["fast"] and predictor.transform.crop_top == pytest.approx(
             model.settings.crop_top
         )
-    with open_run(ckpt) as run:  # the run's own record of its data (what `stamlane validate --ckpt_path` reads)
+    with open_run(ckpt) as run:  # the run's own record of its data
         recorded = clip_options(run.data())
     assert (recorded.align, recorded.align_preset, recorded.horizon_row) == ("none", "fast", 300)
+    for command in ("validate", "test"):  # the data module `stamlane validate|test --ckpt_path` score
+        _, init = stored_cli.parse(model, ["--ckpt_path", str(ckpt)], command)
+        assert init.data.clip == model.settings.clip, command
     for clip in _predicted_clips(ckpt, tmp_path, monkeypatch):
         assert (clip.align, clip.align_preset, clip.horizon_row) == ("none", "fast", 300), clip
         assert (clip.num_frames, list(clip.image_size)) == (model.settings.num_frames, list(model.settings.image_size))
