@@ -19,8 +19,10 @@ from stamlane_eval.integrations.lightning import LaneEvalCallback
 
 from stamlane.cli import main
 from stamlane.data import datamodule
-from stamlane.training.launch import one_process_unless_asked
 from stamlane.training.lightning_cli import StamLaneCLI
+from stamlane.training.stored import StoredModel
+from stamlane.training.stored_cli import parse
+from stamlane.training.stored_predict import prediction_trainer_options
 from tests.training.tiny_runs import tiny_args
 
 pytestmark = pytest.mark.usefixtures("plain_argv")
@@ -139,19 +141,21 @@ def test_the_evaluation_sampler_shares_without_repeats(monkeypatch: pytest.Monke
 
 
 def test_stored_runs_are_scored_in_one_process_unless_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One process is the stored model's default, on values: a command's own trainer options replace it."""
     for name in ("TORCHELASTIC_RUN_ID", "SLURM_NTASKS", "RANK", "GROUP_RANK", "LOCAL_RANK", "LOCAL_WORLD_SIZE"):
         monkeypatch.delenv(name, raising=False)
-    stored = {"devices": 8, "num_nodes": 2, "strategy": "ddp"}
-    trainer = dict(stored)
-    assert one_process_unless_asked("validate", trainer, ["--ckpt_path", "x.ckpt"])
-    assert trainer == {"devices": 1, "num_nodes": 1, "strategy": "auto"}
-    for asked in (["--trainer.devices=2"], ["--trainer.strategy", "ddp"], ["--trainer.num_nodes=2"]):
-        trainer = dict(stored)
-        assert not one_process_unless_asked("test", trainer, asked) and trainer == stored
-    trainer = dict(stored)
-    assert not one_process_unless_asked("fit", trainer, []) and trainer == stored  # training keeps its processes
+    stored = {"devices": 8, "num_nodes": 2, "strategy": "ddp", "max_steps": 1500, "precision": "bf16-mixed"}
+    one = {"devices": 1, "num_nodes": 1, "strategy": "auto"}
+    assert prediction_trainer_options(stored) == {"precision": "bf16-mixed", **one}
+    assert prediction_trainer_options(stored, keep=None) == {**stored, **one}
+    model = StoredModel.open("single-synthetic")
+    for command in ("validate", "test", "predict"):
+        config, _ = parse(model, ["--ckpt_path=single-synthetic"], command)
+        assert (config.trainer.devices, config.trainer.num_nodes, config.trainer.strategy) == (1, 1, "auto")
+        config, _ = parse(model, ["--ckpt_path=single-synthetic", "--trainer.devices=2"], command)
+        assert config.trainer.devices == 2
     monkeypatch.setenv("SLURM_NTASKS", "4")  # srun started the processes: Lightning takes them from SLURM
-    assert not one_process_unless_asked("predict", trainer, []) and trainer == stored
+    assert prediction_trainer_options(stored) == {"precision": "bf16-mixed", **dict(list(stored.items())[:3])}
 
 
 # ---------------------------------------------------------------------------------------------------- launchers

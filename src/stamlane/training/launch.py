@@ -1,25 +1,19 @@
-"""How many processes ``stamlane validate|test|predict`` runs: one, unless asked.
+"""Which processes a command runs in: under a cluster launcher, and the ranks ``ddp_spawn`` starts.
 
-A checkpoint carries the trainer of the run that wrote it (``--ckpt_path`` alone reads the run's config from it):
-a run trained on 8 GPUs would be validated on 8 again, with Lightning's warning to use one device. Scores are the
-same either way (each image is scored once, in the split's order: docs/distributed.md), but one process is what a
-score or a prediction of a stored model needs; several are asked for on the command line (``--trainer.devices``,
-``--trainer.strategy``, ``--trainer.num_nodes``) or by launching under ``torchrun`` or SLURM's ``srun``.
+A stored model is scored and predicted in one process unless asked (`stamlane.training.stored_predict.
+prediction_trainer_options`: one process is its default, ``--trainer.devices`` and the like replace it), except under
+a launcher that starts the processes itself (`launched_by_cluster`). A ``--config`` gives its own trainer: its
+processes are the config's.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from typing import Any
 
 import torch
 
-__all__ = ["PROCESS_FLAGS", "launched_by_cluster", "one_process_unless_asked", "spawned"]
-
-PROCESS_FLAGS = ("--trainer.devices", "--trainer.strategy", "--trainer.num_nodes")
-"""Command-line options that ask ``validate``, ``test`` or ``predict`` for the trainer's processes as given."""
-_EVALUATING = ("validate", "test", "predict")
+__all__ = ["launched_by_cluster", "spawned"]
 
 
 def launched_by_cluster() -> bool:
@@ -31,27 +25,6 @@ def launched_by_cluster() -> bool:
         "bash",
         "interactive",
     )
-
-
-def one_process_unless_asked(subcommand: str | None, trainer: Any, given: Sequence[str]) -> bool:
-    """Set the trainer section of ``validate``, ``test`` or ``predict`` to one process (``devices: 1``, ``num_nodes:
-    1``, ``strategy: auto``) unless the command line names one of `PROCESS_FLAGS` or a cluster launcher started it.
-
-    Args:
-        subcommand: the LightningCLI subcommand.
-        trainer: the parsed ``trainer`` section (a jsonargparse Namespace), changed in place.
-        given: the command-line arguments.
-
-    Returns:
-        whether the section was changed.
-    """
-    if subcommand not in _EVALUATING or trainer is None:
-        return False
-    flags = {arg.split("=", 1)[0] for arg in given if arg.startswith("--")}
-    if flags & set(PROCESS_FLAGS) or launched_by_cluster():
-        return False
-    trainer["devices"], trainer["num_nodes"], trainer["strategy"] = 1, 1, "auto"
-    return True
 
 
 def spawned(trainer: Any) -> bool:

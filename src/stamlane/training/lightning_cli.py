@@ -28,10 +28,11 @@ from stamlane.safety.paths import check_config_paths
 from stamlane.training.compat import check_flags, yaml_mode
 from stamlane.training.final_checkpoint import FinalCheckpoint
 from stamlane.training.fit_report import FitReport, step_of
-from stamlane.training.launch import one_process_unless_asked, spawned
+from stamlane.training.launch import spawned
 from stamlane.training.lightning_compat import keep_command_line_hparams, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
+from stamlane.training.run_logger import logs_under_root
 from stamlane.training.stored_predict import name_predictions, warn_sequence
 from stamlane.training.typed_values import refused_class
 
@@ -114,10 +115,9 @@ class StamLaneCLI(LightningCLI):
         # file named them: a name too long, a NUL byte, a FIFO or a loop of links is one line, never opened
         check_config_paths(self.config.get(str(self.config.get("subcommand"))) or self.config)
         self._check_option_groups()
-        self._logs_follow_root(given)
-        self._logs_outside_run(given)
-        subcommand = self.config.get("subcommand")  # a stored run's trainer may be 8 GPUs': scored in one process
-        one_process_unless_asked(subcommand, (self.config.get(str(subcommand)) or {}).get("trainer"), given)
+        subcommand = self.config.get("subcommand")
+        logs_under_root((self.config.get(str(subcommand)) or self.config).get("trainer"))  # RunLogger's save_dir
+        self._logs_outside_run()
 
     def _check_option_groups(self) -> None:
         """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
@@ -133,46 +133,25 @@ class StamLaneCLI(LightningCLI):
                 if value is not None and not isinstance(value, Namespace):
                     raise ValueError(f"{section}.{name} must be a mapping of options, got {value!r:.80}")
 
-    def _logs_follow_root(self, given: list[str]) -> None:
-        """``--trainer.default_root_dir DIR`` on the command line, without a ``--trainer.logger`` option, moves
-        the logger's ``save_dir`` to DIR too: logs, config and checkpoints then all land under DIR (the
-        configs' logger writes under ``outputs/demo`` otherwise)."""
-        flags = [a.split("=", 1)[0] for a in given if a.startswith("--")]
-        if "--trainer.default_root_dir" not in flags or any(f.startswith("--trainer.logger") for f in flags):
-            return
-        config = self.config.get(str(self.config.get("subcommand"))) or self.config
-        trainer = config.get("trainer")
-        logger = trainer.get("logger") if trainer is not None else None
-        loggers = logger if isinstance(logger, list) else [logger]
-        for one in loggers:
-            init = getattr(one, "init_args", None)
-            if init is not None and "save_dir" in init:
-                init["save_dir"] = trainer["default_root_dir"]
+    def _logs_outside_run(self) -> None:
+        """Keep ``validate``, ``test`` and ``predict`` out of a training run's log folder (``save_dir/name``, where
+        each would add a ``version_N``): ``predict`` logs nothing (Lightning's predict loop logs no metric: its
+        output is ``predictions.output_dir``), ``validate`` and ``test`` log their metrics under
+        ``save_dir/<name>-validate`` / ``<name>-test`` (`stamlane.training.stored_cli.scoring_name`)."""
+        from stamlane.training.stored_cli import RENAMED_LOGGERS, scoring_name
 
-    def _logs_outside_run(self, given: list[str]) -> None:
-        """Keep ``validate``, ``test`` and ``predict`` out of the training run's log folder (``save_dir/name``,
-        where each used to add an empty ``version_N``): ``predict`` logs nothing (no logger), ``validate`` and
-        ``test`` log their metrics under ``save_dir/<name>-validate`` / ``<name>-test``. A logger or a logger name
-        given on the command line is kept as given."""
-        subcommand = self.config.get("subcommand")
-        if subcommand not in ("validate", "test", "predict"):
-            return
-        flags = [a.split("=", 1)[0] for a in given if a.startswith("--")]
-        if "--trainer.logger" in flags:
-            return
-        trainer = self.config[subcommand].get("trainer")
+        subcommand = str(self.config.get("subcommand"))
+        trainer = self.config[subcommand].get("trainer") if subcommand in ("validate", "test", "predict") else None
         if trainer is None or not trainer.get("logger"):
             return
         if subcommand == "predict":
             trainer["logger"] = False
             return
-        if "--trainer.logger.name" in flags:
-            return
         loggers = trainer["logger"] if isinstance(trainer["logger"], list) else [trainer["logger"]]
         for one in loggers:
             init = getattr(one, "init_args", None)
-            if init is not None and str(getattr(one, "class_path", "")).endswith(("CSVLogger", "TensorBoardLogger")):
-                init["name"] = f"{init.get('name') or 'lightning_logs'}-{subcommand}"
+            if init is not None and str(getattr(one, "class_path", "")).endswith(RENAMED_LOGGERS):
+                init["name"] = scoring_name(init.get("name"), subcommand)
 
     # the command line stays in charge of the model's settings (see stamlane.training.lightning_compat)
     _parse_ckpt_path = keep_command_line_hparams

@@ -32,7 +32,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, replace
 from typing import Any
 
-__all__ = ["COMMANDS", "build_parser", "main_stored", "parse"]
+__all__ = ["COMMANDS", "RENAMED_LOGGERS", "build_parser", "main_stored", "parse", "scoring_name"]
 
 COMMANDS = ("predict", "validate", "test")
 """The commands a stored model runs here."""
@@ -40,9 +40,9 @@ COMMANDS = ("predict", "validate", "test")
 _TRAINER_SKIPPED = {"enable_checkpointing", "plugins", "profiler", "model_registry"}
 """``lightning.Trainer`` options a stored model's command sets itself (no checkpoints) or never takes."""
 
-_RENAMED_LOGGERS = ("CSVLogger", "TensorBoardLogger")
-"""The loggers whose ``name`` validate and test extend (``stam4`` -> ``stam4-validate``): their folder is
-``save_dir/name``, and the run's own would gain an empty ``version_N``."""
+RENAMED_LOGGERS = ("CSVLogger", "TensorBoardLogger", ".RunLogger")
+"""The loggers whose ``name`` validate and test extend (`scoring_name`): their folder is ``save_dir/name``, and a
+training run's own would gain a ``version_N`` of scores."""
 
 
 def _flat(prefix: str, value: Any) -> dict[str, Any]:
@@ -55,14 +55,21 @@ def _flat(prefix: str, value: Any) -> dict[str, Any]:
     return out
 
 
+def scoring_name(name: str | None, command: str) -> str:
+    """The logger name of ``command``'s (validate, test) scores: ``<name>-<command>`` (``lightning_logs-<command>``
+    without a name); a name that already ends so is kept (``stam4-test`` stays ``stam4-test``)."""
+    name = name or "lightning_logs"
+    return name if name.endswith(f"-{command}") else f"{name}-{command}"
+
+
 def _scoring_logger(logger: Any, command: str) -> Any:
-    """The run's stored logger option for ``command`` (validate, test): each CSV or TensorBoard logger named
-    ``<name>-<command>`` (``lightning_logs-<command>`` without a name); any other value as stored."""
+    """The run's stored logger option for ``command`` (validate, test): each CSV or TensorBoard logger named by
+    `scoring_name`; any other value as stored."""
     logger = copy.deepcopy(logger)
     for one in logger if isinstance(logger, list) else [logger]:
-        if isinstance(one, dict) and str(one.get("class_path", "")).endswith(_RENAMED_LOGGERS):
+        if isinstance(one, dict) and str(one.get("class_path", "")).endswith(RENAMED_LOGGERS):
             init = one.setdefault("init_args", {})
-            init["name"] = f"{init.get('name') or 'lightning_logs'}-{command}"
+            init["name"] = scoring_name(init.get("name"), command)
     return logger
 
 
