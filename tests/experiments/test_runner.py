@@ -101,16 +101,28 @@ def test_a_record_of_before_the_frames_were_digested_keeps_its_predictions(
 
 
 def test_recipes_hold_options_as_data_and_record_the_flags_of_before() -> None:
-    """A store of before (its records hold the row arguments as flags) is reused: the same flags are recorded."""
+    """A store of before (its records hold the row arguments as the flags a YAML printer wrote) is reused: its flags
+    read as the same options, written as JSON today."""
     from stamlane.experiments.recipes import KEY_CORRUPTION, RECIPES
+    from stamlane.experiments.store import upgrade_record
     from stamlane.training.runs import flags_of
 
     assert KEY_CORRUPTION == {
         "data.augment.key_corruption": 0.5,
         "data.augment.key_corruption_kinds": ["blank", "glare"],
     }
-    assert RECIPES["cpu"].settings()["row_args"] == [
-        "--data.augment.key_corruption=0.5",
-        "--data.augment.key_corruption_kinds=[blank, glare]",
+    today = ["--data.augment.key_corruption=0.5", '--data.augment.key_corruption_kinds=["blank", "glare"]']
+    assert RECIPES["cpu"].settings()["row_args"] == flags_of(KEY_CORRUPTION) == today
+    before = ["--data.augment.key_corruption=0.5", "--data.augment.key_corruption_kinds=[blank, glare]"]
+    assert upgrade_record({"row_args": before, "extra": ["--x=[a, b]"]}) == {
+        "row_args": today,
+        "pretrain_args": [],
+        "extra": ["--x=[a, b]"],  # the user's arguments, as typed
+    }
+    assert flags_of({"a": True, "b": None, "c": Path("d e"), "f": [Path("g")], "h": "[i, j]"}) == [
+        "--a=true",
+        "--b=null",
+        "--c=d e",
+        '--f=["g"]',
+        "--h=[i, j]",
     ]
-    assert flags_of(KEY_CORRUPTION) == RECIPES["cpu"].settings()["row_args"]

@@ -192,13 +192,13 @@ def test_a_record_of_before_loads_and_a_tampered_one_is_refused() -> None:
             RunRecord.from_json(old | {key: value})
 
 
-def test_options_are_data_and_give_back_the_flags_of_before() -> None:
+def test_options_are_data_and_give_back_the_flags_typed() -> None:
     assert flags_of({"a.b": True, "c": None, "d": [64, 128], "e": Path("/x"), "f": ["a,b", "c"]}) == [
         "--a.b=true",
         "--c=null",
         "--d=[64, 128]",
         "--e=/x",
-        '--f=["a,b", c]',
+        '--f=["a,b", "c"]',  # JSON: what jsonargparse reads as this YAML list
     ]
     typed = ["--config", "a.yaml", "--trainer.max_steps", "5", "--data.root=/d", "--trainer.callbacks+=X"]
     assert overrides_of(typed) == {

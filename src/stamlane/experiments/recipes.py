@@ -74,7 +74,8 @@ class Recipe:
             row (0: one stage, every row from scratch).
         pretrain: the stage-1 model.
         row_overrides: options of every row's training (not of stage 1), over its configs; recorded as the
-            ``stamlane fit`` flags they are (``row_args``, `settings`), as records always held them.
+            ``stamlane fit`` flags they are (``row_args``, `settings`, `stamlane.training.runs.flags_of`), as
+            records always held them (those of before read the same: `stamlane.experiments.store.upgrade_record`).
         pretrain_overrides: options of stage 1, over its configs (recorded as ``pretrain_args``).
         val_checks: validations per run (for the curves; stage 2 validates half as often as stage 1).
         val_batches: validation batches each validation scores (None: the whole split). The validations only draw

@@ -31,6 +31,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from stamlane.safety.budget import MAX_RECORD_BYTES
 from stamlane.safety.guard import GuardError, file_sha256, read_inside, write_atomic
 from stamlane.training.run_record import RecordError, RunRecord
@@ -50,16 +52,38 @@ class ExperimentError(Exception):
 def upgrade_record(record: dict[str, Any]) -> dict[str, Any]:
     """A run record as today's stamlane writes it: the ``stamlane fit`` arguments it was made with (``row_args``,
     ``pretrain_args``, ``extra``) in today's names (a run recorded with ``--data.key_corruption`` before the data
-    options were grouped is the same run as one with ``--data.augment.key_corruption``), and ``pretrain_args``
-    empty where the record is of before recipes took stage-1 arguments (there were none)."""
+    options were grouped is the same run as one with ``--data.augment.key_corruption``), the recipe's own
+    (``row_args``, ``pretrain_args``) with their values written as `stamlane.training.runs.flags_of` writes them
+    (`_as_flags_write`: ``[blank, glare]`` of before is ``["blank", "glare"]``, the same option), and
+    ``pretrain_args`` empty where the record is of before recipes took stage-1 arguments (there were none)."""
     from stamlane.training.compat import upgrade_flags
 
     upgraded = record | {"pretrain_args": record.get("pretrain_args", [])}
-    return upgraded | {
-        k: upgrade_flags(upgraded[k])
-        for k in ("row_args", "pretrain_args", "extra")
-        if isinstance(upgraded.get(k), list)
-    }
+    upgraded |= {k: upgrade_flags(upgraded[k]) for k in ("row_args", "pretrain_args", "extra") if _flags(upgraded, k)}
+    return upgraded | {k: _as_flags_write(upgraded[k]) for k in ("row_args", "pretrain_args") if _flags(upgraded, k)}
+
+
+def _flags(record: dict[str, Any], key: str) -> bool:
+    return isinstance(record.get(key), list) and all(isinstance(arg, str) for arg in record[key])
+
+
+def _as_flags_write(args: list[str]) -> list[str]:
+    """Recorded ``--key=value`` arguments with each value as `stamlane.training.runs.flags_of` writes the value
+    jsonargparse reads from it (YAML): a string as it is, anything else as JSON."""
+    from stamlane.training.runs import flags_of
+
+    out = []
+    for arg in args:
+        key, sep, text = arg.partition("=")
+        if not (key.startswith("--") and sep) or key == "--config":
+            out.append(arg)
+            continue
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:  # not YAML: jsonargparse reads it as the string it is
+            value = text
+        out += flags_of({key[2:]: text if isinstance(value, str) else value})
+    return out
 
 
 def _inside(path: str | Path, top: Path) -> bool:

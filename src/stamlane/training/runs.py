@@ -19,6 +19,7 @@ makes of the same config and options, bit for bit (tests/training/test_runs.py).
 
 from __future__ import annotations
 
+import json
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -60,34 +61,20 @@ class RunError(ValueError):
 
 
 # ---------------------------------------------------------------------- options as data, flags at the call
-def _text(value: Any, inner: bool = False) -> str:
-    """An option's value as jsonargparse reads it on a command line (YAML flow style)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if value is None:
-        return "null"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_text(v, inner=True) for v in value) + "]"
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{k}: {_text(v, inner=True)}" for k, v in value.items()) + "}"
-    text = str(value)
-    if inner and (not text or text != text.strip() or any(c in text for c in ",[]{}:#\"'")):
-        return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    return text
-
-
 def flags_of(overrides: Mapping[str, Any]) -> list[str]:
     """The command-line flags of options keyed by their dotted names, in order: ``{"trainer.max_steps": 2}`` ->
     ``["--trainer.max_steps=2"]``; ``config`` (a path or a list of them) -> ``--config PATH`` each; a key ending in
     ``+`` appends (``{"trainer.callbacks+": "stamlane.training.history_use_monitor.HistoryUseMonitor"}``). A string
-    value is passed as it is (as typed on a command line); lists, mappings, booleans and None in YAML flow style."""
+    or a path is passed as it is (as typed on a command line); any other value as JSON, which jsonargparse reads as
+    the YAML it is (``["blank", "glare"]``, ``true``, ``null``)."""
     flags: list[str] = []
     for key, value in overrides.items():
         if key == "config":
             for config in value if isinstance(value, (list, tuple)) else [value]:
                 flags += ["--config", str(config)]
         else:
-            flags.append(f"--{key}={_text(value)}")
+            text = str(value) if isinstance(value, (str, Path)) else json.dumps(value, default=str)
+            flags.append(f"--{key}={text}")
     return flags
 
 

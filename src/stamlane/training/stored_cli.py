@@ -225,19 +225,18 @@ def _predict(model: Any, config: Any, init: Any, callbacks: list[Any], trainer: 
 def _score(command: str, model: Any, config: Any, init: Any, callbacks: list[Any], trainer: dict[str, Any]) -> None:
     """``Trainer.validate`` or ``test`` of the split with the metrics of ``eval``, and the line saying where they
     were logged."""
-    from lightning.pytorch import Trainer, seed_everything
+    from lightning.pytorch import Trainer
     from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
 
     from stamlane.safety.guard import check_outputs
+    from stamlane.training.stored_predict import seed_run
 
     data = init.data
     kept = [cb for cb in callbacks if not isinstance(cb, (ModelCheckpoint, LearningRateMonitor))]  # fit's
     runner = Trainer(callbacks=[*kept, init.eval], logger=init.trainer.logger, enable_checkpointing=False, **trainer)
     folders = [runner.default_root_dir, *(lg.save_dir for lg in runner.loggers if getattr(lg, "save_dir", None))]
     check_outputs([], [data.root, model.checkpoint], folders=folders, protected=[data.root])
-    if config.seed_everything is not None and config.seed_everything is not False:
-        seed = None if config.seed_everything is True else int(config.seed_everything)
-        seed_everything(seed, workers=True, verbose=False)
+    seed_run(config.seed_everything)
     getattr(runner, command)(model.module, datamodule=data)
     if runner.is_global_zero and runner.logger is not None and runner.logger.log_dir:
         print(f"stamlane {command}: metrics logged under {runner.logger.log_dir}", flush=True)

@@ -28,6 +28,7 @@ __all__ = [
     "name_predictions",
     "predict_stored",
     "prediction_trainer_options",
+    "seed_run",
     "warn_sequence",
 ]
 
@@ -60,6 +61,15 @@ def prediction_trainer_options(
     return options | {"devices": 1, "num_nodes": 1, "strategy": "auto"}
 
 
+def seed_run(seed: int | bool | None) -> None:
+    """``lightning.seed_everything`` as LightningCLI does for ``--seed_everything``: an int seeds with it, True with
+    a drawn seed, None or False not at all (the workers seeded too, quietly)."""
+    from lightning.pytorch import seed_everything
+
+    if seed is not None and seed is not False:
+        seed_everything(None if seed is True else int(seed), workers=True, verbose=False)
+
+
 def predict_stored(
     model: StoredModel,
     data: Any,
@@ -83,10 +93,9 @@ def predict_stored(
     Returns:
         ``writer``, holding what it wrote (``written``).
     """
-    from lightning.pytorch import Trainer, seed_everything
+    from lightning.pytorch import Trainer
 
-    if seed is not None and seed is not False:
-        seed_everything(None if seed is True else int(seed), workers=True, verbose=False)
+    seed_run(seed)
     options = {"enable_model_summary": False, "logger": False, **trainer}
     runner = Trainer(callbacks=[*callbacks, writer], enable_checkpointing=False, **options)
     runner.predict(model.module, datamodule=data, return_predictions=False)
