@@ -113,17 +113,21 @@ class StamLaneCLI(LightningCLI):
             raise ArgumentError(None, refused_class(str(err)) or str(err)) from None
         # the config's paths (data.root, model.init_weights, ...) through the gate of the flags' paths, whichever
         # file named them: a name too long, a NUL byte, a FIFO or a loop of links is one line, never opened
-        check_config_paths(self.config.get(str(self.config.get("subcommand"))) or self.config)
+        check_config_paths(self._command_config())
         self._check_option_groups()
-        subcommand = self.config.get("subcommand")
-        logs_under_root((self.config.get(str(subcommand)) or self.config).get("trainer"))  # RunLogger's save_dir
+        logs_under_root(self._command_config().get("trainer"))  # a RunLogger without a save_dir: the trainer's root
         self._logs_outside_run()
+
+    def _command_config(self) -> Namespace:
+        """The parsed options of the subcommand (the whole config when there is none: ``run=False``)."""
+        config: Namespace = self.config.get(str(self.config.get("subcommand"))) or self.config
+        return config
 
     def _check_option_groups(self) -> None:
         """An option group (a dataclass such as ``data.loader`` or ``model.postprocess``) given as anything but a
         mapping (``data.loader: [1, 2]``) passes jsonargparse's parsing and fails when it is built, as a
         TypeError without the key: said here, in one line naming it (ValueError)."""
-        config = self.config.get(str(self.config.get("subcommand"))) or self.config
+        config = self._command_config()
         for section, cls in (("model", StamLaneModule), ("data", ClipDataModule)):
             for name, hint in typing.get_type_hints(cls.__init__).items():
                 arms = typing.get_args(hint) or (hint,)
