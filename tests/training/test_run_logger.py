@@ -61,3 +61,46 @@ def test_scores_log_beside_the_run_whichever_name_is_given(command: str, tmp_pat
         assert config[command].trainer.logger.init_args.name == f"{name}-{command}"
         assert config[command].trainer.logger.init_args.save_dir == str(tmp_path)
     assert _parsed(["predict", "--config", DEMO]).predict.trainer.logger is False  # predict logs no metric
+
+
+@pytest.mark.parametrize(
+    ("save_dir", "says"),
+    [
+        ({"class_path": "os.system"}, "trainer.logger"),  # a class where a folder goes
+        ([1, 2], "trainer.logger"),  # not a folder
+        ("dir\x00name", "trainer.logger.init_args.save_dir"),  # a folder no file system names
+    ],
+)
+def test_a_run_logger_in_a_stored_config_is_checked_like_any_value(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], save_dir: object, says: str
+) -> None:
+    """A checkpoint's config may name `RunLogger` (the registry has it), with plain values only: anything else is
+    one line, exit status 2, before anything is built or written."""
+    import torch
+    import yaml
+
+    from stamlane.cli import main
+    from stamlane.training.lightning_cli import CONFIG_KEY
+
+    content = torch.load(REPO / "src/stamlane/weights/single-synthetic.ckpt", map_location="cpu", weights_only=True)
+    stored = yaml.safe_load(content[CONFIG_KEY])
+    logger = {"class_path": "stamlane.training.run_logger.RunLogger", "init_args": {"name": "x"}}
+    stored["trainer"]["logger"] = logger
+    content[CONFIG_KEY] = yaml.safe_dump(stored)
+    torch.save(content, tmp_path / "ok.ckpt")
+    assert StoredModel_opens(tmp_path / "ok.ckpt")
+    logger["init_args"]["save_dir"] = save_dir
+    content[CONFIG_KEY] = yaml.safe_dump(stored)
+    torch.save(content, tmp_path / "bad.ckpt")
+    assert main(["validate", "--ckpt_path", str(tmp_path / "bad.ckpt")]) == 2
+    err = capsys.readouterr().err.strip()
+    ours = [line for line in err.splitlines() if line.startswith("stamlane")]
+    assert len(ours) == 1 and says in ours[0] and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.ckpt", "ok.ckpt"]  # nothing written
+
+
+def StoredModel_opens(ckpt: Path) -> bool:
+    """Whether ``ckpt`` opens as a stored model whose logger is a `RunLogger`."""
+    from stamlane.training.stored import StoredModel
+
+    return StoredModel.open(ckpt).section("trainer")["logger"]["class_path"].endswith("RunLogger")

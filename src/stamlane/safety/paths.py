@@ -287,7 +287,7 @@ def check_config_paths(config: Any) -> None:
     """Refuse, in one line naming the key, a path-valued option of a parsed config (`CONFIG_PATHS`; a nested dict
     or jsonargparse's Namespace) that `require` refuses: a name too long, a NUL byte, bytes that are not UTF-8, a
     loop of links, or a path of the wrong kind (a FIFO or a device as ``model.init_weights``, a file as
-    ``data.root``). A missing path passes (its reader says so, or makes it); ``ckpt_path`` names (`CKPT_NAMES`)
+    ``data.root``); each logger's ``save_dir`` as a folder. A missing path passes (its reader says so, or makes it); ``ckpt_path`` names (`CKPT_NAMES`)
     are no files.
 
     Raises:
@@ -300,3 +300,8 @@ def check_config_paths(config: Any) -> None:
         if key == "ckpt_path" and value in CKPT_NAMES:
             continue
         require(value, key, kinds, missing_ok=True)
+    logger = _dotted(config, "trainer.logger")  # each logger's folder (one logger, or a list of them)
+    for one in logger if isinstance(logger, list) else [logger]:
+        value = _dotted(one, "init_args.save_dir")
+        if isinstance(value, (str, os.PathLike)) and os.fspath(value):
+            require(value, "trainer.logger.init_args.save_dir", ("folder",), missing_ok=True)

@@ -32,7 +32,7 @@ from stamlane.training.launch import spawned
 from stamlane.training.lightning_compat import keep_command_line_hparams, subcommand_parser
 from stamlane.training.module import StamLaneModule
 from stamlane.training.resume import ExactResume
-from stamlane.training.run_logger import logs_under_root
+from stamlane.training.run_logger import each_logger, logs_under_root
 from stamlane.training.stored_predict import name_predictions, warn_sequence
 from stamlane.training.typed_values import refused_class
 
@@ -151,8 +151,7 @@ class StamLaneCLI(LightningCLI):
         if subcommand == "predict":
             trainer["logger"] = False
             return
-        loggers = trainer["logger"] if isinstance(trainer["logger"], list) else [trainer["logger"]]
-        for one in loggers:
+        for one in each_logger(trainer["logger"]):
             init = getattr(one, "init_args", None)
             if init is not None and str(getattr(one, "class_path", "")).endswith(RENAMED_LOGGERS):
                 init["name"] = scoring_name(init.get("name"), subcommand)

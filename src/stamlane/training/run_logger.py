@@ -17,7 +17,7 @@ from lightning.pytorch.loggers import CSVLogger
 
 from stamlane.types import nameable
 
-__all__ = ["RunLogger", "logs_under_root"]
+__all__ = ["RunLogger", "each_logger", "logs_under_root"]
 
 
 @nameable
@@ -37,14 +37,21 @@ class RunLogger(CSVLogger):
         super().__init__(root, name, version, prefix, flush_logs_every_n_steps)
 
 
+def each_logger(logger: Any) -> list[Any]:
+    """The entries of a ``trainer.logger`` option: a list of loggers as it is, one logger as a list of one; a
+    boolean or None (Lightning's default logger, or none) holds no entry to change."""
+    if isinstance(logger, list):
+        return logger
+    return [] if logger is None or isinstance(logger, bool) else [logger]
+
+
 def logs_under_root(trainer: Mapping[str, Any] | None) -> None:
     """Give each `RunLogger` of a parsed ``trainer`` section (a jsonargparse Namespace, changed in place) without a
     ``save_dir`` the section's ``default_root_dir`` (``.`` without one, Lightning's working folder)."""
     if trainer is None:
         return
-    logger = trainer.get("logger")
-    for one in logger if isinstance(logger, list) else [logger]:
+    for one in each_logger(trainer.get("logger")):
         init = getattr(one, "init_args", None)
-        if str(getattr(one, "class_path", "")).endswith(".RunLogger") and init is not None:
+        if str(getattr(one, "class_path", "")).endswith(f".{RunLogger.__name__}") and init is not None:
             if init.get("save_dir") is None:
                 init["save_dir"] = str(trainer.get("default_root_dir") or ".")

@@ -65,8 +65,10 @@ def scoring_name(name: str | None, command: str) -> str:
 def _scoring_logger(logger: Any, command: str) -> Any:
     """The run's stored logger option for ``command`` (validate, test): each CSV or TensorBoard logger named by
     `scoring_name`; any other value as stored."""
+    from stamlane.training.run_logger import each_logger
+
     logger = copy.deepcopy(logger)
-    for one in logger if isinstance(logger, list) else [logger]:
+    for one in each_logger(logger):
         if isinstance(one, dict) and str(one.get("class_path", "")).endswith(RENAMED_LOGGERS):
             init = one.setdefault("init_args", {})
             init["name"] = scoring_name(init.get("name"), command)
@@ -137,11 +139,13 @@ def parse(model: Any, args: list[str], command: str = "predict") -> tuple[Any, A
     Raises:
         ArgumentError: an option that does not parse.
     """
+    from stamlane.safety.paths import check_config_paths
     from stamlane.training.compat import check_flags
 
     check_flags(args)  # --data.num_frames: one line naming --data.clip.num_frames
     parser = build_parser(model, command)
     config = parser.parse_args(args)
+    check_config_paths(config.as_dict())  # the paths named, through the gate of the flags' paths, before any is used
     if command != "predict":
         _logs_follow_root(config, model.section("trainer"))
     instantiate = getattr(parser, "instantiate", None) or parser.instantiate_classes
@@ -151,16 +155,14 @@ def parse(model: Any, args: list[str], command: str = "predict") -> tuple[Any, A
 def _logs_follow_root(config: Any, stored: Mapping[str, Any]) -> None:
     """A ``--trainer.default_root_dir`` other than the run's moves each logger whose folder is still the run's there
     too: the logs of a validation given its own root land under it, not beside the run's."""
+    from stamlane.training.run_logger import each_logger
+
     root = config.trainer.default_root_dir
     if root is None or root == stored.get("default_root_dir"):
         return
     logger, kept = config.trainer.logger, stored.get("logger")
-    kept_dirs = {
-        str(one.get("init_args", {}).get("save_dir"))
-        for one in (kept if isinstance(kept, list) else [kept])
-        if isinstance(one, dict)
-    }
-    for one in logger if isinstance(logger, list) else [logger]:
+    kept_dirs = {str(one.get("init_args", {}).get("save_dir")) for one in each_logger(kept) if isinstance(one, dict)}
+    for one in each_logger(logger):
         init = getattr(one, "init_args", None)
         if init is not None and "save_dir" in init and str(init["save_dir"]) in kept_dirs:
             init["save_dir"] = root
@@ -174,7 +176,6 @@ def main_stored(args: list[str], command: str = "predict") -> None:
         CheckpointError: the checkpoint refused.
         GuardError, DataError, ValueError: an output among the inputs, bad data, a folder of another source's results.
     """
-    from stamlane.safety.paths import check_config_paths
     from stamlane.training.stored import StoredModel, data_root
 
     model = StoredModel.open(_ckpt(args))  # the one read of the checkpoint
@@ -183,7 +184,6 @@ def main_stored(args: list[str], command: str = "predict") -> None:
         raise ValueError("--weights_only false: a stored model is read with weights_only=True; give --config CONFIG")
     if config.source and command != "predict":
         raise ValueError("--source is for predict only")
-    check_config_paths(config.as_dict())  # the paths named, through the gate of the flags' paths
     if not config.source and config.data.root is not None and config.data.root == model.data.get("root"):
         data_root(config.data.root, model.start_dir, model.checkpoint)  # found nowhere: the line naming the flag
     module = model.module
