@@ -150,32 +150,41 @@ def _to_net(lane: np.ndarray, net_from_orig: np.ndarray) -> np.ndarray:
 
 def picture(view: np.ndarray, panels: list[tuple[str, dict[str, Any]]]) -> np.ndarray:
     """The network's view (grey) with the labels (yellow) and each checkpoint's lanes (red, first checkpoint), then
-    one probability panel per checkpoint (inferno colours; labels yellow, its lanes cyan)."""
-    s = PICTURE_SCALE
+    one probability panel per checkpoint (inferno colours; labels yellow, its lanes cyan).
 
-    def lines(canvas: np.ndarray, polylines: list[np.ndarray], colour: tuple[int, int, int], width: int) -> None:
+    The picture is `PICTURE_SCALE` times the first checkpoint's input. A checkpoint of another input size has its
+    map resized to the picture and its lines, in its own network pixels, scaled by the same factors."""
+    size = (view.shape[1] * PICTURE_SCALE, view.shape[0] * PICTURE_SCALE)
+
+    def lines(
+        canvas: np.ndarray,
+        polylines: list[np.ndarray],
+        net_shape: tuple[int, ...],
+        colour: tuple[int, int, int],
+        width: int,
+    ) -> None:
+        scale = np.array([size[0] / net_shape[1], size[1] / net_shape[0]])  # (x, y) picture pixels per network pixel
         for line in polylines:
             if len(line) >= 2:
-                pts = np.round(np.asarray(line) * s).astype(np.int32).reshape(-1, 1, 2)
+                pts = np.round(np.asarray(line) * scale).astype(np.int32).reshape(-1, 1, 2)
                 cv2.polylines(canvas, [pts], False, colour, width, cv2.LINE_AA)
 
     def text(canvas: np.ndarray, words: str) -> None:
         for colour, width in (((0, 0, 0), 3), ((255, 255, 255), 1)):
             cv2.putText(canvas, words, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, width, cv2.LINE_AA)
 
-    size = (view.shape[1] * s, view.shape[0] * s)
     grey = cv2.cvtColor(cv2.cvtColor(view, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR)
     top = cv2.resize(grey, size, interpolation=cv2.INTER_NEAREST)
     first_name, first = panels[0]
-    lines(top, first["labels"], (0, 255, 255), 3)
-    lines(top, first["drawn"], (0, 0, 255), 1)
+    lines(top, first["labels"], view.shape, (0, 255, 255), 3)
+    lines(top, first["drawn"], view.shape, (0, 0, 255), 1)
     text(top, f"labels (yellow), {first_name} (red)")
     rows = [top]
     for name, panel in panels:
         heat = cv2.applyColorMap(np.round(panel["prob"] * 255).astype(np.uint8), cv2.COLORMAP_INFERNO)
         heat = cv2.resize(heat, size, interpolation=cv2.INTER_NEAREST)
-        lines(heat, panel["labels"], (0, 255, 255), 1)
-        lines(heat, panel["drawn"], (255, 255, 0), 1)
+        lines(heat, panel["labels"], panel["prob"].shape, (0, 255, 255), 1)
+        lines(heat, panel["drawn"], panel["prob"].shape, (255, 255, 0), 1)
         text(heat, f"{name}: lane probability, labels (yellow), its lanes (cyan)")
         rows.append(heat)
     out: np.ndarray = np.concatenate(rows, axis=0)

@@ -101,6 +101,25 @@ def test_owners_tell_noise_a_shared_cluster_and_an_own_one(bench):
     assert bench.owners([[]], drawn=[0]) == ["noise"]
 
 
+def test_a_panel_of_another_input_size_draws_its_lines_on_its_map(bench):
+    """A checkpoint at 128x384 beside one at 80x256: its map is resized to the picture, and its lines (in its own
+    network pixels) must land on it, not be drawn at the first checkpoint's scale (they were, before)."""
+
+    def panel(height: int, width: int) -> dict:
+        prob = np.zeros((height, width), np.float32)
+        prob[:, width // 4] = 1.0  # a vertical line a quarter across
+        line = np.array([[width / 4, 0.0], [width / 4, height - 1.0]])
+        return {"prob": prob, "labels": [line], "drawn": []}
+
+    view = np.zeros((80, 256, 3), np.uint8)
+    out = bench.picture(view, [("small", panel(80, 256)), ("large", panel(128, 384))])
+    assert out.shape == (3 * 160, 512, 3)
+    for heat in (out[160:320], out[320:]):
+        yellow = np.flatnonzero((heat[100:150, :, 2] > 200) & (heat[100:150, :, 0] < 100) & (heat[100:150, :, 1] > 200))
+        columns = yellow % 512
+        assert len(columns) and abs(np.median(columns) - 128) <= 2  # a quarter of 512, in both panels
+
+
 def test_the_script_diagnoses_every_dev_photo_of_a_shipped_model(bench, shared_dir: Path, tmp_path: Path):
     code = bench.main(
         [
