@@ -14,10 +14,11 @@ import pytest
 import torch
 
 from stamlane.data import collate_clips
+from stamlane.data.clips import mixed_stride
 from stamlane.data.datamodule import DEFAULT_SYNTHETIC_ROOT, ClipDataModule
 from stamlane.data.frame_store import DEFAULT_MEMORY_MB
 from stamlane.data.labels import history_name
-from stamlane.data.options import ClipOptions, LoaderOptions, SynthOptions
+from stamlane.data.options import AugmentOptions, ClipOptions, LoaderOptions, SynthOptions
 from stamlane.data.show_cli import main as show_main
 from stamlane.synth.cli import main as synth_main
 from stamlane.synth.config import SynthConfig, counts_of_total
@@ -97,6 +98,37 @@ def test_datamodule_on_a_given_root(synthetic_root: Path):
     assert batch["frames"].shape == (2, 2, 3, 32, 48)
     assert batch["meta"][1]["raw_file"] == "clips/challenging-0000/8.jpg"
     assert batch["meta"][0]["frame_paths"] == ["clips/test-0000/5.jpg", "clips/test-0000/8.jpg"]
+
+
+def test_a_spacing_mix_reads_each_training_key_frame_at_one_stride_and_the_other_splits_at_the_clip_stride(
+    tmp_path: Path,
+):
+    splits = SplitCounts(train=3, val=1)
+    config = SynthConfig(width=160, height=96, num_frames=16)  # key frames 8-16 of each clip
+    generate_dataset(tmp_path, splits, seed=3, config=config, train_key_step=1, eval_key_step=1, progress=False)
+
+    def frame_paths(split: str) -> dict[str, list[str]]:
+        dm = ClipDataModule(
+            root=str(tmp_path),
+            clip=ClipOptions(num_frames=3, stride=1, image_size=(32, 48), align="none", repeat_missing_history=True),
+            augment=AugmentOptions(strides=[1, 3]),
+        )
+        dataset = dm.make_dataset(split)
+        return {entry.raw_file: entry.frame_paths for entry in dataset.entries}
+
+    train = frame_paths("train")
+    seen = set()
+    for key, paths in train.items():
+        stride, number = mixed_stride(key, (1, 3)), int(Path(key).stem)
+        backs = [2 * stride, stride, 0]
+        for i in (1, 0):  # a frame before frame 1 is missing: the next later one stands in
+            backs[i] = backs[i] if number - backs[i] >= 1 else backs[i + 1]
+        assert paths == [history_name(key, back) for back in backs], key
+        seen.add(stride)
+    assert len(train) == 27 and seen == {1, 3}, "both spacings in the mix"
+    assert frame_paths("train") == train, "the same stride for a key frame every time"
+    for key, paths in frame_paths("val").items():
+        assert paths == [history_name(key, back) for back in (2, 1, 0)]
 
 
 @pytest.mark.skipif(importlib.util.find_spec("stamlane.align.homography") is None, reason="stamlane.align absent")

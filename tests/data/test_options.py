@@ -81,6 +81,7 @@ def test_yaml_lists_become_tuples_and_the_groups_are_frozen() -> None:
         (lambda: AugmentOptions(brightness=1.0), "brightness must be in"),
         (lambda: AugmentOptions(key_corruption=2.0), r"key corruption prob must be in \[0, 1\], got 2.0"),
         (lambda: AugmentOptions(key_corruption_kinds=("fog",)), "key corruption kinds must be some of"),
+        (lambda: AugmentOptions(strides=(1, 0)), r"strides must all be >= 1, got \[1, 0\]"),
         (lambda: SynthOptions(train=-1), "synth: clip count of split 'train' must be an int >= 0, got -1"),
         (lambda: SynthOptions(reveal_traffic=2.5), "synth: clip count of split 'reveal_traffic' must be an int"),
         (lambda: SynthOptions(eval_key_step=-2), "synth.eval_key_step must be >= 0, got -2"),

@@ -20,6 +20,7 @@ unreadable at load time) with a warning. A sample is never silently wrong.
 
 from __future__ import annotations
 
+import hashlib
 import re
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -40,7 +41,7 @@ from stamlane.data.labels import (
     history_name,
     resolve_inside,
 )
-from stamlane.data.options import ClipOptions
+from stamlane.data.options import ClipOptions, checked_strides
 from stamlane.data.probes import HISTORIES
 from stamlane.data.targets import draw_lane_targets, left_to_right
 from stamlane.data.transforms import ClipTransform, net_homographies
@@ -54,6 +55,7 @@ __all__ = [
     "ClipDataset",
     "ClipEntry",
     "frame_order",
+    "mixed_stride",
     "warped_key",
 ]
 
@@ -86,6 +88,15 @@ FRAME_LOOKUPS = ("number", "sorted")
 ``20.jpg``), or by position in the folder's sorted listing (timestamps: ApolloScape, a folder of frames)."""
 
 
+def mixed_stride(key_rel: str, strides: tuple[int, ...]) -> int:
+    """The stride of a training key frame under a spacing mix (`AugmentOptions.strides`): one of ``strides`` chosen
+    by a BLAKE2 digest of its path relative to the root, so the same in every epoch, loader worker and process
+    (Python's ``hash`` of a string differs between processes; a CRC, linear in the bits, gives every clip one of
+    two patterns over its frame numbers)."""
+    digest = hashlib.blake2b(key_rel.encode(), digest_size=8).digest()
+    return strides[int.from_bytes(digest, "little") % len(strides)]
+
+
 class ClipDataset(Dataset[dict[str, Any]]):
     """Shared machinery of the clip datasets; subclasses implement ``_index``.
 
@@ -112,6 +123,8 @@ class ClipDataset(Dataset[dict[str, Any]]):
             history). Evaluation only.
         key_corruption: corrupts the key frame alone of some samples, history intact
             (`stamlane.data.corruption.KeyFrameCorruption`); training only.
+        strides: a spacing mix (`AugmentOptions.strides`): each key frame read at one of these strides
+            (`mixed_stride`) instead of ``clip.stride``; empty: ``clip.stride``. Training only.
     """
 
     format = ""
@@ -130,6 +143,7 @@ class ClipDataset(Dataset[dict[str, Any]]):
         require_labels: bool = True,
         history_source: str = "real",
         key_corruption: KeyFrameCorruption | None = None,
+        strides: tuple[int, ...] = (),
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -148,6 +162,7 @@ class ClipDataset(Dataset[dict[str, Any]]):
         self.clip = clip
         self.history_source = history_source
         self.key_corruption = key_corruption
+        self.strides = checked_strides(strides)
         self.transform = transform or clip.transform()
         if self.transform.image_size != clip.image_size:
             raise ValueError(f"transform.image_size {self.transform.image_size} != image_size {clip.image_size}")
@@ -201,7 +216,7 @@ class ClipDataset(Dataset[dict[str, Any]]):
         key_path = resolve_inside(self.root, key_rel, source)
         rel = key_path.relative_to(self.root.resolve()).as_posix()
         paths: list[str | None] = []
-        stride = self.clip.stride
+        stride = mixed_stride(rel, self.strides) if self.strides else self.clip.stride
         for k in range(self.num_frames - 1, 0, -1):
             back = k * stride
             if self.frame_lookup == "number":

@@ -235,6 +235,7 @@ class ClipDataModule(LightningDataModule):
             require_labels=split != "predict",
             history_source="real" if train else self.history_source,
             key_corruption=self.key_corruption if train else None,
+            strides=self.augment.strides if train else (),
         )
         if self.loader.memory_mb > 0:  # evaluation frames read once per process (training samples are never kept)
             FRAME_STORE.reserve(self.loader.memory_mb * 2**20)

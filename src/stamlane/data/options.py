@@ -34,7 +34,7 @@ from stamlane.safety.budget import check_clip, check_size, check_workers
 from stamlane.synth.config import SynthConfig
 from stamlane.synth.layout import DEMO_SPLITS, EVAL_KEY_STEP, TRAIN_KEY_STEP, SplitCounts
 
-__all__ = ["DEMO_SYNTH", "GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions"]
+__all__ = ["DEMO_SYNTH", "GROUPS", "AugmentOptions", "ClipOptions", "LoaderOptions", "SynthOptions", "checked_strides"]
 
 
 def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tuple[Any, Any]:
@@ -42,6 +42,14 @@ def _pair(value: tuple[float, float] | list[float], kind: type, name: str) -> tu
     if len(value) != 2:
         raise ValueError(f"{name} must have two values, got {value}")
     return (kind(value[0]), kind(value[1]))
+
+
+def checked_strides(strides: tuple[int, ...] | list[int]) -> tuple[int, ...]:
+    """``strides`` (a spacing mix, `AugmentOptions.strides`) as a tuple of ints, each >= 1."""
+    values = tuple(int(s) for s in strides)
+    if any(s < 1 for s in values):
+        raise ValueError(f"strides must all be >= 1, got {list(values)}")
+    return values
 
 
 @dataclass(frozen=True)
@@ -130,6 +138,12 @@ class AugmentOptions:
             (`stamlane.data.corruption.KeyFrameCorruption`: dropped regions, glare, occluders, a blanked near
             road); 0: never.
         key_corruption_kinds: the kinds drawn from (`stamlane.data.corruption.CORRUPTIONS`).
+        strides: a mix of frame spacings for training clips: each training key frame is read at one of these
+            strides instead of ``clip.stride``, the same one in every epoch and process
+            (`stamlane.data.clips.mixed_stride`: a hash of its path), e.g. ``[1, 4]``: 20 fps and 5 fps spacing
+            from one 20 fps set (with ``clip.repeat_missing_history`` for the key frames near a clip's start);
+            empty: ``clip.stride``. Validation, test and prediction read ``clip.stride``, which the checkpoint
+            records.
     """
 
     crop_scale: tuple[float, float] = (0.85, 1.0)
@@ -140,10 +154,12 @@ class AugmentOptions:
     hue: float = 0.0
     key_corruption: float = 0.0
     key_corruption_kinds: tuple[str, ...] = DEFAULT_KINDS
+    strides: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "crop_scale", _pair(self.crop_scale, float, "crop_scale"))
         object.__setattr__(self, "key_corruption_kinds", tuple(self.key_corruption_kinds))
+        object.__setattr__(self, "strides", checked_strides(self.strides))
         self.transform(ClipOptions())  # ClipTransform checks the geometry and the colour jitter
         KeyFrameCorruption(self.key_corruption, self.key_corruption_kinds)  # checked even when unused
 
