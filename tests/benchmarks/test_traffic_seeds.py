@@ -1,0 +1,67 @@
+"""``benchmarks/traffic_seeds.py``: the traffic diagnosis over seeds, on diagnoses written by hand."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.benchmarks.scripts import benchmark_module
+
+
+@pytest.fixture(scope="module")
+def bench():
+    with benchmark_module("traffic_seeds") as module:
+        yield module
+
+
+def _diagnosis(models: dict[str, tuple[float, float, float]]) -> dict:
+    """One kind's summary as ``traffic_diagnosis.py`` writes it: each checkpoint's real, copies and exact F1."""
+    scored = {
+        name: {h: {"f1": {"value": v, "low": v, "high": v}} for h, v in zip(("real", "copies", "exact"), f1s)}
+        for name, f1s in models.items()
+    }
+    return {"seed": 58, "kinds": {"oncoming_close": {"summary": {"models": scored}}}}
+
+
+def test_groups_are_summed_over_seeds_and_paired_seed_by_seed(bench, tmp_path: Path, capsys) -> None:
+    first = {"new-s0": (0.90, 0.80, 0.95), "old-s0": (0.85, 0.85, 0.90), "shipped": (0.5, 0.5, 0.5)}
+    second = {"new-s1": (0.80, 0.78, 0.85), "old-s1": (0.82, 0.81, 0.88), "new-s2": (0.84, 0.80, 0.9)}
+    second["old-s2"] = (0.80, 0.80, 0.85)
+    for name, models in (("a", first), ("b", second)):
+        (tmp_path / f"{name}.json").write_text(json.dumps(_diagnosis(models)))
+    files = [str(tmp_path / "a.json"), str(tmp_path / "b.json")]
+    assert bench.main([*files, "--groups", "new", "old"]) == 0
+    cells = [[c.strip() for c in row.strip("|").split("|")] for row in capsys.readouterr().out.splitlines()[2:]]
+    rows = {row[1]: row for row in cells}
+    assert set(rows) == {"new", "old", "new − old, paired"}, "an unseeded checkpoint is left alone"
+    assert rows["new"][2:] == ["3", "84.7 ± 5.0", "79.3 ± 1.2", "90.0 ± 5.0", "+5.3 ± 4.2"]
+    real, use = rows["new − old, paired"][3], rows["new − old, paired"][6]
+    assert real.startswith("+2.3 [") and real.endswith("(+5.0 / -2.0 / +4.0)")  # seed by seed: 90-85, 80-82, 84-80
+    low, high = (float(v) for v in real.split("[")[1].split("]")[0].split(", "))
+    assert low < 0 < high, "three seeds this spread resolve nothing"
+    assert use.startswith("+5.0 [") and use.endswith("(+10.0 / +1.0 / +4.0)")  # (real - copies), new - old
+
+
+def test_bad_inputs_are_one_line_and_status_2(bench, tmp_path: Path, capsys) -> None:
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(_diagnosis({"new-s0": (0.9, 0.8, 0.9), "new-s1": (0.8, 0.8, 0.8)})))
+    (tmp_path / "other.json").write_text(json.dumps(_diagnosis({"new-s1": (0.7, 0.7, 0.7)})))
+    (tmp_path / "broken.json").write_text("{broken")
+    (tmp_path / "list.json").write_text("[1]")
+    (tmp_path / "unscored.json").write_text(json.dumps({"kinds": {"same_speed": {"summary": {}}}}))
+    (tmp_path / "lone.json").write_text(json.dumps(_diagnosis({"new-s0": (0.9, 0.8, 0.9), "old-s1": (1, 1, 1)})))
+    cases = {
+        "not JSON": [str(tmp_path / "broken.json")],
+        "not an object": [str(tmp_path / "list.json")],
+        "has no models": [str(tmp_path / "unscored.json")],
+        "name one of them": [str(good), str(tmp_path / "other.json")],
+        "no <group>-s<seed> runs of old": [str(good), "--groups", "new", "old"],
+        "share 0 seed(s)": [str(tmp_path / "lone.json"), "--groups", "new", "old"],
+        "missing": [str(tmp_path / "missing.json")],
+    }
+    for said, argv in cases.items():
+        assert bench.main(argv) == 2, said
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("traffic_seeds: error:") and said in err[0], (said, err)
