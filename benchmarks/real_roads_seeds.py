@@ -1,9 +1,11 @@
 """The real-road check over seeds: `benchmarks/real_roads.py` results of several fine-tunes per recipe, side by side.
 
-    python benchmarks/real_roads_seeds.py DIR [--groups NAME ...] [--boot 10000]
+    python benchmarks/real_roads_seeds.py DIR [DIR ...] [--groups NAME ...] [--boot 10000]
 
-``DIR`` holds ``<group>-s<seed>.json`` files written by ``benchmarks/real_roads.py`` (one per checkpoint, named after
-it) and, optionally, ``synthetic-test.json`` (``{"<group>-s<seed>": synthetic test F1 in %}``). Per group: the real
+Each ``DIR`` holds ``<group>-s<seed>.json`` files written by ``benchmarks/real_roads.py`` (one per checkpoint, named
+after it) and, optionally, ``synthetic-test.json`` (``{"<group>-s<seed>": synthetic test F1 in %}``); several
+folders are read as one (a new arm beside the committed results of its control), a run named in two of them is an
+error. Per group: the real
 frames' TuSimple F1, FP and FN (lane.py's), the F1 on the video's labelled frames (files written before those labels
 existed leave it empty), the video's frames with more than 4 lanes, with crossing lanes, and the mean lanes per
 frame, as mean ± std over seeds, each seed on its own row. Per pair of groups: the difference of
@@ -12,8 +14,9 @@ averaged over the group's seeds first, then the images resampled; F1 as lane.py'
 1 - FN). With six labelled images, an interval that excludes 0 is a strong difference, one that does not may still
 be a real one.
 
-Exit status 2 with one line where ``DIR`` is no folder, a run file is unreadable, no JSON or no dev result of
-``real_roads.py``, the runs were scored on different numbers of images, or ``--boot`` is out of 1 to `MAX_BOOT`.
+Exit status 2 with one line where a ``DIR`` is no folder, a run file is unreadable, no JSON or no dev result of
+``real_roads.py``, a run is in two folders, the runs were scored on different numbers of images, or ``--boot`` is out
+of 1 to `MAX_BOOT`.
 """
 
 from __future__ import annotations
@@ -84,29 +87,37 @@ def check_result(result: object, path: Path) -> dict:
     return result  # type: ignore[return-value]
 
 
-def read(folder: Path) -> dict[str, dict[int, dict]]:
-    """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given).
+def read(*folders: Path) -> dict[str, dict[int, dict]]:
+    """``group -> seed -> real_roads.py result`` (plus ``"synthetic"``: the synthetic test F1 when given) of the
+    runs in ``folders``, read as one.
 
     Raises:
-        SeedsError: ``folder`` is no folder, or a run file is unreadable, no JSON or no dev result.
+        SeedsError: a folder is no folder, a run file is unreadable, no JSON or no dev result, a run is in two
+            folders, or the runs were scored on different numbers of images.
     """
-    if not folder.is_dir():
-        raise SeedsError(f"{folder} is no folder of <group>-s<seed>.json files")
-    synthetic_file = folder / "synthetic-test.json"
-    synthetic = _json(synthetic_file) if os.path.lexists(synthetic_file) else {}
-    if not isinstance(synthetic, dict) or not all(_number(v) for v in synthetic.values()):
-        raise SeedsError(f"{synthetic_file}: not an object of <group>-s<seed>: synthetic test F1")
     groups: dict[str, dict[int, dict]] = {}
-    for path in sorted(folder.glob("*.json")):
-        match = SEEDED.match(path.stem)
-        if match is None:
-            continue
-        result = check_result(_json(path), path)
-        result["synthetic"] = synthetic.get(path.stem, float("nan"))
-        groups.setdefault(match["group"], {})[int(match["seed"])] = result
+    found: dict[str, Path] = {}
+    for folder in folders:
+        if not folder.is_dir():
+            raise SeedsError(f"{folder} is no folder of <group>-s<seed>.json files")
+        synthetic_file = folder / "synthetic-test.json"
+        synthetic = _json(synthetic_file) if os.path.lexists(synthetic_file) else {}
+        if not isinstance(synthetic, dict) or not all(_number(v) for v in synthetic.values()):
+            raise SeedsError(f"{synthetic_file}: not an object of <group>-s<seed>: synthetic test F1")
+        for path in sorted(folder.glob("*.json")):
+            match = SEEDED.match(path.stem)
+            if match is None:
+                continue
+            if path.stem in found:
+                raise SeedsError(f"{path.stem} is in {found[path.stem]} and in {folder}: name one of them")
+            found[path.stem] = folder
+            result = check_result(_json(path), path)
+            result["synthetic"] = synthetic.get(path.stem, float("nan"))
+            groups.setdefault(match["group"], {})[int(match["seed"])] = result
     sizes = {(g, s): len(r["labelled_frames"]["per_image"]) for g, seeds in groups.items() for s, r in seeds.items()}
     if len(set(sizes.values())) > 1:
-        raise SeedsError(f"{folder}: the runs were scored on different numbers of images ({sizes}): not comparable")
+        where = " ".join(str(f) for f in folders)
+        raise SeedsError(f"{where}: the runs were scored on different numbers of images ({sizes}): not comparable")
     return groups
 
 
@@ -178,23 +189,24 @@ def _difference(x: np.ndarray, y: np.ndarray, images: np.ndarray) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("folder", type=Path)
+    parser.add_argument("folders", type=Path, nargs="+")
     parser.add_argument("--groups", nargs="+", help="the groups to show, in this order (default: every group)")
     parser.add_argument("--boot", type=int, default=10000, help="bootstrap draws")
     args = parser.parse_args(argv)
     if (problem := option_problem(vars(args), ranges={"boot": Within(1, MAX_BOOT)})) is not None:
         return fail("real_roads_seeds", problem)
+    where = " ".join(str(f) for f in args.folders)
     try:
-        groups = read(args.folder)
+        groups = read(*args.folders)
     except SeedsError as err:
         return fail("real_roads_seeds", err)
     if args.groups:
         missing = [g for g in args.groups if g not in groups]
         if missing:
-            return fail("real_roads_seeds", f"no <group>-s<seed>.json for {', '.join(missing)} in {args.folder}")
+            return fail("real_roads_seeds", f"no <group>-s<seed>.json for {', '.join(missing)} in {where}")
         groups = {g: groups[g] for g in args.groups}
     if not groups:
-        return fail("real_roads_seeds", f"no <group>-s<seed>.json in {args.folder}")
+        return fail("real_roads_seeds", f"no <group>-s<seed>.json in {where}")
     print(table(groups))
     print()
     print("\n".join(differences(groups, args.boot)))

@@ -54,6 +54,23 @@ def test_groups_are_summed_over_seeds_and_compared_image_by_image(bench, tmp_pat
     assert line in capsys.readouterr().out.splitlines()  # a pair's interval whatever else is shown
 
 
+def test_several_folders_are_read_as_one_and_a_run_in_two_of_them_is_refused(bench, tmp_path: Path, capsys) -> None:
+    new, control = tmp_path / "new", tmp_path / "control"
+    for folder, group, rates in ((new, "new", [(0.0, 0.0), (0.0, 0.25)]), (control, "control", [(0.5, 0.5)] * 2)):
+        folder.mkdir()
+        for seed in (0, 1):
+            (folder / f"{group}-s{seed}.json").write_text(json.dumps(_result(rates, 0)))
+    (control / "synthetic-test.json").write_text(json.dumps({"control-s0": 99.0, "control-s1": 98.0}))
+    assert bench.main([str(new), str(control), "--groups", "new", "control", "--boot", "200"]) == 0
+    out = capsys.readouterr().out
+    assert "| **new** | 2 | " in out and "| **control** | 2 | " in out and "98.5 ± 0.7 |" in out
+    assert any(row.startswith("- new − control: +") for row in out.splitlines())
+    (new / "control-s1.json").write_text(json.dumps(_result([(0.5, 0.5)] * 2, 0)))
+    assert bench.main([str(new), str(control), "--boot", "200"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "control-s1 is in" in err[0] and "name one of them" in err[0]
+
+
 def test_a_missing_group_is_one_line_and_status_2(bench, tmp_path: Path, capsys) -> None:
     assert bench.main([str(tmp_path)]) == 2
     assert bench.main([str(tmp_path), "--groups", "nope"]) == 2
