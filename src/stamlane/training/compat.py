@@ -84,9 +84,9 @@ def _flat_name(group: str, field: str) -> str:
 
 
 GROUPED_ONLY = {("synth", "reveal"), ("synth", "reveal_traffic"), ("synth", "train_motion"), ("loader", "memory_mb")}
-GROUPED_ONLY |= {("clip", "align_preset")}
-"""Options added after the groups (generator format 6; the frame store; the alignment presets): they never had a flat
-name."""
+GROUPED_ONLY |= {("clip", "align_preset"), ("augment", "strides")}
+"""Options added after the groups (generator format 6; the frame store; the alignment presets; the spacing mix): they
+never had a flat name."""
 FLAT_KEYS: dict[str, tuple[str, str]] = {
     _flat_name(group, f.name): (group, f.name)
     for group, cls in GROUPS.items()
