@@ -19,15 +19,14 @@ group is missing, or two groups were scored on other photos or lines.
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
 from _harness import BenchInputError, Within, fail, option_problem, read_json_object
 from real_frames import CAUSES
+from real_roads_seeds import SEEDED  # a benchmark script beside this one: <group>-s<seed>
 from stamlane_eval.stats import paired_bootstrap
 
-SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
 POSITIONS = ("ego", "adjacent", "outer")
 MEASURES = ("absent", "matched", "peak probability")
 """What is compared per line: absent from the map (share of seeds), matched by lane.py (share), ``mean_max``."""

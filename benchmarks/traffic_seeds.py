@@ -18,14 +18,13 @@ or the groups of a pair share fewer than 2 seeds.
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
 from _harness import BenchInputError, fail, read_json_object
+from real_roads_seeds import SEEDED  # a benchmark script beside this one: <group>-s<seed>
 from stamlane_eval.stats import seed_interval
 
-SEEDED = re.compile(r"^(?P<group>.+)-s(?P<seed>\d+)$")
 HISTORIES = ("real", "copies", "exact")
 """The histories each checkpoint is scored with, as ``traffic_diagnosis.py`` names them."""
 
@@ -58,15 +57,10 @@ def read(*paths: Path) -> dict[str, dict[str, dict[int, dict[str, float]]]]:
     return kinds
 
 
-def _spread(values: list[float]) -> str:
-    """Mean ± std over seeds; one seed: its number alone."""
+def _spread(values: list[float], sign: str = "") -> str:
+    """Mean ± std over seeds (``sign="+"``: the mean signed); one seed: its number alone."""
     mean = float(np.mean(values))
-    return f"{mean:.1f}" if len(values) < 2 else f"{mean:.1f} ± {float(np.std(values, ddof=1)):.1f}"
-
-
-def _signed(values: list[float]) -> str:
-    mean = float(np.mean(values))
-    return f"{mean:+.1f}" if len(values) < 2 else f"{mean:+.1f} ± {float(np.std(values, ddof=1)):.1f}"
+    return f"{mean:{sign}.1f}" if len(values) < 2 else f"{mean:{sign}.1f} ± {float(np.std(values, ddof=1)):.1f}"
 
 
 def _paired(values: list[float]) -> str:
@@ -93,7 +87,7 @@ def table(kinds: dict[str, dict[str, dict[int, dict[str, float]]]], groups: list
             seeds = by_group[group]
             f1 = {h: [seeds[s][h] for s in sorted(seeds)] for h in HISTORIES}
             use = [r - c for r, c in zip(f1["real"], f1["copies"])]
-            cells = [_spread(f1["real"]), _spread(f1["copies"]), _spread(f1["exact"]), _signed(use)]
+            cells = [_spread(f1["real"]), _spread(f1["copies"]), _spread(f1["exact"]), _spread(use, "+")]
             lines.append(f"| {kind} | {group} | {len(seeds)} | " + " | ".join(cells) + " |")
         first = by_group[groups[0]]
         for other in groups[1:]:

@@ -695,6 +695,8 @@ HOSTILE_CONFIGS = {
     "data:\n  loader: {memory_mb: many}\n": "memory_mb",
     "data:\n  clip: {num_frames: 4, image_size: [16384, 16384]}\n": "over the budget",
     "data: !!python/object/apply:os.system ['echo pwned']\n": "python/object",
+    "data:\n  augment: {strides: [1, 0]}\n": "strides must all be >= 1",
+    "data:\n  augment: {strides: [one, four]}\n": "strides",
 }
 """Config values a careless or hostile user gives: sizes past the budget, conflicting and mistyped values, a tag."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -72,3 +73,9 @@ def test_bad_inputs_are_one_line_and_status_2(bench, tmp_path: Path, capsys) -> 
         assert bench.main(argv) == 2, said
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("outer_lanes_seeds: error:") and said in err[0], (said, err)
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    for hostile in ("/dev/zero", str(fifo), str(tmp_path)):  # never read to the end, never hung on, not a file
+        assert bench.main([hostile, "--groups", "new"]) == 2, hostile
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("outer_lanes_seeds: error:"), (hostile, err)
