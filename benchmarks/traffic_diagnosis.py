@@ -1,7 +1,8 @@
 """Vehicles that hide the lanes: what the aligned history shows of the hidden paint, what the networks make of it.
 
     python benchmarks/traffic_diagnosis.py [--clips 20] [--seed 57] [--kinds KIND ...] [--ckpt NAME_OR_FILE ...]
-                                           [--resamples 2000] [--align-preset standard] [--out outputs/bench/traffic]
+                                           [--resamples 2000] [--align-preset standard] [--any-stride]
+                                           [--out outputs/bench/traffic]
 
 Issue 57 asks why the 4-frame models barely read their history on ``reveal-traffic``. For each kind of vehicle
 traffic (the two ``reveal-traffic`` kinds at 5 fps, `REVEAL_TRAFFIC`, and the challenging split's three traffic
@@ -33,6 +34,11 @@ another preset's (b) also runs the 4-frame models on the history ``standard`` al
 ``real − standard`` paired over clips), and its (c) runs ``standard`` on each window right after it: its errors
 (``standard_px``) and both chains' thread CPU time a window (``chain_ms``, ``standard_ms``); the support and stage-1
 columns stay ``standard``'s.
+
+``--any-stride`` also reads a checkpoint that records another frame stride, on the same consecutive frames: a
+model fine-tuned at ``--data.clip.stride 4`` on 20 fps clips reads the 5 fps kinds at the spacing it was trained at
+(and the 20 fps kinds at a quarter of it); ``diagnosis.json`` records each checkpoint's stride (``strides``).
+Without it such a checkpoint is refused, since its spacing and the clips' differ.
 
 Writes ``diagnosis.json`` and ``summary.md`` (the tables: `table`). Exit status 2 with one line on a bad option or a
 checkpoint that cannot be read.
@@ -145,7 +151,8 @@ class Model:
     transform: Any
 
     @classmethod
-    def open(cls, ckpt: str) -> Model:
+    def open(cls, ckpt: str, any_stride: bool = False) -> Model:
+        """``any_stride``: a checkpoint that records a stride other than 1 is read too, on consecutive frames."""
         from stamlane.data.transforms import ClipTransform
         from stamlane.safety.checkpoints import CheckpointError
         from stamlane.training.stored import StoredModel
@@ -155,8 +162,9 @@ class Model:
             module, clip = stored.module, stored.settings.clip
         except (CheckpointError, OSError, ValueError) as err:
             raise DiagnosisError(f"--ckpt {ckpt}: {err}") from None
-        if clip is None or clip.stride != 1 or module.num_frames not in (1, HISTORY + 1):
-            raise DiagnosisError(f"--ckpt {ckpt}: not a 1-frame or {HISTORY + 1}-frame model of stride 1")
+        if clip is None or (clip.stride != 1 and not any_stride) or module.num_frames not in (1, HISTORY + 1):
+            stride = "" if any_stride else " of stride 1 (--any-stride reads other strides)"
+            raise DiagnosisError(f"--ckpt {ckpt}: not a 1-frame or {HISTORY + 1}-frame model{stride}")
         return cls(Path(ckpt).stem, module, clip, ClipTransform(clip.image_size, crop_top=clip.crop_top))
 
     @property
@@ -338,19 +346,22 @@ def key_frame_rows(kind: str, seed: int, j: int, models: list[Model], preset: st
 
 
 def run(kinds: list[str], clips: int, seed: int, ckpts: list[str], resamples: int, say: Any = print,
-        preset: str = "standard") -> dict:  # fmt: skip
-    """Every measurement on ``clips`` clips of each kind: the rows and their summary (`summarise`)."""
+        preset: str = "standard", any_stride: bool = False) -> dict:  # fmt: skip
+    """Every measurement on ``clips`` clips of each kind: the rows and their summary (`summarise`);
+    ``any_stride``: see `Model.open`."""
     import torch
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
-    models = [Model.open(c) for c in ckpts]
+    models = [Model.open(c, any_stride) for c in ckpts]
     names = [m.name for m in models]
     if len(set(names)) < len(names):
         raise DiagnosisError(f"--ckpt: two checkpoints of one name among {' '.join(names)}")
     out: dict[str, Any] = {"seed": seed, "clips": clips, "checkpoints": names, "kinds": {}}
     if preset != "standard":
         out["align_preset"] = preset
+    if any_stride:
+        out["strides"] = {m.name: m.clip.stride for m in models}
     start = time.perf_counter()
     for kind in kinds:
         key_rows = [r for j in range(clips) for r in key_frame_rows(kind, seed, j, models, preset)]
@@ -565,6 +576,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ckpt", nargs="+", default=list(DEFAULT_CKPTS), help="shipped model names or checkpoints")
     parser.add_argument("--resamples", type=int, default=2000, help=f"bootstrap resamples (100-{MAX_RESAMPLES})")
     parser.add_argument("--align-preset", default="standard", help=f"of {' '.join(ALIGN_PRESETS)} (default: standard)")
+    parser.add_argument("--any-stride", action="store_true", help="also read checkpoints of another frame stride")
     parser.add_argument("--out", type=Path, default=Path("outputs/bench/traffic"))
     args = parser.parse_args(argv)
     from stamlane.safety.guard import GuardError, check_outputs, write_atomic
@@ -588,7 +600,7 @@ def main(argv: list[str] | None = None) -> int:
     if problem is None:
         try:
             out = run(list(dict.fromkeys(args.kinds)), args.clips, args.seed, args.ckpt, args.resamples,
-                      preset=args.align_preset)  # fmt: skip
+                      preset=args.align_preset, any_stride=args.any_stride)  # fmt: skip
         except DiagnosisError as err:
             problem = str(err)
     if problem is not None:

@@ -8,11 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from stamlane.synth.clip import SynthClip, generate_clip
 from stamlane.synth.config import FACTORS, REVEAL_TRAFFIC, SynthConfig
 from stamlane.synth.layout import SPLITS
 from tests.benchmarks.scripts import benchmark_module
+from tests.tiny_checkpoint import save_tiny_checkpoint
 
 RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "traffic"
 
@@ -148,6 +150,26 @@ def test_another_preset_is_paired_with_standard_on_the_same_key_frames(bench, tm
     assert "| oncoming_close | stam4-synthetic | real − standard |" in (out / "summary.md").read_text()
 
 
+def test_a_model_of_another_stride_is_read_only_with_any_stride(bench, tmp_path: Path, capsys) -> None:
+    """A stride-4 fine-tune is refused by name (its spacing and the clips' differ) unless ``--any-stride`` asks for
+    it; then it reads the same consecutive frames and the result records its stride."""
+    ckpt = save_tiny_checkpoint(tmp_path / "s4-s0.ckpt", num_frames=4)
+    content = torch.load(ckpt, map_location="cpu", weights_only=False)
+    content["datamodule_hyper_parameters"]["stride"] = 4
+    torch.save(content, ckpt)
+    argv = ["--clips", "2", "--kinds", "oncoming_close", "--resamples", "100", "--ckpt", str(ckpt)]
+    assert bench.main([*argv, "--out", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "of stride 1 (--any-stride reads other strides)" in err[0]
+    assert not (tmp_path / "refused").exists()
+    assert bench.main([*argv, "--any-stride", "--out", str(tmp_path / "read")]) == 0
+    result = json.loads((tmp_path / "read" / "diagnosis.json").read_text())
+    assert result["strides"] == {"s4-s0": 4}
+    assert {"real", "copies", "real_minus_copies"} <= set(
+        result["kinds"]["oncoming_close"]["summary"]["models"]["s4-s0"]
+    )
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -170,6 +192,10 @@ def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path
     assert not out.exists()
 
 
-def test_the_committed_table_is_the_committed_numbers(bench) -> None:
-    out = json.loads((RESULTS / "diagnosis.json").read_text())
-    assert bench.table(out) == (RESULTS / "summary.md").read_text()
+@pytest.mark.parametrize(
+    "folder", sorted(p.parent.relative_to(RESULTS).as_posix() for p in RESULTS.rglob("diagnosis.json"))
+)
+def test_the_committed_table_is_the_committed_numbers(bench, folder: str) -> None:
+    """Every committed diagnosis (the shipped models', each probe's) beside the table it was written with."""
+    out = json.loads((RESULTS / folder / "diagnosis.json").read_text())
+    assert bench.table(out) == (RESULTS / folder / "summary.md").read_text()

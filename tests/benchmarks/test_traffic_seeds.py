@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 import pytest
 
 from tests.benchmarks.scripts import benchmark_module
+
+RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "traffic"
+MADE_BY = re.compile(r"<!-- traffic_seeds: (.+) -->\n\n")
+"""How a committed ``seeds.md`` names each of its tables: the arguments, files relative to its folder."""
 
 
 @pytest.fixture(scope="module")
@@ -72,3 +77,15 @@ def test_bad_inputs_are_one_line_and_status_2(bench, tmp_path: Path, capsys) -> 
         assert bench.main([hostile]) == 2, hostile
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("traffic_seeds: error:"), (hostile, err)
+
+
+@pytest.mark.parametrize("seeds", sorted(p.relative_to(RESULTS).as_posix() for p in RESULTS.rglob("seeds.md")))
+def test_the_committed_seed_tables_are_their_diagnoses_numbers(bench, seeds: str, capsys) -> None:
+    """Each table of a committed ``seeds.md`` is what this script prints from the diagnoses its comment names."""
+    path = RESULTS / seeds
+    blocks = MADE_BY.split(path.read_text())[1:]  # [arguments, table, arguments, table, ...]
+    assert blocks, f"{seeds} names no traffic_seeds arguments"
+    for arguments, committed in zip(blocks[::2], blocks[1::2], strict=True):
+        argv = [str(path.parent / a) if a.endswith(".json") else a for a in arguments.split()]
+        assert bench.main(argv) == 0
+        assert capsys.readouterr().out.strip() == committed.strip(), arguments
