@@ -163,8 +163,8 @@ class Model:
         except (CheckpointError, OSError, ValueError) as err:
             raise DiagnosisError(f"--ckpt {ckpt}: {err}") from None
         if clip is None or (clip.stride != 1 and not any_stride) or module.num_frames not in (1, HISTORY + 1):
-            stride = "" if any_stride else " of stride 1 (--any-stride reads other strides)"
-            raise DiagnosisError(f"--ckpt {ckpt}: not a 1-frame or {HISTORY + 1}-frame model{stride}")
+            of_stride = "" if any_stride else " of stride 1 (--any-stride reads other strides)"
+            raise DiagnosisError(f"--ckpt {ckpt}: not a 1-frame or {HISTORY + 1}-frame model{of_stride}")
         return cls(Path(ckpt).stem, module, clip, ClipTransform(clip.image_size, crop_top=clip.crop_top))
 
     @property

@@ -168,6 +168,10 @@ def test_a_model_of_another_stride_is_read_only_with_any_stride(bench, tmp_path:
     assert {"real", "copies", "real_minus_copies"} <= set(
         result["kinds"]["oncoming_close"]["summary"]["models"]["s4-s0"]
     )
+    two = save_tiny_checkpoint(tmp_path / "two-s0.ckpt", num_frames=2)  # any stride, but still 1 or 4 frames
+    assert bench.main([*argv[:-1], str(two), "--any-stride", "--out", str(tmp_path / "two")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("not a 1-frame or 4-frame model") and not (tmp_path / "two").exists()
 
 
 @pytest.mark.parametrize(
@@ -179,6 +183,8 @@ def test_a_model_of_another_stride_is_read_only_with_any_stride(bench, tmp_path:
         ["--resamples", "5"],
         ["--seed", "-1"],
         ["--ckpt", "nowhere.ckpt"],
+        ["--any-stride", "--ckpt", "nowhere.ckpt"],
+        ["--any-stride", "--ckpt", "/dev/zero"],
     ],
 )
 def test_bad_input_is_one_line_status_2_and_writes_nothing(bench, tmp_path: Path, capsys, argv: list[str]) -> None:
